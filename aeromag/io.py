@@ -1,0 +1,492 @@
+"""Reading and writing survey logs, column maps, units and atomic output.
+
+A survey log is a :class:`pandas.DataFrame` with the canonical columns of
+``shared/interface.md`` (``time`` [s], ``lat``/``lon`` [deg], ``alt`` [m], ``flux_x/y/z`` [nT],
+``mag`` [nT], ``line``, ``heading``/``pitch``/``roll`` [deg], ``mag_heading`` [deg], ``leg``).
+Logs named otherwise are read through a column map (``{"mag": "mag_1_uc"}``); units other than
+nT are converted only when asked (``{"flux": "uT"}``), never guessed.
+
+Every output file is written atomically: to a temporary file beside the target, then renamed,
+so that a failure never leaves a half-written file behind.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import math
+import os
+import tempfile
+import tomllib
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from .errors import InputError
+
+log = logging.getLogger(__name__)
+
+#: Canonical column names and their units.
+CANONICAL_COLUMNS: dict[str, str] = {
+    "time": "s",
+    "lat": "deg",
+    "lon": "deg",
+    "alt": "m",
+    "flux_x": "nT",
+    "flux_y": "nT",
+    "flux_z": "nT",
+    "mag": "nT",
+    "line": "integer",
+    "heading": "deg",
+    "pitch": "deg",
+    "roll": "deg",
+    "mag_heading": "deg",
+    "leg": "integer",
+}
+
+#: Columns whose values must be numeric when present.
+NUMERIC_COLUMNS: tuple[str, ...] = tuple(CANONICAL_COLUMNS)
+
+FLUX_COLUMNS: tuple[str, str, str] = ("flux_x", "flux_y", "flux_z")
+
+#: Factors that convert a magnetic field unit to nT.
+FIELD_UNITS_TO_NT: dict[str, float] = {
+    "nt": 1.0,
+    "ut": 1.0e3,
+    "µt": 1.0e3,
+    "mt": 1.0e6,
+    "g": 1.0e5,
+    "gauss": 1.0e5,
+    "mg": 1.0e2,
+    "t": 1.0e9,
+}
+
+#: Unit groups: a key of ``units`` may name a group or a single column.
+UNIT_GROUPS: dict[str, tuple[str, ...]] = {
+    "flux": FLUX_COLUMNS,
+    "mag": ("mag",),
+}
+
+
+# --------------------------------------------------------------------------- column maps
+def parse_column_map(items: Iterable[str], *, option: str = "--col") -> dict[str, str]:
+    """Parse ``NAME=SOURCE`` strings into a column map.
+
+    Parameters
+    ----------
+    items : iterable of str
+        Strings such as ``"mag=mag_1_uc"``; ``NAME`` is the canonical column, ``SOURCE`` the
+        column name in the file.
+    option : str
+        Option name quoted in error messages.
+
+    Returns
+    -------
+    dict
+        ``{canonical_name: source_name}``.
+    """
+    out: dict[str, str] = {}
+    for item in items:
+        if "=" not in item:
+            raise InputError(f"{option} {item!r}: expected NAME=VALUE, e.g. {option} mag=mag_1_uc")
+        name, _, source = item.partition("=")
+        name, source = name.strip(), source.strip()
+        if not name or not source:
+            raise InputError(f"{option} {item!r}: expected NAME=VALUE with both parts non-empty")
+        out[name] = source
+    return out
+
+
+def read_map_file(path: str | os.PathLike[str]) -> tuple[dict[str, str], dict[str, str]]:
+    """Read a TOML column-map file.
+
+    The file holds a ``[columns]`` table (canonical name = source column) and an optional
+    ``[units]`` table (column or group = unit), for example::
+
+        [columns]
+        mag = "mag_1_uc"
+        flux_x = "flux_b_x"
+
+        [units]
+        flux = "uT"
+
+    Parameters
+    ----------
+    path : path-like
+        The TOML file.
+
+    Returns
+    -------
+    columns, units : dict, dict
+    """
+    p = Path(path)
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{p}: column-map file not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{p}: not a valid TOML column map ({exc})") from None
+    cols = data.get("columns", {})
+    units = data.get("units", {})
+    if not isinstance(cols, dict) or not isinstance(units, dict):
+        raise InputError(f"{p}: [columns] and [units] must be tables of NAME = \"VALUE\"")
+    return {str(k): str(v) for k, v in cols.items()}, {str(k): str(v) for k, v in units.items()}
+
+
+def unit_factor(unit: str, *, what: str = "--units") -> float:
+    """Return the factor that converts a field unit to nT.
+
+    Parameters
+    ----------
+    unit : str
+        One of ``nT``, ``uT`` (``µT``), ``mT``, ``G`` (``gauss``), ``mG``, ``T``
+        (case-insensitive).
+    what : str
+        Context quoted in the error message.
+
+    Returns
+    -------
+    float
+        Multiply values in ``unit`` by this to get nT.
+    """
+    key = unit.strip().lower()
+    if key not in FIELD_UNITS_TO_NT:
+        known = ", ".join(["nT", "uT", "mT", "G", "mG", "T"])
+        raise InputError(f"{what}: unknown field unit {unit!r}; use one of {known}")
+    return FIELD_UNITS_TO_NT[key]
+
+
+# --------------------------------------------------------------------------- atomic output
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; rename it onto ``path`` on success.
+
+    On any exception the temporary file is removed and ``path`` is left untouched, so no
+    partial output is ever left behind.
+
+    Parameters
+    ----------
+    path : path-like
+        Final destination.
+    """
+    target = Path(path)
+    if target.parent and not target.parent.exists():
+        target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        yield tmp
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        raise
+
+
+def _csv_ready(df: pd.DataFrame) -> pd.DataFrame:
+    """Return a frame whose boolean columns are spelled ``true``/``false``."""
+    bool_cols = [c for c in df.columns if pd.api.types.is_bool_dtype(df[c].dtype)]
+    if not bool_cols:
+        return df
+    out = df.copy(deep=False)
+    for c in bool_cols:
+        vals = df[c].to_numpy()
+        out[c] = np.where(vals, "true", "false")
+    return out
+
+
+def write_csv(df: pd.DataFrame, path: str | os.PathLike[str]) -> Path:
+    """Write a log to CSV atomically; booleans are written ``true``/``false``.
+
+    Parameters
+    ----------
+    df : DataFrame
+        The table to write (index not written).
+    path : path-like
+        Destination CSV.
+
+    Returns
+    -------
+    Path
+        The written path.
+    """
+    target = Path(path)
+    with atomic_path(target) as tmp:
+        _csv_ready(df).to_csv(tmp, index=False, lineterminator="\n")
+    return target
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.floating):
+        return _clean_float(float(obj))
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def _clean_float(x: float) -> float | None:
+    return None if (math.isnan(x) or math.isinf(x)) else x
+
+
+def _jsonable(obj: Any) -> Any:
+    """Replace NaN/inf by None recursively (JSON has no NaN)."""
+    if isinstance(obj, float):
+        return _clean_float(obj)
+    if isinstance(obj, np.floating):
+        return _clean_float(float(obj))
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    return obj
+
+
+def write_json(obj: Any, path: str | os.PathLike[str]) -> Path:
+    """Write a JSON document atomically (NaN and inf written as ``null``).
+
+    Parameters
+    ----------
+    obj : object
+        JSON-serialisable data (numpy scalars and arrays are converted).
+    path : path-like
+        Destination file.
+
+    Returns
+    -------
+    Path
+        The written path.
+    """
+    target = Path(path)
+    text = json.dumps(_jsonable(obj), indent=2, default=_json_default, allow_nan=False)
+    with atomic_path(target) as tmp:
+        tmp.write_text(text + "\n", encoding="utf-8")
+    return target
+
+
+def json_path_for(csv_path: str | os.PathLike[str]) -> Path:
+    """Return ``OUT.json`` for ``OUT.csv`` (the report path of an output log)."""
+    return Path(csv_path).with_suffix(".json")
+
+
+# --------------------------------------------------------------------------- reading
+def _read_table(path: Path, fmt: str | None) -> pd.DataFrame:
+    """Read a raw table from ``path`` (CSV by default; other formats via ``formats``)."""
+    fmt = (fmt or "").lower() or None
+    suffix = path.suffix.lower()
+    if fmt not in (None, "csv") or suffix not in (".csv", ".txt", ""):
+        # Other formats live in their own module; imported lazily so CSV needs nothing more.
+        try:
+            from . import formats
+        except ImportError:  # pragma: no cover - formats module optional during development
+            formats = None  # type: ignore[assignment]
+        if formats is not None and hasattr(formats, "read_table"):
+            return formats.read_table(path, fmt)
+        if fmt not in (None, "csv"):
+            raise InputError(f"{path}: format {fmt!r} is not supported; use --format csv")
+    try:
+        df = pd.read_csv(path, skipinitialspace=True, low_memory=False)
+    except FileNotFoundError:
+        raise InputError(f"{path}: file not found") from None
+    except IsADirectoryError:
+        raise InputError(f"{path}: is a folder, not a log file") from None
+    except pd.errors.EmptyDataError:
+        raise InputError(f"{path}: the file is empty; expected a CSV log with a header row") from None
+    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
+        msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"{path}: cannot parse as CSV ({msg}); check the delimiter and quoting") from None
+    df.columns = [str(c).strip() for c in df.columns]
+    return df
+
+
+def apply_column_map(
+    df: pd.DataFrame, columns: Mapping[str, str] | None, *, source: str = "<log>"
+) -> pd.DataFrame:
+    """Rename source columns to canonical names.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Raw table.
+    columns : mapping or None
+        ``{canonical_name: source_name}``.
+    source : str
+        File name quoted in errors.
+
+    Returns
+    -------
+    DataFrame
+        The table with mapped columns renamed (unmapped columns kept as they are).
+    """
+    if not columns:
+        return df
+    rename: dict[str, str] = {}
+    for name, src in columns.items():
+        if src not in df.columns:
+            avail = ", ".join(map(str, df.columns[:20]))
+            raise InputError(
+                f"{source}: column {src!r} (mapped to {name!r}) not found; columns are: {avail}"
+            )
+        rename[src] = name
+    # A canonical name that is also an existing, unmapped column would collide: drop the old one.
+    clash = [name for src, name in rename.items() if name in df.columns and name != src]
+    out = df.drop(columns=[c for c in clash if c not in rename])
+    return out.rename(columns=rename)
+
+
+def _to_numeric(df: pd.DataFrame, cols: Sequence[str], source: str) -> pd.DataFrame:
+    """Convert ``cols`` to float, naming the first unparseable cell in the error."""
+    for c in cols:
+        s = df[c]
+        if pd.api.types.is_numeric_dtype(s.dtype) and not pd.api.types.is_bool_dtype(s.dtype):
+            if s.dtype != np.float64 and c not in ("line", "leg"):
+                df[c] = s.astype(np.float64)
+            continue
+        conv = pd.to_numeric(s, errors="coerce")
+        bad = conv.isna() & s.notna() & (s.astype(str).str.strip() != "")
+        if bad.any():
+            i = int(np.flatnonzero(bad.to_numpy())[0])
+            raise InputError(
+                f"{source}: column {c!r}, line {i + 2}: value {str(s.iloc[i])!r} is not a number;"
+                " fix the value or map another column with --col"
+            )
+        df[c] = conv.astype(np.float64)
+    return df
+
+
+def convert_units(
+    df: pd.DataFrame, units: Mapping[str, str] | None, *, source: str = "<log>"
+) -> pd.DataFrame:
+    """Convert field columns to nT as requested (never guessed).
+
+    Parameters
+    ----------
+    df : DataFrame
+        Log with canonical names.
+    units : mapping or None
+        ``{column_or_group: unit}``; groups are ``flux`` (the three fluxgate axes) and ``mag``.
+    source : str
+        File name quoted in errors.
+
+    Returns
+    -------
+    DataFrame
+        The same frame, converted in place.
+    """
+    if not units:
+        return df
+    for key, unit in units.items():
+        factor = unit_factor(unit, what=f"{source}: --units {key}={unit}")
+        cols = UNIT_GROUPS.get(key, (key,))
+        present = [c for c in cols if c in df.columns]
+        if not present:
+            raise InputError(f"{source}: --units {key}={unit}: no column {key!r} in the log")
+        for c in present:
+            if CANONICAL_COLUMNS.get(c, "nT") != "nT":
+                raise InputError(f"{source}: --units {key}: column {c!r} is not a field in nT")
+            df[c] = df[c].astype(np.float64) * factor
+    return df
+
+
+def read_log(
+    path: str | os.PathLike[str],
+    *,
+    columns: Mapping[str, str] | None = None,
+    units: Mapping[str, str] | None = None,
+    required: Sequence[str] = ("time",),
+    fmt: str | None = None,
+    min_rows: int = 2,
+) -> pd.DataFrame:
+    """Read a survey log into canonical columns and validate it.
+
+    Steps: read the table (CSV by default), rename through ``columns``, check that the
+    ``required`` columns exist, convert canonical columns to numbers (an unparseable cell is an
+    error naming its column and line), convert units when asked, drop exact duplicate rows and
+    check that ``time`` is strictly increasing.  All other rows and columns are kept.
+
+    Parameters
+    ----------
+    path : path-like
+        The log file.
+    columns : mapping, optional
+        Column map ``{canonical_name: source_name}``.
+    units : mapping, optional
+        Unit conversions ``{column_or_group: unit}`` (``flux`` or ``mag`` groups, or a column).
+    required : sequence of str
+        Canonical columns that must be present.
+    fmt : str, optional
+        Format name; inferred from the extension when omitted.
+    min_rows : int
+        Fewest data rows accepted.
+
+    Returns
+    -------
+    DataFrame
+        The log; ``df.attrs["source"]`` holds the path.
+    """
+    p = Path(path)
+    source = str(p)
+    if not p.exists():
+        raise InputError(f"{source}: file not found")
+    df = _read_table(p, fmt)
+    df = apply_column_map(df, columns, source=source)
+    missing = [c for c in required if c not in df.columns]
+    if missing:
+        avail = ", ".join(map(str, df.columns[:20]))
+        raise InputError(
+            f"{source}: missing column(s) {', '.join(missing)}; columns are: {avail};"
+            " map them with --col NAME=SOURCE"
+        )
+    if len(df) < min_rows:
+        raise InputError(f"{source}: only {len(df)} data row(s); need at least {min_rows}")
+    present = [c for c in NUMERIC_COLUMNS if c in df.columns]
+    df = _to_numeric(df, present, source)
+    df = convert_units(df, units, source=source)
+    if "time" in df.columns:
+        df = _clean_time(df, source)
+    if len(df) < min_rows:
+        raise InputError(f"{source}: only {len(df)} usable row(s); need at least {min_rows}")
+    df.attrs["source"] = source
+    return df
+
+
+def _clean_time(df: pd.DataFrame, source: str) -> pd.DataFrame:
+    """Drop exact duplicate rows; require a finite, strictly increasing ``time``."""
+    t = df["time"].to_numpy(dtype=np.float64)
+    bad = ~np.isfinite(t)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(f"{source}: column 'time', line {i + 2}: empty or non-finite time")
+    dup = np.zeros(len(df), dtype=bool)
+    same_t = np.r_[False, t[1:] == t[:-1]]
+    if same_t.any():
+        # Only rows identical to their predecessor in every column are dropped.
+        prev = df.shift(1)
+        eq = (df.eq(prev) | (df.isna() & prev.isna())).all(axis=1).to_numpy()
+        dup = same_t & eq
+        if dup.any():
+            log.warning("%s: dropped %d exact duplicate row(s)", source, int(dup.sum()))
+            df = df.loc[~dup].reset_index(drop=True)
+            t = t[~dup]
+    dt = np.diff(t)
+    if (dt <= 0).any():
+        i = int(np.flatnonzero(dt <= 0)[0]) + 1
+        # Report the line in the original file.
+        orig = np.flatnonzero(~dup)[i] if dup.any() else i
+        raise InputError(
+            f"{source}: column 'time', line {orig + 2}: time {t[i]!r} is not after {t[i - 1]!r};"
+            " time must be strictly increasing (sort the log or fix the row)"
+        )
+    return df
