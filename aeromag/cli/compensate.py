@@ -1,0 +1,137 @@
+"""``aeromag compensate`` and ``aeromag calibrate``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..compensate import CompensationConfig, calibrate_file, compensate_file
+from ..io import json_path_for
+from .app import app, column_options, setup_logging, user_errors
+
+Band = Annotated[
+    tuple[float, float],
+    typer.Option("--band", metavar="LOW HIGH",
+                 help="Band-pass applied before fitting, Hz (zero-phase Butterworth)."),
+]
+Terms = Annotated[str, typer.Option("--terms", help="Term set: 16 (default), 18, 9, or groups "
+                                    "like permanent,induced_5,eddy_8[,bias].")]
+SegSec = Annotated[float, typer.Option("--segment-seconds", metavar="S",
+                                       help="Segment length when the log has no 'line' column, s.")]
+NoScreen = Annotated[bool, typer.Option("--no-screen", help="Skip PCA screening (fit all segments).")]
+Col = Annotated[list[str] | None, typer.Option("--col", metavar="NAME=SOURCE",
+                                               help="Column map, repeatable (e.g. mag=mag_1_uc).")]
+MapFile = Annotated[Path | None, typer.Option("--map", metavar="FILE",
+                                              help="TOML column map ([columns], [units]).")]
+Units = Annotated[list[str] | None, typer.Option("--units", metavar="NAME=UNIT",
+                  help="Convert a field column or group (flux, mag) from nT/uT/mT/G to nT.")]
+Ridge = Annotated[float, typer.Option("--ridge", help="Relative ridge parameter (0 = plain LS).")]
+Shrink = Annotated[float, typer.Option("--shrink", help="Shrinkage of per-segment fits toward "
+                                       "the pooled fit during screening (0 = none).")]
+Variance = Annotated[float, typer.Option("--pca-variance", help="Cumulative explained variance "
+                                         "of the PCA components used for screening.")]
+Quantile = Annotated[float, typer.Option("--screen-quantile", help="Chi-square quantile of the "
+                                         "screening cut-off on the robust distance.")]
+MaxGap = Annotated[float | None, typer.Option("--max-gap", metavar="S", help="A time step longer "
+                                              "than this starts a new stretch, s (default 5 dt).")]
+MaxInterp = Annotated[float, typer.Option("--max-interp", metavar="S", help="NaN gaps up to this "
+                                          "long are interpolated, s; longer ones split stretches.")]
+Fmt = Annotated[str | None, typer.Option("--format", help="Input format (default: from the "
+                                         "extension).")]
+Verbose = Annotated[bool, typer.Option("-v", "--verbose", help="Log progress details.")]
+
+
+@app.command()
+def compensate(
+    survey: Annotated[Path, typer.Argument(help="Survey log (CSV).", show_default=False)],
+    output: Annotated[Path, typer.Option("-o", help="Output CSV (the report goes to OUT.json).")],
+    model: Annotated[Path | None, typer.Option("--model", help="Apply a saved model "
+                                               "(from 'aeromag calibrate') instead of fitting.")]
+    = None,
+    band: Band = (0.1, 0.9),
+    terms: Terms = "16",
+    segment_seconds: SegSec = 60.0,
+    no_screen: NoScreen = False,
+    no_filter: Annotated[bool, typer.Option("--no-filter", help="Leave mag_comp unfiltered.")]
+    = False,
+    lowpass: Annotated[float | None, typer.Option("--lowpass", metavar="HZ", help="Cut-off of "
+                       "the final low-pass on mag_comp, Hz (default: the band's upper edge).")]
+    = None,
+    col: Col = None,
+    map_file: MapFile = None,
+    units: Units = None,
+    ridge: Ridge = 0.0,
+    shrink: Shrink = 1.0,
+    pca_variance: Variance = 0.8,
+    screen_quantile: Quantile = 0.975,
+    max_gap: MaxGap = None,
+    max_interp: MaxInterp = 1.0,
+    fmt: Fmt = None,
+    verbose: Verbose = False,
+) -> None:
+    """Fit the Tolles-Lawson model on the survey itself (per segment, PCA screening, refit) or
+    apply a saved --model; write OUT.csv (mag_tl, mag_comp, segment, segment_kept) and OUT.json.
+    """
+    setup_logging(verbose)
+    with user_errors():
+        columns, unit_map = column_options(col, map_file, units)
+        cfg = CompensationConfig(
+            band_hz=band, terms=terms, segment_seconds=segment_seconds, screen=not no_screen,
+            filter_output=not no_filter, lowpass_hz=lowpass, ridge=ridge, shrink=shrink,
+            pca_variance=pca_variance, screen_quantile=screen_quantile, max_gap_s=max_gap,
+            max_interp_s=max_interp,
+        )
+        res = compensate_file(survey, output, cfg, model=model, columns=columns, units=unit_map,
+                              fmt=fmt)
+    _summary(res.report, output, json_path_for(output))
+
+
+@app.command()
+def calibrate(
+    cal: Annotated[Path, typer.Argument(help="Calibration flight log (CSV).", show_default=False)],
+    output: Annotated[Path, typer.Option("-o", help="Output model file (JSON).")],
+    band: Band = (0.1, 0.9),
+    terms: Terms = "16",
+    segment_seconds: SegSec = 60.0,
+    no_screen: NoScreen = False,
+    col: Col = None,
+    map_file: MapFile = None,
+    units: Units = None,
+    ridge: Ridge = 0.0,
+    shrink: Shrink = 1.0,
+    pca_variance: Variance = 0.8,
+    screen_quantile: Quantile = 0.975,
+    max_gap: MaxGap = None,
+    max_interp: MaxInterp = 1.0,
+    fmt: Fmt = None,
+    verbose: Verbose = False,
+) -> None:
+    """Fit and screen the Tolles-Lawson model on a calibration flight; write the model JSON."""
+    setup_logging(verbose)
+    with user_errors():
+        columns, unit_map = column_options(col, map_file, units)
+        cfg = CompensationConfig(
+            band_hz=band, terms=terms, segment_seconds=segment_seconds, screen=not no_screen,
+            ridge=ridge, shrink=shrink, pca_variance=pca_variance,
+            screen_quantile=screen_quantile, max_gap_s=max_gap, max_interp_s=max_interp,
+        )
+        res = calibrate_file(cal, output, cfg, columns=columns, units=unit_map, fmt=fmt)
+    _summary(res.report, output, None)
+
+
+def _summary(report: dict, out: Path, out_json: Path | None) -> None:
+    m = report.get("metrics", {})
+    scr = report.get("screening", {})
+    segs = report.get("segments", [])
+    kept = sum(1 for s in segs if s.get("kept"))
+    line = (f"wrote {out}" + (f" and {out_json}" if out_json else "")
+            + f": {kept}/{len(segs)} segments kept")
+    if scr.get("dropped"):
+        line += f" (dropped {', '.join(map(str, scr['dropped']))})"
+    ir = m.get("improvement_ratio")
+    rs = m.get("residual_std_nT")
+    if ir is not None and rs is not None:
+        line += f"; improvement ratio {ir:.2f}, residual std {rs:.4f} nT"
+    typer.echo(line)

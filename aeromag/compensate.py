@@ -1,0 +1,761 @@
+"""The compensation pipeline: per-segment TL fits, PCA screening, refit, apply, filter.
+
+Python API used by the command line and by notebooks::
+
+    from aeromag.compensate import CompensationConfig, calibrate, compensate
+    res = calibrate(cal_df)                  # fit + screening -> res.model, res.report
+    out = compensate(survey_df, model=res.model)
+    out.data[["mag", "mag_tl", "mag_comp"]]
+
+Steps (patent M1, see ``shared/methods.md``):
+
+1. direction cosines and ``|B|`` from the fluxgate; the measured total field is ``mag`` (or
+   ``|B|`` when the log has no ``mag``);
+2. continuous stretches (time gaps and long NaN gaps split them; short NaN gaps are
+   interpolated) and segments (the ``line`` column, or fixed windows);
+3. the TL design matrix with derivatives against real time within each stretch; the target and
+   every column band-passed (zero-phase Butterworth) per stretch, filter edges trimmed;
+4. per-segment normal equations; a pooled fit; per-segment fits shrunk toward the pool;
+5. PCA screening of the per-segment coefficients (:mod:`aeromag.screening`), repeated with the
+   pool of the kept set until the kept set is stable;
+6. one refit on all kept segments; ``mag_tl = A @ coef`` (unfiltered, never re-centred: it is a
+   property of the aircraft); ``mag_comp = mag - mag_tl``, low-pass filtered (level kept).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import logging
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from . import __version__
+from .errors import FitError, InputError
+from .filters import (
+    butter_sos,
+    filter_stretches,
+    lowpass_stretches,
+    min_filter_length,
+    sampling_rate,
+    trim_mask,
+)
+from .io import FLUX_COLUMNS, atomic_path, json_path_for, read_log, write_csv, write_json
+from .screening import RULE, ScreenResult, pca_screen, shrunk_segment_fits
+from .segments import assign_segments, find_stretches, interpolate_short_gaps
+from .tolles_lawson import TLModel, design_matrix, parse_terms, solve_normal
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class CompensationConfig:
+    """Options of the compensation pipeline (all with the command line's defaults).
+
+    Attributes
+    ----------
+    band_hz : (float, float)
+        Band-pass applied to the target and every term before least squares [Hz].
+    terms : str
+        Term set (:func:`aeromag.tolles_lawson.parse_terms`), default ``"16"``.
+    segment_seconds : float
+        Segment length when the log has no ``line`` column [s].
+    screen : bool
+        PCA screening of segments (``--no-screen`` turns it off).
+    filter_output : bool
+        Low-pass filter ``mag_comp`` (``--no-filter`` turns it off).
+    lowpass_hz : float or None
+        Cut-off of the final low-pass [Hz]; default the band's upper edge.
+    order : int
+        Butterworth order.
+    ridge : float
+        Relative ridge parameter of the final fit (0 = plain least squares).
+    shrink : float
+        Strength of the per-segment shrinkage toward the pooled fit (screening only).
+    pca_variance : float
+        Cumulative explained variance of the retained components (0-1].
+    screen_quantile : float
+        Chi-square quantile of the screening cut-off.
+    max_iter : int
+        Most screening rounds.
+    min_segments : int
+        Fewest fitted segments for screening; fewer are fitted without screening.
+    min_excess : float
+        A segment outside the PCA main cluster is dropped only when the pooled fit leaves it a
+        band-passed residual std above ``min_excess`` times the median over kept segments
+        (an outlier that the pool fits as well as any other segment is statistically, not
+        practically, different and is kept).
+    min_segment_seconds : float or None
+        Shortest usable segment after trimming [s]; default ``1 / band_hz[0]``.
+    max_gap_s : float or None
+        Longest time step inside a stretch [s]; default 5 sample intervals.
+    max_interp_s : float
+        Longest NaN gap interpolated [s]; longer gaps split stretches.
+    trim_s : float or None
+        Filter edge dropped at each stretch end before fitting [s]; default
+        ``0.5 / band_hz[0]``.
+    """
+
+    band_hz: tuple[float, float] = (0.1, 0.9)
+    terms: str = "16"
+    segment_seconds: float = 60.0
+    screen: bool = True
+    filter_output: bool = True
+    lowpass_hz: float | None = None
+    order: int = 4
+    ridge: float = 0.0
+    shrink: float = 1.0
+    pca_variance: float = 0.8
+    screen_quantile: float = 0.975
+    max_iter: int = 10
+    min_segments: int = 6
+    min_excess: float = 1.25
+    min_segment_seconds: float | None = None
+    max_gap_s: float | None = None
+    max_interp_s: float = 1.0
+    trim_s: float | None = None
+
+    def __post_init__(self) -> None:
+        self.band_hz = (float(self.band_hz[0]), float(self.band_hz[1]))
+        if not 0 < self.pca_variance <= 1:
+            raise InputError(f"--pca-variance {self.pca_variance}: must be in (0, 1]")
+        if not 0 < self.screen_quantile < 1:
+            raise InputError(f"--screen-quantile {self.screen_quantile}: must be in (0, 1)")
+        if self.ridge < 0 or self.shrink < 0:
+            raise InputError("--ridge and --shrink must be >= 0")
+
+
+@dataclass
+class Prepared:
+    """Arrays of a log ready for fitting/applying (see :func:`prepare`)."""
+
+    time: np.ndarray
+    flux: np.ndarray
+    mag: np.ndarray
+    flux_ok: np.ndarray
+    valid: np.ndarray
+    stretch: np.ndarray
+    segment: np.ndarray
+    fs: float
+    source: str
+    mag_from_flux: bool
+
+
+@dataclass
+class SegmentStats:
+    """Band-passed normal equations per segment."""
+
+    ids: np.ndarray
+    n: np.ndarray
+    gram: np.ndarray
+    rhs: np.ndarray
+    yy: np.ndarray
+    too_short: dict[int, int]
+
+
+@dataclass
+class CompensationResult:
+    """What the pipeline returns.
+
+    Attributes
+    ----------
+    data : DataFrame
+        The input log plus ``mag_tl``, ``mag_comp``, ``segment``, ``segment_kept``.
+    model : TLModel
+        The model applied (fitted here or loaded).
+    report : dict
+        The JSON report (interface.md keys and more).
+    screen : ScreenResult or None
+        The last PCA screening (None when not screened).
+    """
+
+    data: pd.DataFrame | None
+    model: TLModel
+    report: dict[str, Any]
+    screen: ScreenResult | None = None
+    segment_table: pd.DataFrame | None = field(default=None, repr=False)
+
+
+# --------------------------------------------------------------------------- preparation
+def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = None) -> Prepared:
+    """Extract and validate the arrays the pipeline needs.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Log with canonical columns (``time``, ``flux_x/y/z``, optional ``mag``, ``line``).
+    cfg : CompensationConfig
+        Pipeline options.
+    source : str, optional
+        File name quoted in errors (default ``df.attrs["source"]``).
+
+    Returns
+    -------
+    Prepared
+    """
+    src = source or str(df.attrs.get("source", "<log>"))
+    missing = [c for c in ("time", *FLUX_COLUMNS) if c not in df.columns]
+    if missing:
+        raise InputError(
+            f"{src}: missing column(s) {', '.join(missing)}; map them with --col NAME=SOURCE"
+        )
+    t = df["time"].to_numpy(dtype=np.float64)
+    if len(t) < 2:
+        raise InputError(f"{src}: only {len(t)} row(s); a log needs many samples to fit")
+    flux = np.empty((len(t), 3), dtype=np.float64)
+    for j, c in enumerate(FLUX_COLUMNS):
+        flux[:, j], _ = interpolate_short_gaps(df[c].to_numpy(dtype=np.float64), t,
+                                               cfg.max_interp_s)
+    mag_from_flux = "mag" not in df.columns
+    if mag_from_flux:
+        mag = np.sqrt(np.einsum("ij,ij->i", flux, flux))
+        log.info("%s: no 'mag' column: the fluxgate magnitude is the measured total field", src)
+    else:
+        mag, _ = interpolate_short_gaps(df["mag"].to_numpy(dtype=np.float64), t, cfg.max_interp_s)
+    flux_ok = np.all(np.isfinite(flux), axis=1)
+    bt = np.sqrt(np.einsum("ij,ij->i", np.where(flux_ok[:, None], flux, 0.0),
+                           np.where(flux_ok[:, None], flux, 0.0)))
+    flux_ok &= bt > 0
+    if not flux_ok.any():
+        raise InputError(f"{src}: columns flux_x/flux_y/flux_z hold no usable sample")
+    fz = flux[flux_ok]
+    if np.all(np.ptp(fz, axis=0) == 0):
+        raise FitError(
+            f"{src}: columns flux_x, flux_y, flux_z are constant: the fluxgate did not record"
+            " attitude changes; check the column map (--col) or the instrument"
+        )
+    valid = flux_ok & np.isfinite(mag)
+    if valid.sum() < 2:
+        raise InputError(f"{src}: column 'mag' holds no usable sample")
+    stretch = find_stretches(t, valid, cfg.max_gap_s)
+    line = df["line"].to_numpy(dtype=np.float64) if "line" in df.columns else None
+    if line is not None and not np.isfinite(line).any():
+        line = None
+    segment = assign_segments(t, stretch, line, cfg.segment_seconds)
+    fs = sampling_rate(t)
+    return Prepared(t, flux, mag, flux_ok, valid, stretch, segment, fs, src, mag_from_flux)
+
+
+def segment_normal_equations(
+    prep: Prepared, terms: tuple[str, ...], cfg: CompensationConfig
+) -> SegmentStats:
+    """Band-pass the design matrix and target per stretch; normal equations per segment.
+
+    Parameters
+    ----------
+    prep : Prepared
+        Arrays from :func:`prepare`.
+    terms : tuple of str
+        Fitted terms (no ``bias``: it vanishes in the band).
+    cfg : CompensationConfig
+        Options (band, order, trimming, shortest segment).
+
+    Returns
+    -------
+    SegmentStats
+    """
+    sos = butter_sos("bandpass", cfg.band_hz, prep.fs, cfg.order, source=prep.source)
+    v = prep.valid
+    t = prep.time[v]
+    st = prep.stretch[v]
+    seg = prep.segment[v]
+    k = len(terms)
+    X = np.empty((k + 1, int(v.sum())), dtype=np.float64)
+    design_matrix(prep.flux[v], t, terms, stretch=st, out=X[:k].T)
+    y = prep.mag[v]
+    X[k] = y - np.median(y)
+    Xf = filter_stretches(X, st, sos, axis=1)
+    trim = (0.5 / cfg.band_hz[0]) if cfg.trim_s is None else cfg.trim_s
+    use = trim_mask(st, t, trim) & (seg >= 0) & np.isfinite(Xf[k])
+    if not use.any():
+        nmin = min_filter_length(sos) / prep.fs
+        raise FitError(
+            f"{prep.source}: no continuous stretch is long enough to band-pass and trim"
+            f" (needs > {max(nmin, 2 * trim):.0f} s without gaps); use longer stretches,"
+            " a higher --band LOW, or a larger --max-gap"
+        )
+    sidx = seg[use]
+    order = np.argsort(sidx, kind="stable")
+    Xs = Xf[:, use][:, order]
+    sidx = sidx[order]
+    ids, first, counts = np.unique(sidx, return_index=True, return_counts=True)
+    min_s = (1.0 / cfg.band_hz[0]) if cfg.min_segment_seconds is None else cfg.min_segment_seconds
+    nmin = max(int(np.ceil(min_s * prep.fs)), 3 * k)
+    ok = counts >= nmin
+    too_short = {int(i): int(c) for i, c in zip(ids[~ok], counts[~ok], strict=True)}
+    # Segments that vanished entirely (all inside trimmed edges) are too short too.
+    all_ids = np.unique(prep.segment[prep.segment >= 0])
+    for i in np.setdiff1d(all_ids, ids):
+        too_short[int(i)] = 0
+    m = int(ok.sum())
+    gram = np.empty((m, k, k))
+    rhs = np.empty((m, k))
+    yy = np.empty(m)
+    for j, (a, c) in enumerate(zip(first[ok], counts[ok], strict=True)):
+        blk = Xs[:, a:a + c]
+        M = blk @ blk.T
+        gram[j], rhs[j], yy[j] = M[:k, :k], M[:k, k], M[k, k]
+    return SegmentStats(ids[ok], counts[ok], gram, rhs, yy, too_short)
+
+
+def _residual_std(stats: SegmentStats, coef: np.ndarray) -> np.ndarray:
+    """Band-passed residual std per segment for coefficients ``coef`` (k,) or (m, k)."""
+    c = np.broadcast_to(coef, stats.rhs.shape)
+    sse = stats.yy - 2 * np.einsum("mk,mk->m", c, stats.rhs) + np.einsum(
+        "mk,mkj,mj->m", c, stats.gram, c
+    )
+    return np.sqrt(np.maximum(sse, 0.0) / stats.n)
+
+
+def _scaled_cond(gram: np.ndarray) -> np.ndarray:
+    d = np.sqrt(np.maximum(np.diagonal(gram, axis1=-2, axis2=-1), 1e-300))
+    gs = gram / d[..., :, None] / d[..., None, :]
+    ev = np.linalg.eigvalsh(gs)
+    with np.errstate(divide="ignore"):
+        return np.sqrt(ev[..., -1] / np.where(ev[..., 0] > 0, ev[..., 0], 0.0))
+
+
+# --------------------------------------------------------------------------- fitting
+def fit_model(
+    df: pd.DataFrame, cfg: CompensationConfig | None = None, *, source: str | None = None,
+    prep: Prepared | None = None,
+) -> CompensationResult:
+    """Fit the TL model on a log: per-segment fits, PCA screening, refit on kept segments.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Calibration or survey log with canonical columns.
+    cfg : CompensationConfig, optional
+        Options (defaults as on the command line).
+    source : str, optional
+        File name quoted in errors and the report.
+    prep : Prepared, optional
+        Arrays already prepared from ``df``.
+
+    Returns
+    -------
+    CompensationResult
+        ``data`` is None; ``model`` carries the report as its metadata.
+    """
+    cfg = cfg or CompensationConfig()
+    prep = prep or prepare(df, cfg, source=source)
+    terms = parse_terms(cfg.terms)
+    fit_terms = tuple(t for t in terms if t != "bias")
+    if not fit_terms:
+        raise InputError("--terms: the bias alone cannot be fitted in a band; add terms")
+    stats = segment_normal_equations(prep, fit_terms, cfg)
+    m = len(stats.ids)
+    if m == 0:
+        raise FitError(
+            f"{prep.source}: every segment is too short to fit ({len(stats.too_short)} segment(s));"
+            " use a longer --segment-seconds or check the line column"
+        )
+    for sid, cnt in stats.too_short.items():
+        log.warning("%s: segment %d too short to fit (%d usable samples): left out",
+                    prep.source, sid, cnt)
+    kept = np.ones(m, dtype=bool)
+    screen: ScreenResult | None = None
+    notes: list[str] = []
+    iterations = 0
+    screened = cfg.screen and m >= cfg.min_segments
+    if cfg.screen and not screened:
+        notes.append(
+            f"only {m} segment(s) could be fitted (screening needs {cfg.min_segments}):"
+            " fitted without screening"
+        )
+    if screened:
+        for iterations in range(1, cfg.max_iter + 1):  # noqa: B007 - reported below
+            G = stats.gram[kept].sum(axis=0)
+            b = stats.rhs[kept].sum(axis=0)
+            pooled, _, _ = solve_normal(G, b, max(cfg.ridge, 1e-9))
+            col_ms = np.diag(G) / stats.n[kept].sum()
+            seg_coef = shrunk_segment_fits(stats.gram, stats.rhs, stats.n.astype(float), pooled,
+                                           col_ms, cfg.shrink)
+            screen = pca_screen(seg_coef, variance=cfg.pca_variance,
+                                quantile=cfg.screen_quantile)
+            r_pool = _residual_std(stats, pooled)
+            excess = r_pool / np.median(r_pool[kept])
+            new = screen.kept | (excess <= cfg.min_excess)
+            if new.sum() < max(3, (m + 1) // 2):
+                # Never let the "main cluster" be a minority: keep the closest half.
+                order = np.argsort(screen.distance)
+                new = np.zeros(m, dtype=bool)
+                new[order[: max(3, (m + 1) // 2)]] = True
+                notes.append("screening would drop most segments: kept the closest half")
+            if np.array_equal(new, kept):
+                break
+            kept = new
+        else:
+            notes.append(f"screening did not settle within {cfg.max_iter} rounds")
+    G = stats.gram[kept].sum(axis=0)
+    b = stats.rhs[kept].sum(axis=0)
+    try:
+        coef_fit, cond, cond_s = solve_normal(G, b, cfg.ridge)
+    except FitError as exc:
+        raise FitError(f"{prep.source}: {exc}") from None
+    coef = np.zeros(len(terms))
+    idx = [terms.index(t) for t in fit_terms]
+    coef[idx] = coef_fit
+    if "bias" in terms:
+        # The bias is invisible in the band: fix it on the unfiltered kept samples.
+        inkeep = np.isin(prep.segment, stats.ids[kept]) & prep.valid
+        A = design_matrix(prep.flux[inkeep], prep.time[inkeep], fit_terms,
+                          stretch=prep.stretch[inkeep])
+        coef[terms.index("bias")] = float(np.mean(prep.mag[inkeep] - A @ coef_fit))
+    resid = _residual_std(stats, coef_fit)
+    seg_cond = _scaled_cond(stats.gram)
+    n_fit = int(stats.n[kept].sum())
+    sse = float(stats.yy[kept].sum() - 2 * coef_fit @ b + coef_fit @ G @ coef_fit)
+    segments = []
+    for j, sid in enumerate(stats.ids):
+        entry: dict[str, Any] = {
+            "id": int(sid),
+            "n": int(stats.n[j]),
+            "kept": bool(kept[j]),
+            "scores": screen.scores[j].tolist() if screen is not None else None,
+            "residual_std": float(resid[j]),
+            "condition_number": float(seg_cond[j]),
+        }
+        if screen is not None:
+            entry["robust_distance"] = float(screen.distance[j])
+            entry["pca_outlier"] = bool(not screen.kept[j])
+            entry["residual_excess"] = float(excess[j])
+        segments.append(entry)
+    for sid, cnt in sorted(stats.too_short.items()):
+        segments.append({"id": sid, "n": cnt, "kept": False, "scores": None,
+                         "residual_std": None, "condition_number": None,
+                         "reason": "too short to fit"})
+    segments.sort(key=lambda e: e["id"])
+    screening: dict[str, Any] = {
+        "enabled": bool(screened),
+        "requested": bool(cfg.screen),
+        "method": "pca+mcd",
+        "rule": RULE,
+        "pca_variance_threshold": cfg.pca_variance,
+        "quantile": cfg.screen_quantile,
+        "shrink": cfg.shrink,
+        "min_excess": cfg.min_excess,
+        "iterations": iterations,
+        "n_segments": m,
+        "n_kept": int(kept.sum()),
+        "dropped": [int(s) for s in stats.ids[~kept]],
+        "notes": notes + (screen.notes if screen is not None else []),
+    }
+    if screen is not None:
+        screening.update(screen.to_dict())
+        screening["notes"] = notes + screen.notes
+    report: dict[str, Any] = {
+        "aeromag_version": __version__,
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "source": prep.source,
+        "terms": list(terms),
+        "coef": [float(c) for c in coef],
+        "scale_nT": 50000.0,
+        "band_hz": list(cfg.band_hz),
+        "filter_order": cfg.order,
+        "sampling_rate_hz": prep.fs,
+        "mag_from_fluxgate": prep.mag_from_flux,
+        "fit": {
+            "n_samples": n_fit,
+            "n_segments_fitted": int(kept.sum()),
+            "condition_number": cond,
+            "condition_number_scaled": cond_s,
+            "ridge": cfg.ridge,
+            "residual_std_nT": float(np.sqrt(max(sse, 0.0) / max(n_fit, 1))),
+        },
+        "segments": segments,
+        "screening": screening,
+        "config": _config_dict(cfg),
+    }
+    model = TLModel(terms, coef, meta={k: v for k, v in report.items()
+                                       if k not in ("terms", "coef", "scale_nT")})
+    table = pd.DataFrame(segments)
+    return CompensationResult(None, model, report, screen, table)
+
+
+def _config_dict(cfg: CompensationConfig) -> dict[str, Any]:
+    d = dataclasses.asdict(cfg)
+    d["band_hz"] = list(cfg.band_hz)
+    return d
+
+
+# --------------------------------------------------------------------------- applying
+def apply_model(
+    df: pd.DataFrame, model: TLModel, cfg: CompensationConfig | None = None, *,
+    prep: Prepared | None = None, kept_segments: np.ndarray | None = None,
+    source: str | None = None,
+) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """Apply a TL model: add ``mag_tl``, ``mag_comp``, ``segment``, ``segment_kept``.
+
+    ``mag_tl`` is the model on the unfiltered design matrix (never re-centred, so it does not
+    depend on what else is in the file); ``mag_comp = mag - mag_tl``, low-pass filtered per
+    stretch unless ``cfg.filter_output`` is False.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Log with canonical columns.
+    model : TLModel
+        Model to apply.
+    cfg : CompensationConfig, optional
+        Options.
+    prep : Prepared, optional
+        Arrays already prepared from ``df``.
+    kept_segments : ndarray of int, optional
+        Segment ids kept by screening (default: all segments kept).
+    source : str, optional
+        File name for messages.
+
+    Returns
+    -------
+    data : DataFrame
+        A copy of ``df`` with the four added columns.
+    metrics : dict
+        ``improvement_ratio``, ``residual_std_nT`` and friends (band-passed, see interface.md).
+    """
+    cfg = cfg or CompensationConfig()
+    prep = prep or prepare(df, cfg, source=source)
+    t = prep.time
+    fstretch = find_stretches(t, prep.flux_ok, cfg.max_gap_s)
+    mag_tl = np.full(len(t), np.nan)
+    ok = fstretch >= 0
+    mag_tl[ok] = model.predict(prep.flux[ok], t[ok], fstretch[ok])
+    comp = prep.mag - mag_tl
+    if cfg.filter_output:
+        cut = cfg.lowpass_hz if cfg.lowpass_hz is not None else cfg.band_hz[1]
+        comp_out = lowpass_stretches(comp, t, prep.stretch, cut, cfg.order)
+    else:
+        comp_out = comp
+    out = df.copy()
+    out["mag_tl"] = mag_tl
+    out["mag_comp"] = comp_out
+    seg = prep.segment
+    out["segment"] = pd.array(np.where(seg >= 0, seg, 0), dtype="Int64")
+    out.loc[seg < 0, "segment"] = pd.NA
+    if kept_segments is None:
+        kept = seg >= 0
+    else:
+        kept = np.isin(seg, kept_segments) & (seg >= 0)
+    out["segment_kept"] = kept
+    metrics = compensation_metrics(prep.mag, comp_out, t, prep.stretch, cfg, kept=kept)
+    return out, metrics
+
+
+def compensation_metrics(
+    mag: np.ndarray, mag_comp: np.ndarray, time_s: np.ndarray, stretch: np.ndarray,
+    cfg: CompensationConfig, kept: np.ndarray | None = None,
+) -> dict[str, Any]:
+    """Improvement ratio and residual std on band-passed fields (interface.md metrics).
+
+    Parameters
+    ----------
+    mag, mag_comp : ndarray, shape (n,)
+        Uncompensated and compensated total field as written [nT].
+    time_s : ndarray, shape (n,)
+        Times [s].
+    stretch : ndarray of int, shape (n,)
+        Stretch labels.
+    cfg : CompensationConfig
+        Band and order.
+    kept : ndarray of bool, optional
+        Samples of kept segments (extra metrics over them).
+
+    Returns
+    -------
+    dict
+        ``improvement_ratio`` (std band-passed ``mag`` / std band-passed ``mag_comp``),
+        ``residual_std_nT`` (std band-passed ``mag_comp``), ``std_before_nT``, ``n_samples``,
+        and the same over kept segments.
+    """
+    fs = sampling_rate(time_s)
+    sos = butter_sos("bandpass", cfg.band_hz, fs, cfg.order)
+    st = np.where(np.isfinite(mag_comp), stretch, -1)
+    # Re-label so a NaN inside a stretch splits it (filters never run over NaN).
+    st = find_stretches(time_s, st >= 0, cfg.max_gap_s)
+    X = np.vstack([mag, mag_comp])
+    Xf = filter_stretches(X, st, sos, axis=1)
+    trim = (0.5 / cfg.band_hz[0]) if cfg.trim_s is None else cfg.trim_s
+    use = trim_mask(st, time_s, trim) & np.all(np.isfinite(Xf), axis=0)
+    if use.sum() < 10:
+        use = np.all(np.isfinite(Xf), axis=0)
+    out: dict[str, Any] = {"n_samples": int(use.sum())}
+    before = float(np.std(Xf[0, use])) if use.any() else float("nan")
+    after = float(np.std(Xf[1, use])) if use.any() else float("nan")
+    out["std_before_nT"] = before
+    out["residual_std_nT"] = after
+    out["improvement_ratio"] = before / after if after > 0 else float("nan")
+    if kept is not None:
+        uk = use & kept
+        if uk.any():
+            b2 = float(np.std(Xf[0, uk]))
+            a2 = float(np.std(Xf[1, uk]))
+            out["kept_std_before_nT"] = b2
+            out["kept_residual_std_nT"] = a2
+            out["kept_improvement_ratio"] = b2 / a2 if a2 > 0 else float("nan")
+    out["band_hz"] = list(cfg.band_hz)
+    return out
+
+
+def compensate(
+    df: pd.DataFrame, cfg: CompensationConfig | None = None, *, model: TLModel | None = None,
+    source: str | None = None,
+) -> CompensationResult:
+    """Compensate a log: fit on the log itself (with screening) or apply a saved ``model``.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Log with canonical columns.
+    cfg : CompensationConfig, optional
+        Options.
+    model : TLModel, optional
+        A saved model (``aeromag calibrate``); when given nothing is fitted and every segment
+        counts as kept.
+    source : str, optional
+        File name for messages and the report.
+
+    Returns
+    -------
+    CompensationResult
+        ``data`` holds the output table, ``report`` the JSON report.
+    """
+    cfg = cfg or CompensationConfig()
+    prep = prepare(df, cfg, source=source)
+    if model is None:
+        fit = fit_model(df, cfg, prep=prep)
+        kept_ids = np.array([s["id"] for s in fit.report["segments"] if s["kept"]], dtype=np.int64)
+        data, metrics = apply_model(df, fit.model, cfg, prep=prep, kept_segments=kept_ids)
+        report = dict(fit.report)
+        report["metrics"] = metrics
+        report["model_source"] = "fitted"
+        fit.model.meta["metrics"] = metrics
+        return CompensationResult(data, fit.model, report, fit.screen, fit.segment_table)
+    data, metrics = apply_model(df, model, cfg, prep=prep)
+    seg_ids, counts = np.unique(prep.segment[prep.segment >= 0], return_counts=True)
+    report = {
+        "aeromag_version": __version__,
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "source": prep.source,
+        "terms": list(model.terms),
+        "coef": [float(c) for c in model.coef],
+        "scale_nT": model.scale_nT,
+        "model_source": str(model.meta.get("path", "given")),
+        "band_hz": list(cfg.band_hz),
+        "sampling_rate_hz": prep.fs,
+        "segments": [
+            {"id": int(s), "n": int(c), "kept": True, "scores": None, "residual_std": None}
+            for s, c in zip(seg_ids, counts, strict=True)
+        ],
+        "screening": {"enabled": False, "notes": ["a saved model was applied: nothing fitted"]},
+        "metrics": metrics,
+        "config": _config_dict(cfg),
+    }
+    _segment_residuals(report, data, prep, cfg)
+    return CompensationResult(data, model, report, None, None)
+
+
+def _segment_residuals(report: dict[str, Any], data: pd.DataFrame, prep: Prepared,
+                       cfg: CompensationConfig) -> None:
+    """Fill per-segment band-passed residual std of ``mag_comp`` into the report."""
+    comp = data["mag_comp"].to_numpy(dtype=np.float64)
+    sos = butter_sos("bandpass", cfg.band_hz, prep.fs, cfg.order)
+    st = find_stretches(prep.time, np.isfinite(comp) & (prep.stretch >= 0), cfg.max_gap_s)
+    cf = filter_stretches(comp[None, :], st, sos, axis=1)[0]
+    seg = prep.segment
+    good = np.isfinite(cf) & (seg >= 0)
+    if not good.any():
+        return
+    ids, inv = np.unique(seg[good], return_inverse=True)
+    n = np.bincount(inv)
+    s1 = np.bincount(inv, cf[good])
+    s2 = np.bincount(inv, cf[good] ** 2)
+    std = np.sqrt(np.maximum(s2 / n - (s1 / n) ** 2, 0.0))
+    lookup = dict(zip(ids.tolist(), std.tolist(), strict=True))
+    for e in report["segments"]:
+        e["residual_std"] = lookup.get(e["id"])
+
+
+# --------------------------------------------------------------------------- files
+def compensate_file(
+    path: str | os.PathLike[str], out_path: str | os.PathLike[str],
+    cfg: CompensationConfig | None = None, *, model: TLModel | str | os.PathLike[str] | None = None,
+    columns: dict[str, str] | None = None, units: dict[str, str] | None = None,
+    fmt: str | None = None,
+) -> CompensationResult:
+    """Read a log, compensate it and write ``OUT.csv`` and ``OUT.json`` atomically.
+
+    Parameters
+    ----------
+    path : path-like
+        Input log.
+    out_path : path-like
+        Output CSV; the report goes to the same name with ``.json``.
+    cfg : CompensationConfig, optional
+        Options.
+    model : TLModel or path-like, optional
+        Saved model to apply instead of fitting.
+    columns, units : dict, optional
+        Column map and unit conversions.
+    fmt : str, optional
+        Input format (default from the extension).
+
+    Returns
+    -------
+    CompensationResult
+    """
+    cfg = cfg or CompensationConfig()
+    if model is not None and not isinstance(model, TLModel):
+        mpath = Path(model)
+        model = TLModel.load(mpath)
+        model.meta["path"] = str(mpath)
+    df = read_log(path, columns=columns, units=units, required=("time", *FLUX_COLUMNS), fmt=fmt)
+    res = compensate(df, cfg, model=model, source=str(path))
+    out = Path(out_path)
+    write_outputs(res.data, res.report, out)
+    return res
+
+
+def write_outputs(data: pd.DataFrame, report: dict[str, Any], out_csv: Path) -> None:
+    """Write the output log and its JSON report; both appear or neither does."""
+    out_json = json_path_for(out_csv)
+    with atomic_path(out_csv) as tmp_csv:
+        write_csv(data, tmp_csv)
+        write_json(report, out_json)
+
+
+def calibrate_file(
+    path: str | os.PathLike[str], model_path: str | os.PathLike[str],
+    cfg: CompensationConfig | None = None, *, columns: dict[str, str] | None = None,
+    units: dict[str, str] | None = None, fmt: str | None = None,
+) -> CompensationResult:
+    """Fit and screen on a calibration log; write the model JSON atomically.
+
+    Parameters
+    ----------
+    path : path-like
+        Calibration log.
+    model_path : path-like
+        Output model file (JSON with ``terms``, ``coef``, ``segments``, ``metrics``...).
+    cfg : CompensationConfig, optional
+        Options.
+    columns, units : dict, optional
+        Column map and unit conversions.
+    fmt : str, optional
+        Input format.
+
+    Returns
+    -------
+    CompensationResult
+        ``data`` is the calibration log with the model applied (not written).
+    """
+    cfg = cfg or CompensationConfig()
+    df = read_log(path, columns=columns, units=units, required=("time", *FLUX_COLUMNS), fmt=fmt)
+    res = compensate(df, cfg, source=str(path))
+    write_json(res.report, model_path)
+    return res

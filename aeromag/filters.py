@@ -1,0 +1,293 @@
+"""Zero-phase Butterworth filters that never run across a time gap.
+
+Filters come from :mod:`scipy.signal` (``butter`` in second-order sections, ``sosfiltfilt``).
+Every function takes stretch labels (see :func:`aeromag.segments.find_stretches`): each
+continuous stretch is filtered on its own, and a stretch too short for the filter is left NaN.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+from scipy import signal
+
+from .errors import InputError
+
+log = logging.getLogger(__name__)
+
+
+def sampling_rate(time_s: np.ndarray) -> float:
+    """Nominal sampling rate: 1 / median time step [Hz].
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,)
+        Strictly increasing times [s].
+
+    Returns
+    -------
+    float
+        Sampling rate [Hz].
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    if len(t) < 2:
+        raise InputError("need at least 2 samples to know the sampling rate")
+    dt = float(np.median(np.diff(t)))
+    if not dt > 0:
+        raise InputError("time is not increasing; cannot derive a sampling rate")
+    return 1.0 / dt
+
+
+def butter_sos(
+    kind: str, cutoff_hz: float | tuple[float, float], fs_hz: float, order: int = 4,
+    *, source: str = "", option: str = "--band",
+) -> np.ndarray:
+    """Design a Butterworth filter in second-order sections, validated against Nyquist.
+
+    Parameters
+    ----------
+    kind : {"bandpass", "lowpass", "highpass"}
+        Filter type.
+    cutoff_hz : float or (float, float)
+        Cut-off frequency [Hz] (two edges for a band-pass).
+    fs_hz : float
+        Sampling rate [Hz].
+    order : int
+        Butterworth order (a band-pass has twice this order).
+    source : str
+        File name quoted in errors.
+    option : str
+        Option name quoted in errors.
+
+    Returns
+    -------
+    ndarray, shape (n_sections, 6)
+        Second-order sections for :func:`scipy.signal.sosfiltfilt`.
+    """
+    nyq = fs_hz / 2.0
+    where = f"{source}: " if source else ""
+    edges = np.atleast_1d(np.asarray(cutoff_hz, dtype=np.float64))
+    if kind == "bandpass":
+        if edges.size != 2 or not (0 < edges[0] < edges[1]):
+            raise InputError(f"{where}{option} {edges.tolist()}: need 0 < LOW < HIGH in Hz")
+    elif edges.size != 1 or not edges[0] > 0:
+        raise InputError(f"{where}{option} {edges.tolist()}: need a positive frequency in Hz")
+    if edges.max() >= nyq:
+        raise InputError(
+            f"{where}{option}: {edges.max():g} Hz is not below the Nyquist frequency"
+            f" {nyq:g} Hz of this log (sampled at {fs_hz:g} Hz); choose a lower cut-off"
+        )
+    wn = edges if kind == "bandpass" else float(edges[0])
+    return signal.butter(order, wn, btype=kind, fs=fs_hz, output="sos")
+
+
+def min_filter_length(sos: np.ndarray) -> int:
+    """Fewest samples :func:`scipy.signal.sosfiltfilt` accepts with its default padding."""
+    ntaps = 2 * len(sos) + 1
+    ntaps -= min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
+    return 3 * ntaps + 1
+
+
+def run_bounds(labels: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Runs of equal, non-negative labels.
+
+    Parameters
+    ----------
+    labels : ndarray of int, shape (n,)
+        Label per sample; negative labels (invalid samples) belong to no run.
+
+    Returns
+    -------
+    starts, stops, values : ndarray
+        Half-open ``[start, stop)`` sample ranges of each run and its label.
+    """
+    lab = np.asarray(labels)
+    n = len(lab)
+    if n == 0:
+        e = np.zeros(0, dtype=np.int64)
+        return e, e, e
+    change = np.flatnonzero(np.r_[True, lab[1:] != lab[:-1]])
+    stops = np.r_[change[1:], n]
+    vals = lab[change]
+    keep = vals >= 0
+    return change[keep], stops[keep], vals[keep]
+
+
+def filter_stretches(
+    x: np.ndarray, stretch: np.ndarray, sos: np.ndarray, *, axis: int = 0
+) -> np.ndarray:
+    """Zero-phase filter each continuous stretch separately.
+
+    Parameters
+    ----------
+    x : ndarray
+        Samples along ``axis`` (for speed pass a (m, n) array with ``axis=1``).
+    stretch : ndarray of int, shape (n,)
+        Stretch labels; negative = invalid sample (output NaN).
+    sos : ndarray
+        Second-order sections (:func:`butter_sos`).
+    axis : int
+        The sample axis of ``x``.
+
+    Returns
+    -------
+    ndarray
+        Filtered samples, NaN outside stretches and on stretches too short to filter.
+    """
+    xa = np.asarray(x, dtype=np.float64)
+    out = np.full_like(xa, np.nan)
+    starts, stops, _ = run_bounds(stretch)
+    nmin = min_filter_length(sos)
+    short = 0
+    for a, b in zip(starts, stops, strict=True):
+        if b - a < nmin:
+            short += 1
+            continue
+        sl = [slice(None)] * xa.ndim
+        sl[axis] = slice(a, b)
+        seg = xa[tuple(sl)]
+        if not np.all(np.isfinite(seg)):
+            # NaN inside a stretch would poison the whole stretch: leave it NaN.
+            short += 1
+            continue
+        out[tuple(sl)] = signal.sosfiltfilt(sos, seg, axis=axis)
+    if short:
+        log.info("%d stretch(es) too short or not finite for the filter were left NaN", short)
+    return out
+
+
+def bandpass_stretches(
+    x: np.ndarray, time_s: np.ndarray, stretch: np.ndarray,
+    band_hz: tuple[float, float] = (0.1, 0.9), order: int = 4,
+) -> np.ndarray:
+    """Band-pass a 1-D series stretch by stretch (zero phase).
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+        Samples.
+    time_s : ndarray, shape (n,)
+        Times [s] (for the sampling rate).
+    stretch : ndarray of int, shape (n,)
+        Stretch labels (negative = invalid).
+    band_hz : (float, float)
+        Pass band [Hz].
+    order : int
+        Butterworth order.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Band-passed samples (NaN where not filterable).
+    """
+    sos = butter_sos("bandpass", band_hz, sampling_rate(time_s), order)
+    return filter_stretches(np.asarray(x, dtype=np.float64)[None, :], stretch, sos, axis=1)[0]
+
+
+def lowpass_stretches(
+    x: np.ndarray, time_s: np.ndarray, stretch: np.ndarray, cutoff_hz: float, order: int = 4,
+) -> np.ndarray:
+    """Low-pass a 1-D series stretch by stretch (zero phase; keeps the level).
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+        Samples.
+    time_s : ndarray, shape (n,)
+        Times [s].
+    stretch : ndarray of int, shape (n,)
+        Stretch labels (negative = invalid).
+    cutoff_hz : float
+        Cut-off frequency [Hz].
+    order : int
+        Butterworth order.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Low-passed samples; stretches too short to filter are returned unfiltered.
+    """
+    xv = np.asarray(x, dtype=np.float64)
+    sos = butter_sos("lowpass", cutoff_hz, sampling_rate(time_s), order, option="--lowpass")
+    out = filter_stretches(xv[None, :], stretch, sos, axis=1)[0]
+    # A stretch too short to filter keeps its unfiltered values rather than vanishing.
+    fill = np.isnan(out) & (np.asarray(stretch) >= 0)
+    out[fill] = xv[fill]
+    return out
+
+
+def trim_mask(stretch: np.ndarray, time_s: np.ndarray, trim_s: float) -> np.ndarray:
+    """Mask of samples at least ``trim_s`` seconds from either end of their stretch.
+
+    Parameters
+    ----------
+    stretch : ndarray of int, shape (n,)
+        Stretch labels (negative = invalid, never kept).
+    time_s : ndarray, shape (n,)
+        Times [s].
+    trim_s : float
+        Edge length dropped at each end of every stretch [s].
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    keep = np.asarray(stretch) >= 0
+    starts, stops, _ = run_bounds(stretch)
+    if trim_s <= 0 or len(starts) == 0:
+        return keep
+    # Start and end time of each sample's stretch, broadcast with np.repeat (no loop).
+    lens = stops - starts
+    t0 = np.repeat(t[starts], lens)
+    t1 = np.repeat(t[stops - 1], lens)
+    idx = np.flatnonzero(keep)  # the runs cover exactly the valid samples, in order
+    inner = np.zeros(len(t), dtype=bool)
+    inner[idx] = (t[idx] - t0 >= trim_s) & (t1 - t[idx] >= trim_s)
+    return keep & inner
+
+
+def bandpass_pieces(
+    A: np.ndarray, y: np.ndarray, time_s: np.ndarray, stretch: np.ndarray,
+    band_hz: tuple[float, float] = (0.1, 0.9), order: int = 4, trim_s: float | None = None,
+) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """Band-pass the design matrix and target per stretch and form the normal equations.
+
+    Parameters
+    ----------
+    A : ndarray, shape (n, k)
+        Design matrix.
+    y : ndarray, shape (n,)
+        Target [nT].
+    time_s : ndarray, shape (n,)
+        Times [s].
+    stretch : ndarray of int, shape (n,)
+        Stretch labels.
+    band_hz : (float, float)
+        Pass band [Hz].
+    order : int
+        Butterworth order.
+    trim_s : float, optional
+        Filter edge dropped at each stretch end [s]; default ``0.5 / band_hz[0]``.
+
+    Returns
+    -------
+    gram : ndarray, shape (k, k)
+        ``Af.T @ Af``.
+    rhs : ndarray, shape (k,)
+        ``Af.T @ yf``.
+    yy : float
+        ``yf @ yf`` [nT^2].
+    n : int
+        Samples used.
+    """
+    sos = butter_sos("bandpass", band_hz, sampling_rate(time_s), order)
+    X = np.vstack([np.asarray(A, dtype=np.float64).T, np.asarray(y, dtype=np.float64)[None, :]])
+    Xf = filter_stretches(X, stretch, sos, axis=1)
+    trim = 0.5 / band_hz[0] if trim_s is None else trim_s
+    use = trim_mask(stretch, time_s, trim) & np.all(np.isfinite(Xf), axis=0)
+    Xu = Xf[:, use]
+    k = A.shape[1]
+    M = Xu @ Xu.T
+    return M[:k, :k], M[:k, k], float(M[k, k]), int(use.sum())

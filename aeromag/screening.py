@@ -1,0 +1,220 @@
+"""PCA screening of per-segment Tolles-Lawson coefficient vectors.
+
+The method (patent M1 in ``shared/methods.md``): stack the per-segment coefficient vectors as
+the rows of ``Cal`` (segments x terms), standardise each column, take principal components up
+to a cumulative explained variance of at least 80 %, and look at each segment's scores (the
+PC1-PC2 score plot): clean segments form the main cluster, noisy ones fall outside.
+
+aeromag's rule for "outside the main cluster" is robust and documented:
+
+* the segment fits are **shrunk toward the pooled fit** (:func:`shrunk_segment_fits`), because
+  one segment flown on one heading cannot pin down 16 coefficients by itself and plain
+  per-segment least squares scatters too widely for PCA to separate faults from clean segments;
+* the main cluster is located with the **Minimum Covariance Determinant** estimator
+  (scikit-learn's ``MinCovDet``) in the space of the retained components, which is not pulled
+  toward the outliers it must find;
+* a segment is dropped when its **robust squared Mahalanobis distance** exceeds the
+  chi-square quantile ``chi2.ppf(quantile, n_components)`` (default quantile 0.975);
+* an outlier is dropped only when it also *matters*: the pooled fit leaves it a band-passed
+  residual std above ``min_excess`` (default 1.25) times the median segment's.  With low
+  noise, clean segments differ in ways that are statistically significant yet harmless;
+* the pipeline repeats pool -> shrunk fits -> PCA -> MCD on the kept set's pool until the kept
+  set no longer changes.
+"""
+
+from __future__ import annotations
+
+import logging
+import warnings
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import stats
+from sklearn.covariance import MinCovDet
+from sklearn.decomposition import PCA
+
+log = logging.getLogger(__name__)
+
+RULE = (
+    "robust squared Mahalanobis distance (MinCovDet) of the segment's PCA scores, components up"
+    " to the cumulative explained-variance threshold, above the chi-square quantile, and"
+    " pooled-fit residual std above min_excess times the median segment's"
+)
+
+
+@dataclass
+class ScreenResult:
+    """Outcome of one PCA screening of segment coefficient vectors.
+
+    Attributes
+    ----------
+    kept : ndarray of bool, shape (n_segments,)
+        Segments inside the main cluster.
+    scores : ndarray, shape (n_segments, n_all_components)
+        PCA scores of every segment on every component.
+    explained_variance_ratio : ndarray
+        Fraction of variance per component.
+    n_components : int
+        Components used for the distance (cumulative ratio >= threshold).
+    distance : ndarray, shape (n_segments,)
+        Robust squared Mahalanobis distance in the retained-component space.
+    cutoff : float
+        Chi-square cut-off on ``distance``.
+    location, covariance : ndarray
+        MCD location and covariance in the retained-component space (decision boundary).
+    mean, scale : ndarray
+        Column standardisation of ``Cal``.
+    components : ndarray
+        PCA loading vectors (rows).
+    """
+
+    kept: np.ndarray
+    scores: np.ndarray
+    explained_variance_ratio: np.ndarray
+    n_components: int
+    distance: np.ndarray
+    cutoff: float
+    location: np.ndarray
+    covariance: np.ndarray
+    mean: np.ndarray
+    scale: np.ndarray
+    components: np.ndarray
+    notes: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary (without per-segment arrays)."""
+        return {
+            "explained_variance_ratio": self.explained_variance_ratio.tolist(),
+            "n_components": int(self.n_components),
+            "cutoff": float(self.cutoff),
+            "location": self.location.tolist(),
+            "covariance": self.covariance.tolist(),
+            "column_mean": self.mean.tolist(),
+            "column_scale": self.scale.tolist(),
+            "components": self.components.tolist(),
+            "notes": list(self.notes),
+        }
+
+
+def shrunk_segment_fits(
+    gram: np.ndarray, rhs: np.ndarray, n: np.ndarray, pooled: np.ndarray,
+    column_ms: np.ndarray, alpha: float = 1.0,
+) -> np.ndarray:
+    """Per-segment coefficients shrunk toward the pooled fit.
+
+    Each segment solves ``min |y_s - A_s c|^2 + alpha * n_s * (c - c0)' D (c - c0)`` where
+    ``c0`` is the pooled fit and ``D`` the mean square of each band-passed term over the pooled
+    data, so the prior weighs like ``alpha`` times the data of a typical segment: directions a
+    segment excites well follow its own data; directions it cannot see stay near the pool.
+
+    Parameters
+    ----------
+    gram : ndarray, shape (m, k, k)
+        Per-segment ``A_s' A_s`` (band-passed).
+    rhs : ndarray, shape (m, k)
+        Per-segment ``A_s' y_s``.
+    n : ndarray, shape (m,)
+        Samples per segment.
+    pooled : ndarray, shape (k,)
+        Pooled coefficients ``c0``.
+    column_ms : ndarray, shape (k,)
+        Mean square of each band-passed term over the pooled data.
+    alpha : float
+        Shrinkage strength (0 = plain per-segment least squares).
+
+    Returns
+    -------
+    ndarray, shape (m, k)
+        Coefficients per segment.
+    """
+    k = gram.shape[-1]
+    pen = alpha * n[:, None, None] * (np.eye(k) * column_ms)[None]
+    resid_rhs = rhs - np.einsum("mij,j->mi", gram, pooled)
+    lhs = gram + pen
+    if alpha <= 0:
+        lhs = lhs + 1e-12 * np.trace(gram, axis1=1, axis2=2)[:, None, None] * np.eye(k)
+    delta = np.linalg.solve(lhs, resid_rhs[..., None])[..., 0]
+    return pooled[None, :] + delta
+
+
+def pca_screen(
+    coefs: np.ndarray,
+    *,
+    variance: float = 0.8,
+    quantile: float = 0.975,
+    random_state: int = 0,
+) -> ScreenResult:
+    """Screen segments by PCA of their standardised coefficient vectors.
+
+    Parameters
+    ----------
+    coefs : ndarray, shape (m, k)
+        The ``Cal`` matrix: one coefficient vector per segment [nT; eddy nT*s].
+    variance : float
+        Cumulative explained-variance ratio the retained components must reach (0-1].
+    quantile : float
+        Chi-square quantile of the cut-off on the robust squared distance (0-1).
+    random_state : int
+        Seed of the MCD estimator (results are deterministic).
+
+    Returns
+    -------
+    ScreenResult
+    """
+    X = np.asarray(coefs, dtype=np.float64)
+    m, k = X.shape
+    notes: list[str] = []
+    mean = X.mean(axis=0)
+    scale = X.std(axis=0)
+    live = scale > 1e-12 * (np.abs(mean) + 1e-30)
+    Z = np.zeros_like(X)
+    Z[:, live] = (X[:, live] - mean[live]) / scale[live]
+    pca = PCA(svd_solver="full")
+    scores = pca.fit_transform(Z[:, live]) if live.any() else np.zeros((m, 1))
+    evr = pca.explained_variance_ratio_ if live.any() else np.array([1.0])
+    cum = np.cumsum(evr)
+    n_comp = int(np.searchsorted(cum, variance - 1e-12) + 1)
+    # MCD needs clearly more points than dimensions; keep at most a third of the segments.
+    cap = max(1, (m - 1) // 3)
+    if n_comp > cap:
+        notes.append(
+            f"{n_comp} components reach {variance:.0%} of the variance but only {m} segments:"
+            f" distance computed on the first {cap}"
+        )
+        n_comp = cap
+    n_comp = max(1, min(n_comp, scores.shape[1]))
+    S = scores[:, :n_comp]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            mcd = MinCovDet(random_state=random_state).fit(S)
+        loc = mcd.location_
+        cov = mcd.covariance_
+        d2 = mcd.mahalanobis(S)
+        if not np.all(np.isfinite(d2)):
+            raise ValueError("non-finite distances")
+    except (ValueError, np.linalg.LinAlgError):
+        # Degenerate cluster (e.g. identical segments): fall back to median / MAD per axis.
+        loc = np.median(S, axis=0)
+        mad = 1.4826 * np.median(np.abs(S - loc), axis=0)
+        mad = np.where(mad > 0, mad, 1.0)
+        cov = np.diag(mad**2)
+        d2 = (((S - loc) / mad) ** 2).sum(axis=1)
+        notes.append("MinCovDet failed on a degenerate cluster; median/MAD distances used")
+    cutoff = float(stats.chi2.ppf(quantile, n_comp))
+    kept = d2 <= cutoff
+    return ScreenResult(
+        kept=kept,
+        scores=scores,
+        explained_variance_ratio=np.asarray(evr),
+        n_components=n_comp,
+        distance=d2,
+        cutoff=cutoff,
+        location=np.asarray(loc),
+        covariance=np.asarray(cov),
+        mean=mean,
+        scale=scale,
+        components=pca.components_ if live.any() else np.zeros((1, k)),
+        notes=notes,
+    )

@@ -1,0 +1,560 @@
+"""The Tolles-Lawson (TL) aircraft-interference model: terms, design matrix, model, estimator.
+
+Direction cosines ``cx, cy, cz`` are the fluxgate vector over its magnitude ``|B|``; ``'`` is
+the time derivative (``np.gradient`` against real time, never across a time gap).  ``|B|``
+enters the induced and eddy terms as ``s = |B| / 50000 nT`` so every coefficient is in nT
+(eddy coefficients in nT*s) and model files are portable.  Term order (interface.md):
+
+1. permanent: ``cx, cy, cz``
+2. induced (times s): ``cx*cx, cx*cy, cx*cz, cy*cy, cy*cz``
+3. eddy (times s): ``cx*cx', cx*cy', cx*cz', cy*cx', cy*cy', cy*cz', cz*cx', cz*cy'``
+
+The other term sets users know from MagNav.jl are available too (``induced_6/5/3``,
+``eddy_9/8/3``, ``bias``); ``16`` (permanent + induced_5 + eddy_8) is the default.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from sklearn.base import BaseEstimator, RegressorMixin
+
+from .errors import FitError, InputError
+
+log = logging.getLogger(__name__)
+
+#: |B| is scaled by this before entering induced and eddy terms [nT].
+FIELD_SCALE_NT = 50000.0
+
+PERMANENT = ("cx", "cy", "cz")
+INDUCED_6 = ("cx*cx", "cx*cy", "cx*cz", "cy*cy", "cy*cz", "cz*cz")
+INDUCED_5 = INDUCED_6[:5]
+INDUCED_3 = ("cx*cx", "cy*cy", "cz*cz")
+EDDY_9 = ("cx*cx'", "cx*cy'", "cx*cz'", "cy*cx'", "cy*cy'", "cy*cz'", "cz*cx'", "cz*cy'", "cz*cz'")
+EDDY_8 = EDDY_9[:8]
+EDDY_3 = ("cx*cx'", "cy*cy'", "cz*cz'")
+BIAS = ("bias",)
+
+#: The 16 terms of interface.md, in order.
+TERMS_16: tuple[str, ...] = PERMANENT + INDUCED_5 + EDDY_8
+
+_GROUPS: dict[str, tuple[str, ...]] = {
+    "permanent": PERMANENT,
+    "p": PERMANENT,
+    "induced": INDUCED_6,
+    "i": INDUCED_6,
+    "induced_6": INDUCED_6,
+    "i6": INDUCED_6,
+    "induced_5": INDUCED_5,
+    "i5": INDUCED_5,
+    "induced_3": INDUCED_3,
+    "i3": INDUCED_3,
+    "eddy": EDDY_9,
+    "e": EDDY_9,
+    "eddy_9": EDDY_9,
+    "e9": EDDY_9,
+    "eddy_8": EDDY_8,
+    "e8": EDDY_8,
+    "eddy_3": EDDY_3,
+    "e3": EDDY_3,
+    "bias": BIAS,
+    "b": BIAS,
+}
+_PRESETS: dict[str, tuple[str, ...]] = {
+    "16": TERMS_16,
+    "18": PERMANENT + INDUCED_6 + EDDY_9,
+    "9": PERMANENT + INDUCED_3 + EDDY_3,
+    "3": PERMANENT,
+    "8": PERMANENT + INDUCED_5,
+}
+_ALL_TERMS = set(PERMANENT + INDUCED_6 + EDDY_9 + BIAS)
+_AXIS = {"cx": 0, "cy": 1, "cz": 2}
+
+
+def parse_terms(spec: str | Sequence[str]) -> tuple[str, ...]:
+    """Resolve a term-set specification into an ordered tuple of term names.
+
+    Parameters
+    ----------
+    spec : str or sequence of str
+        ``"16"`` (default set), ``"18"``, ``"9"``, ``"8"``, ``"3"``, or a comma-separated list of
+        MagNav.jl-style groups (``permanent``/``p``, ``induced``/``induced_6``/``induced_5``/
+        ``induced_3`` (``i``, ``i6``, ``i5``, ``i3``), ``eddy``/``eddy_9``/``eddy_8``/``eddy_3``
+        (``e``, ``e9``, ``e8``, ``e3``), ``bias``/``b``) and/or single term names
+        (``"cx*cy'"``).
+
+    Returns
+    -------
+    tuple of str
+        Term names in canonical order (permanent, induced, eddy, bias), without duplicates.
+    """
+    items: list[str]
+    if isinstance(spec, str):
+        key = spec.strip().lower()
+        if key in _PRESETS:
+            return _PRESETS[key]
+        items = [s.strip() for s in spec.split(",") if s.strip()]
+    else:
+        items = [str(s).strip() for s in spec]
+    if not items:
+        raise InputError("--terms: empty term set; use 16 or a list like permanent,induced_5,eddy_8")
+    chosen: set[str] = set()
+    for it in items:
+        k = it.lower().lstrip(":")
+        if k in _GROUPS:
+            chosen.update(_GROUPS[k])
+        elif it in _ALL_TERMS:
+            chosen.add(it)
+        elif k in _PRESETS:
+            chosen.update(_PRESETS[k])
+        else:
+            raise InputError(
+                f"--terms: unknown term or group {it!r}; use 16, 18, 9, or groups permanent,"
+                " induced[_6|_5|_3], eddy[_9|_8|_3], bias"
+            )
+    order = PERMANENT + INDUCED_6 + EDDY_9 + BIAS
+    return tuple(t for t in order if t in chosen)
+
+
+def direction_cosines(flux_nT: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Direction cosines and magnitude of the fluxgate vector.
+
+    Parameters
+    ----------
+    flux_nT : ndarray, shape (n, 3)
+        Body-frame fluxgate vector [nT].
+
+    Returns
+    -------
+    cosines : ndarray, shape (n, 3)
+        ``flux / |flux|`` [dimensionless].
+    magnitude_nT : ndarray, shape (n,)
+        ``|flux|`` [nT].
+    """
+    flux = np.asarray(flux_nT, dtype=np.float64)
+    bt = np.sqrt(np.einsum("ij,ij->i", flux, flux))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cos = flux / bt[:, None]
+    return cos, bt
+
+
+def stretch_starts(time_s: np.ndarray, stretch: np.ndarray | None) -> np.ndarray:
+    """Boolean mask of samples that start a new continuous stretch.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,)
+        Sample times [s].
+    stretch : ndarray of int, shape (n,), optional
+        Stretch label per sample; a change of label starts a stretch.  ``None`` means one
+        stretch.
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+    """
+    n = len(time_s)
+    starts = np.zeros(n, dtype=bool)
+    if n:
+        starts[0] = True
+    if stretch is not None and n > 1:
+        starts[1:] = stretch[1:] != stretch[:-1]
+    return starts
+
+
+def time_derivative(
+    values: np.ndarray, time_s: np.ndarray, stretch: np.ndarray | None = None
+) -> np.ndarray:
+    """Time derivative by ``np.gradient`` against real time, never across a stretch boundary.
+
+    Identical (to rounding) to calling ``np.gradient(values[k], time_s[k], axis=0)`` on every
+    stretch ``k`` separately (second-order central differences inside, first-order one-sided
+    differences at the ends; a one-sample stretch gets 0), but vectorised over the whole log.
+
+    Parameters
+    ----------
+    values : ndarray, shape (n,) or (n, m)
+        Samples.
+    time_s : ndarray, shape (n,)
+        Strictly increasing times [s].
+    stretch : ndarray of int, shape (n,), optional
+        Stretch label per sample (see :func:`stretch_starts`).
+
+    Returns
+    -------
+    ndarray
+        d(values)/dt [unit of values per second], same shape as ``values``.
+    """
+    f = np.asarray(values, dtype=np.float64)
+    t = np.asarray(time_s, dtype=np.float64)
+    n = len(t)
+    out = np.zeros_like(f)
+    if n < 2:
+        return out
+    starts = stretch_starts(t, stretch)
+    ends = np.r_[starts[1:], True]
+    f2 = f if f.ndim == 2 else f[:, None]
+    o2 = out if out.ndim == 2 else out[:, None]
+    h = np.diff(t)  # h[i] = t[i+1] - t[i]
+    df = np.diff(f2, axis=0)
+    # Interior points (neither start nor end of a stretch): non-uniform central difference.
+    interior = ~(starts | ends)
+    idx = np.flatnonzero(interior)
+    if idx.size:
+        hs = h[idx - 1][:, None]
+        hd = h[idx][:, None]
+        o2[idx] = (hs**2 * f2[idx + 1] + (hd**2 - hs**2) * f2[idx] - hd**2 * f2[idx - 1]) / (
+            hs * hd * (hd + hs)
+        )
+    # Stretch starts with a successor in the same stretch: forward difference.
+    first = np.flatnonzero(starts & ~ends)
+    if first.size:
+        o2[first] = df[first] / h[first][:, None]
+    # Stretch ends with a predecessor in the same stretch: backward difference.
+    last = np.flatnonzero(ends & ~starts)
+    if last.size:
+        o2[last] = df[last - 1] / h[last - 1][:, None]
+    return out
+
+
+def _term_column(
+    name: str, cos: np.ndarray, dcos: np.ndarray, scale: np.ndarray
+) -> np.ndarray:
+    if name == "bias":
+        return np.ones(len(cos))
+    if "*" not in name:
+        return cos[:, _AXIS[name]]
+    a, b = name.split("*")
+    if b.endswith("'"):
+        return scale * cos[:, _AXIS[a]] * dcos[:, _AXIS[b[:-1]]]
+    return scale * cos[:, _AXIS[a]] * cos[:, _AXIS[b]]
+
+
+def design_matrix(
+    flux_nT: np.ndarray,
+    time_s: np.ndarray,
+    terms: Sequence[str] = TERMS_16,
+    *,
+    stretch: np.ndarray | None = None,
+    out: np.ndarray | None = None,
+) -> np.ndarray:
+    """Build the TL design matrix ``A`` (one column per term).
+
+    Parameters
+    ----------
+    flux_nT : ndarray, shape (n, 3)
+        Body-frame fluxgate vector [nT].
+    time_s : ndarray, shape (n,)
+        Sample times [s], strictly increasing.
+    terms : sequence of str
+        Term names (see :func:`parse_terms`); default the 16 terms of interface.md.
+    stretch : ndarray of int, shape (n,), optional
+        Continuous-stretch label per sample; derivatives never run across a change of label.
+    out : ndarray, shape (n, len(terms)), optional
+        Preallocated output.
+
+    Returns
+    -------
+    ndarray, shape (n, len(terms))
+        Permanent columns dimensionless, induced columns in units of ``|B|/50000 nT``, eddy
+        columns in 1/s times that scale, so that ``A @ coef`` is in nT.
+    """
+    cos, bt = direction_cosines(flux_nT)
+    need_d = any(t.endswith("'") for t in terms)
+    dcos = time_derivative(cos, time_s, stretch) if need_d else cos
+    scale = bt / FIELD_SCALE_NT
+    A = out if out is not None else np.empty((len(cos), len(terms)), dtype=np.float64)
+    for j, name in enumerate(terms):
+        A[:, j] = _term_column(name, cos, dcos, scale)
+    return A
+
+
+def solve_normal(
+    gram: np.ndarray, rhs: np.ndarray, ridge: float = 0.0
+) -> tuple[np.ndarray, float, float]:
+    """Solve the (ridge-)regularised normal equations ``(G + ridge*D) c = b``.
+
+    The ridge penalty is scaled by the diagonal ``D`` of ``G`` so ``ridge`` is dimensionless
+    (0 = plain least squares; 1e-3 a light touch).
+
+    Parameters
+    ----------
+    gram : ndarray, shape (k, k)
+        ``A.T @ A`` of the (band-passed) design matrix.
+    rhs : ndarray, shape (k,)
+        ``A.T @ y``.
+    ridge : float
+        Relative ridge parameter (>= 0).
+
+    Returns
+    -------
+    coef : ndarray, shape (k,)
+        Coefficients [nT; eddy nT*s].
+    cond : float
+        Condition number of ``A`` (square root of that of ``G``).
+    cond_scaled : float
+        Condition number of ``A`` with unit-norm columns: the collinearity of the terms
+        independent of their units.
+
+    Raises
+    ------
+    FitError
+        When ``G`` is singular (a term never varies, e.g. a constant fluxgate).
+    """
+    d = np.diag(gram).copy()
+    if not np.all(np.isfinite(gram)) or not np.all(np.isfinite(rhs)):
+        raise FitError("the fit matrix has non-finite values; check the fluxgate and mag columns")
+    if np.any(d <= 0):
+        raise FitError(
+            "a model term never varies in the fitting band (constant fluxgate or no manoeuvres);"
+            " fly manoeuvres, widen --band or choose fewer --terms"
+        )
+    ev = np.linalg.eigvalsh(gram)
+    cond = float(np.sqrt(ev[-1] / ev[0])) if ev[0] > 0 else float("inf")
+    inv = 1.0 / np.sqrt(d)
+    gs = gram * inv[:, None] * inv[None, :]
+    evs = np.linalg.eigvalsh(gs)
+    cond_s = float(np.sqrt(evs[-1] / evs[0])) if evs[0] > 0 else float("inf")
+    if ridge <= 0 and not (evs[0] > 1e-14 * evs[-1]):
+        raise FitError(
+            f"the fit is ill-conditioned (scaled condition number {cond_s:.3g}); the terms are"
+            " collinear: add manoeuvres, use --ridge 1e-3, or choose fewer --terms"
+        )
+    g = gs + ridge * np.eye(len(d))
+    try:
+        z = np.linalg.solve(g, rhs * inv)
+    except np.linalg.LinAlgError:
+        raise FitError("the fit matrix is singular; add manoeuvres or use --ridge") from None
+    return z * inv, cond, cond_s
+
+
+@dataclass
+class TLModel:
+    """A fitted Tolles-Lawson model: term names and coefficients (a property of the aircraft).
+
+    Attributes
+    ----------
+    terms : tuple of str
+        Term names in order.
+    coef : ndarray
+        Coefficients [nT; eddy terms nT*s], same order.
+    scale_nT : float
+        The ``|B|`` scale of the induced/eddy terms (50000 nT).
+    meta : dict
+        Provenance and fit report (band, segments, metrics...).
+    """
+
+    terms: tuple[str, ...]
+    coef: np.ndarray
+    scale_nT: float = FIELD_SCALE_NT
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.terms = tuple(self.terms)
+        self.coef = np.asarray(self.coef, dtype=np.float64)
+        if self.coef.shape != (len(self.terms),):
+            raise InputError(
+                f"model has {len(self.terms)} terms but {self.coef.size} coefficients"
+            )
+
+    def predict(
+        self, flux_nT: np.ndarray, time_s: np.ndarray, stretch: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Modelled aircraft interference ``A @ coef`` [nT] (unfiltered, no re-centring).
+
+        Parameters
+        ----------
+        flux_nT : ndarray, shape (n, 3)
+            Body-frame fluxgate [nT].
+        time_s : ndarray, shape (n,)
+            Times [s].
+        stretch : ndarray of int, optional
+            Continuous-stretch labels (derivatives never cross a change).
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            Interference [nT].
+        """
+        cos, bt = direction_cosines(flux_nT)
+        need_d = any(t.endswith("'") for t in self.terms)
+        dcos = time_derivative(cos, time_s, stretch) if need_d else cos
+        s = bt * (FIELD_SCALE_NT / self.scale_nT) / FIELD_SCALE_NT
+        out = np.zeros(len(cos))
+        for name, c in zip(self.terms, self.coef, strict=True):
+            out += c * _term_column(name, cos, dcos, s)
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dictionary (``terms``, ``coef``, ``scale_nT`` and the report)."""
+        d = dict(self.meta)
+        d.update(
+            {
+                "terms": list(self.terms),
+                "coef": [float(c) for c in self.coef],
+                "scale_nT": float(self.scale_nT),
+            }
+        )
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any], *, source: str = "<model>") -> TLModel:
+        """Build a model from a dictionary as written by :meth:`to_dict`."""
+        try:
+            terms = tuple(str(t) for t in d["terms"])
+            coef = np.asarray([float(c) for c in d["coef"]], dtype=np.float64)
+        except (KeyError, TypeError, ValueError):
+            raise InputError(
+                f"{source}: not a model file (needs 'terms' and 'coef' lists);"
+                " write one with 'aeromag calibrate'"
+            ) from None
+        unknown = [t for t in terms if t not in _ALL_TERMS]
+        if unknown:
+            raise InputError(f"{source}: unknown term(s) {', '.join(unknown)} in the model")
+        if len(coef) != len(terms):
+            raise InputError(f"{source}: {len(terms)} terms but {len(coef)} coefficients")
+        if not np.all(np.isfinite(coef)):
+            raise InputError(f"{source}: the model has non-finite coefficients")
+        meta = {k: v for k, v in d.items() if k not in ("terms", "coef", "scale_nT")}
+        return cls(terms, coef, float(d.get("scale_nT", FIELD_SCALE_NT)), meta)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> TLModel:
+        """Read a model JSON file (as written by ``aeromag calibrate``)."""
+        p = Path(path)
+        try:
+            d = json.loads(p.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise InputError(f"{p}: model file not found") from None
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise InputError(f"{p}: not valid JSON ({exc}); pass a file from 'aeromag calibrate'") from None
+        if not isinstance(d, dict):
+            raise InputError(f"{p}: not a model file; pass a file from 'aeromag calibrate'")
+        return cls.from_dict(d, source=str(p))
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the model JSON atomically."""
+        from .io import write_json
+
+        return write_json(self.to_dict(), path)
+
+
+class TollesLawson(RegressorMixin, BaseEstimator):
+    """Tolles-Lawson compensator with the scikit-learn estimator API.
+
+    ``X`` has four columns: time [s], flux_x, flux_y, flux_z [nT] (an array or a DataFrame with
+    columns ``time, flux_x, flux_y, flux_z``); ``y`` is the scalar magnetometer [nT].
+    :meth:`predict` returns the modelled aircraft interference (``mag_tl``) [nT], so
+    ``y - predict(X)`` is the compensated field.
+
+    Parameters
+    ----------
+    terms : str or sequence of str
+        Term set (see :func:`parse_terms`), default ``"16"``.
+    band : tuple of float
+        Band-pass edges applied to the target and every term before least squares [Hz].
+    ridge : float
+        Relative ridge parameter (0 = plain least squares).
+    order : int
+        Butterworth filter order.
+    max_gap_s : float or None
+        A time step longer than this starts a new stretch [s]; default 5 sample intervals.
+
+    Attributes
+    ----------
+    coef_ : ndarray
+        Coefficients [nT; eddy nT*s].
+    terms_ : tuple of str
+        Term names.
+    condition_number_ : float
+        Condition number of the band-passed design matrix (unit-norm columns).
+    n_samples_fit_ : int
+        Samples used in the fit (after edge trimming).
+    model_ : TLModel
+        The fitted model.
+    """
+
+    def __init__(
+        self,
+        terms: str | Sequence[str] = "16",
+        band: tuple[float, float] = (0.1, 0.9),
+        ridge: float = 0.0,
+        order: int = 4,
+        max_gap_s: float | None = None,
+    ) -> None:
+        self.terms = terms
+        self.band = band
+        self.ridge = ridge
+        self.order = order
+        self.max_gap_s = max_gap_s
+
+    @staticmethod
+    def _split_X(X: Any) -> tuple[np.ndarray, np.ndarray]:
+        if hasattr(X, "columns") and {"time", "flux_x", "flux_y", "flux_z"} <= set(X.columns):
+            arr = X[["time", "flux_x", "flux_y", "flux_z"]].to_numpy(dtype=np.float64)
+        else:
+            arr = np.asarray(X, dtype=np.float64)
+        if arr.ndim != 2 or arr.shape[1] != 4:
+            raise InputError("X must have 4 columns: time [s], flux_x, flux_y, flux_z [nT]")
+        return arr[:, 0], arr[:, 1:4]
+
+    def fit(self, X: Any, y: Any) -> TollesLawson:
+        """Fit the coefficients by band-passed least squares; returns ``self``."""
+        from .filters import bandpass_pieces
+        from .segments import find_stretches
+
+        t, flux = self._split_X(X)
+        yv = np.asarray(y, dtype=np.float64).ravel()
+        if len(yv) != len(t):
+            raise InputError(f"X has {len(t)} rows but y has {len(yv)}")
+        terms = parse_terms(self.terms)
+        fit_terms = tuple(x for x in terms if x != "bias")
+        stretch = find_stretches(t, np.isfinite(yv) & np.all(np.isfinite(flux), axis=1),
+                                 self.max_gap_s)
+        ok = stretch >= 0
+        A = design_matrix(flux[ok], t[ok], fit_terms, stretch=stretch[ok])
+        gram, rhs, _, n = bandpass_pieces(A, yv[ok], t[ok], stretch[ok], self.band, self.order)
+        coef, _cond, cond_s = solve_normal(gram, rhs, self.ridge)
+        full = np.zeros(len(terms))
+        idx = [terms.index(x) for x in fit_terms]
+        full[idx] = coef
+        if "bias" in terms:
+            resid = yv[ok] - A @ coef
+            full[terms.index("bias")] = float(np.mean(resid))
+        self.terms_ = terms
+        self.coef_ = full
+        self.condition_number_ = cond_s
+        self.n_samples_fit_ = int(n)
+        self.model_ = TLModel(terms, full)
+        return self
+
+    def predict(self, X: Any) -> np.ndarray:
+        """Modelled aircraft interference ``mag_tl`` [nT] for each row of ``X``."""
+        from .segments import find_stretches
+
+        if not hasattr(self, "model_"):
+            from sklearn.exceptions import NotFittedError
+
+            raise NotFittedError("call fit() first")
+        t, flux = self._split_X(X)
+        stretch = find_stretches(t, np.all(np.isfinite(flux), axis=1), self.max_gap_s)
+        return self.model_.predict(flux, t, stretch)
+
+    def score(self, X: Any, y: Any, sample_weight: Any = None) -> float:
+        """Improvement ratio: std of band-passed ``y`` over std of band-passed ``y - predict``."""
+        from .filters import bandpass_stretches
+        from .segments import find_stretches
+
+        t, _ = self._split_X(X)
+        yv = np.asarray(y, dtype=np.float64).ravel()
+        stretch = find_stretches(t, np.isfinite(yv), self.max_gap_s)
+        before = bandpass_stretches(yv, t, stretch, self.band, self.order)
+        after = bandpass_stretches(yv - self.predict(X), t, stretch, self.band, self.order)
+        return float(np.nanstd(before) / np.nanstd(after))
