@@ -104,7 +104,9 @@ def parse_terms(spec: str | Sequence[str]) -> tuple[str, ...]:
     else:
         items = [str(s).strip() for s in spec]
     if not items:
-        raise InputError("--terms: empty term set; use 16 or a list like permanent,induced_5,eddy_8")
+        raise InputError(
+            "--terms: empty term set; use 16 or a list like permanent,induced_5,eddy_8"
+        )
     chosen: set[str] = set()
     for it in items:
         k = it.lower().lstrip(":")
@@ -434,7 +436,9 @@ class TLModel:
         except FileNotFoundError:
             raise InputError(f"{p}: model file not found") from None
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise InputError(f"{p}: not valid JSON ({exc}); pass a file from 'aeromag calibrate'") from None
+            raise InputError(
+                f"{p}: not valid JSON ({exc}); pass a file from 'aeromag calibrate'"
+            ) from None
         if not isinstance(d, dict):
             raise InputError(f"{p}: not a model file; pass a file from 'aeromag calibrate'")
         return cls.from_dict(d, source=str(p))

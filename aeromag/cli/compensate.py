@@ -20,7 +20,8 @@ Terms = Annotated[str, typer.Option("--terms", help="Term set: 16 (default), 18,
                                     "like permanent,induced_5,eddy_8[,bias].")]
 SegSec = Annotated[float, typer.Option("--segment-seconds", metavar="S",
                                        help="Segment length when the log has no 'line' column, s.")]
-NoScreen = Annotated[bool, typer.Option("--no-screen", help="Skip PCA screening (fit all segments).")]
+NoScreen = Annotated[bool, typer.Option("--no-screen",
+                                        help="Skip PCA screening (fit all segments).")]
 Col = Annotated[list[str] | None, typer.Option("--col", metavar="NAME=SOURCE",
                                                help="Column map, repeatable (e.g. mag=mag_1_uc).")]
 MapFile = Annotated[Path | None, typer.Option("--map", metavar="FILE",

@@ -1,0 +1,129 @@
+"""Reading logs: column maps, units, validation, atomic writes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aeromag.errors import InputError
+from aeromag.io import (
+    atomic_path,
+    parse_column_map,
+    read_log,
+    read_map_file,
+    unit_factor,
+    write_csv,
+    write_json,
+)
+
+
+def _log(tmp_path, text, name="log.csv"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_column_map_and_units(tmp_path):
+    p = _log(tmp_path, "TIME,mag_1_uc,fx,fy,fz\n0,50000,10,20,30\n0.1,50001,11,21,31\n")
+    df = read_log(p, columns={"time": "TIME", "mag": "mag_1_uc", "flux_x": "fx",
+                              "flux_y": "fy", "flux_z": "fz"}, units={"flux": "uT"})
+    assert list(df.columns) == ["time", "mag", "flux_x", "flux_y", "flux_z"]
+    np.testing.assert_allclose(df["flux_x"], [10000, 11000])
+    np.testing.assert_allclose(df["mag"], [50000, 50001])  # not converted: not asked
+
+
+def test_units_are_never_guessed(tmp_path):
+    p = _log(tmp_path, "time,mag\n0,0.5\n1,0.5\n")
+    assert read_log(p)["mag"].iloc[0] == 0.5
+    assert read_log(p, units={"mag": "G"})["mag"].iloc[0] == pytest.approx(50000.0)
+    with pytest.raises(InputError, match="unknown field unit"):
+        read_log(p, units={"mag": "furlong"})
+
+
+def test_missing_column_names_file_and_column(tmp_path):
+    p = _log(tmp_path, "time,mag\n0,1\n1,2\n")
+    with pytest.raises(InputError) as e:
+        read_log(p, required=("time", "flux_x"))
+    assert "log.csv" in str(e.value) and "flux_x" in str(e.value) and "--col" in str(e.value)
+    with pytest.raises(InputError, match="'nope'"):
+        read_log(p, columns={"mag": "nope"})
+
+
+def test_text_in_numeric_column_names_line(tmp_path):
+    p = _log(tmp_path, "time,mag\n0,1\n1,2\n2,abc\n")
+    with pytest.raises(InputError, match=r"column 'mag', line 4: value 'abc'"):
+        read_log(p)
+
+
+def test_empty_and_one_row_files(tmp_path):
+    with pytest.raises(InputError, match="empty"):
+        read_log(_log(tmp_path, "", "e.csv"))
+    with pytest.raises(InputError, match="only 1 data row"):
+        read_log(_log(tmp_path, "time,mag\n0,1\n", "o.csv"))
+
+
+def test_exact_duplicates_dropped_and_time_must_increase(tmp_path):
+    df = read_log(_log(tmp_path, "time,mag\n0,1\n1,2\n1,2\n2,3\n"))
+    assert list(df["time"]) == [0, 1, 2]
+    with pytest.raises(InputError, match="line 4.*strictly increasing"):
+        read_log(_log(tmp_path, "time,mag\n0,1\n1,2\n1,5\n2,3\n", "d.csv"))
+    with pytest.raises(InputError, match="line 3"):
+        read_log(_log(tmp_path, "time,mag\n0,1\n,2\n", "n.csv"))
+
+
+def test_map_file(tmp_path):
+    m = _log(tmp_path, '[columns]\nmag = "m1"\n[units]\nmag = "nT"\n', "map.toml")
+    cols, units = read_map_file(m)
+    assert cols == {"mag": "m1"} and units == {"mag": "nT"}
+    with pytest.raises(InputError, match="not a valid TOML"):
+        read_map_file(_log(tmp_path, "[columns\n", "bad.toml"))
+
+
+def test_parse_column_map_errors():
+    assert parse_column_map(["mag=a", " flux_x = b "]) == {"mag": "a", "flux_x": "b"}
+    for bad in ("mag", "=x", "mag="):
+        with pytest.raises(InputError, match="NAME=VALUE"):
+            parse_column_map([bad])
+
+
+def test_unit_factors():
+    assert unit_factor("nT") == 1 and unit_factor("uT") == 1e3 and unit_factor("µT") == 1e3
+    assert unit_factor("mT") == 1e6 and unit_factor("G") == 1e5
+
+
+def test_atomic_write_leaves_nothing_on_failure(tmp_path):
+    target = tmp_path / "out.csv"
+    with pytest.raises(RuntimeError):
+        with atomic_path(target) as tmp:
+            tmp.write_text("half")
+            raise RuntimeError("boom")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_bools_written_true_false_and_json_nan_is_null(tmp_path):
+    p = write_csv(pd.DataFrame({"a": [1.5, 2.5], "k": [True, False]}), tmp_path / "x.csv")
+    assert p.read_text().splitlines() == ["a,k", "1.5,true", "2.5,false"]
+    j = write_json({"x": float("nan"), "y": np.float64(2.0), "z": np.arange(2)},
+                   tmp_path / "x.json")
+    assert j.read_text().replace(" ", "").replace("\n", "") == '{"x":null,"y":2.0,"z":[0,1]}'
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.floats(-1e6, 1e6, allow_nan=False), min_size=2, max_size=30))
+def test_numbers_round_trip_through_csv(tmp_path_factory, values):
+    d = tmp_path_factory.mktemp("rt")
+    df = pd.DataFrame({"time": np.arange(len(values), dtype=float), "mag": values})
+    write_csv(df, d / "r.csv")
+    back = read_log(d / "r.csv")
+    np.testing.assert_array_equal(back["mag"].to_numpy(), np.asarray(values, dtype=float))
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.text(alphabet=st.characters(blacklist_categories=("Cs",), blacklist_characters="=,\n\r"),
+               min_size=1, max_size=10).filter(lambda s: s.strip() == s and s),
+       st.text(alphabet="abcdefghij_0123", min_size=1, max_size=10))
+def test_parse_column_map_property(name, source):
+    assert parse_column_map([f"{name}={source}"]) == {name: source}

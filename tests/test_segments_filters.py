@@ -1,0 +1,104 @@
+"""Stretches, gaps, segments and the zero-phase filters."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy import signal
+
+from aeromag.errors import InputError
+from aeromag.filters import (
+    bandpass_stretches,
+    butter_sos,
+    lowpass_stretches,
+    run_bounds,
+    sampling_rate,
+    trim_mask,
+)
+from aeromag.segments import assign_segments, find_stretches, interpolate_short_gaps
+
+
+def test_stretches_split_at_time_gaps_and_invalid_samples():
+    t = np.r_[np.arange(0, 10, 0.1), np.arange(20, 30, 0.1)]
+    valid = np.ones(len(t), bool)
+    valid[50] = False
+    s = find_stretches(t, valid)
+    assert s[50] == -1
+    assert len(np.unique(s[s >= 0])) == 3
+    assert s[49] != s[51] and s[99] != s[100]
+
+
+def test_short_gaps_interpolated_long_gaps_kept():
+    t = np.arange(100) * 0.1
+    x = np.sin(t)
+    y = x.copy()
+    y[10:13] = np.nan  # 0.4 s span between valid neighbours
+    y[50:80] = np.nan  # 3.1 s
+    f, n = interpolate_short_gaps(y, t, 1.0)
+    assert n == 3
+    np.testing.assert_allclose(f[10:13], np.interp(t[10:13], t[[9, 13]], x[[9, 13]]))
+    assert np.isnan(f[50:80]).all()
+
+
+def test_segments_by_line_and_by_windows():
+    t = np.arange(0, 300, 0.1)
+    st_ = find_stretches(t)
+    seg = assign_segments(t, st_, None, 60.0)
+    assert len(np.unique(seg)) == 5
+    line = np.repeat([7.0, np.nan, 9.0], 1000)
+    seg = assign_segments(t, st_, line)
+    assert set(np.unique(seg)) == {-1, 7, 9}
+    with pytest.raises(InputError):
+        assign_segments(t, st_, None, 0.0)
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.floats(0.01, 5.0), min_size=2, max_size=60), st.floats(0.5, 100))
+def test_windows_cover_valid_samples_in_order(steps, seg_s):
+    t = np.cumsum(steps)
+    stt = find_stretches(t, None, 1.0)
+    seg = assign_segments(t, stt, None, seg_s)
+    assert (seg >= 0).all()
+    assert (np.diff(seg) >= 0).all()  # monotone in time
+    # a segment never spans two stretches
+    for s in np.unique(seg):
+        assert len(np.unique(stt[seg == s])) == 1
+
+
+def test_band_above_nyquist_is_an_input_error():
+    with pytest.raises(InputError, match="Nyquist"):
+        butter_sos("bandpass", (0.1, 6.0), 10.0)
+    with pytest.raises(InputError, match="LOW < HIGH"):
+        butter_sos("bandpass", (0.9, 0.1), 10.0)
+
+
+def test_bandpass_matches_scipy_per_stretch_and_never_crosses_gaps():
+    rng = np.random.default_rng(0)
+    t = np.r_[np.arange(0, 60, 0.1), np.arange(100, 160, 0.1)]
+    x = rng.normal(size=len(t))
+    x[600:] += 1000.0  # a level jump hidden in the gap
+    s = find_stretches(t)
+    y = bandpass_stretches(x, t, s, (0.1, 0.9))
+    sos = signal.butter(4, (0.1, 0.9), "bandpass", fs=10, output="sos")
+    np.testing.assert_allclose(y[:600], signal.sosfiltfilt(sos, x[:600]), atol=1e-12)
+    np.testing.assert_allclose(y[600:], signal.sosfiltfilt(sos, x[600:]), atol=1e-9)
+
+
+def test_lowpass_keeps_level():
+    t = np.arange(0, 100, 0.1)
+    x = 50000 + np.sin(2 * np.pi * 0.05 * t) + 0.1 * np.sin(2 * np.pi * 3 * t)
+    y = lowpass_stretches(x, t, find_stretches(t), 0.9)
+    assert abs(np.mean(y) - np.mean(x)) < 1e-3
+    assert np.std(y[100:-100] - 50000 - np.sin(2 * np.pi * 0.05 * t[100:-100])) < 0.01
+
+
+def test_trim_mask_and_run_bounds():
+    t = np.arange(0, 20, 1.0)
+    s = np.r_[np.zeros(10, int), -np.ones(2, int), np.ones(8, int)]
+    a, b, v = run_bounds(s)
+    assert a.tolist() == [0, 12] and b.tolist() == [10, 20] and v.tolist() == [0, 1]
+    m = trim_mask(s, t, 2.0)
+    assert m.tolist() == [False] * 2 + [True] * 6 + [False] * 6 + [True] * 4 + [False] * 2
+    assert sampling_rate(t) == 1.0
