@@ -280,9 +280,11 @@ def segment_normal_equations(
             " a higher --band LOW, or a larger --max-gap"
         )
     sidx = seg[use]
-    order = np.argsort(sidx, kind="stable")
-    Xs = Xf[:, use][:, order]
-    sidx = sidx[order]
+    Xs = Xf[:, use]
+    if np.any(np.diff(sidx) < 0):  # a line flown twice: gather each segment's samples
+        order = np.argsort(sidx, kind="stable")
+        Xs = Xs[:, order]
+        sidx = sidx[order]
     ids, first, counts = np.unique(sidx, return_index=True, return_counts=True)
     min_s = (1.0 / cfg.band_hz[0]) if cfg.min_segment_seconds is None else cfg.min_segment_seconds
     nmin = max(int(np.ceil(min_s * prep.fs)), 3 * k)

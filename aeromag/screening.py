@@ -144,6 +144,7 @@ def pca_screen(
     variance: float = 0.8,
     quantile: float = 0.975,
     random_state: int = 0,
+    max_mcd_points: int = 400,
 ) -> ScreenResult:
     """Screen segments by PCA of their standardised coefficient vectors.
 
@@ -156,7 +157,9 @@ def pca_screen(
     quantile : float
         Chi-square quantile of the cut-off on the robust squared distance (0-1).
     random_state : int
-        Seed of the MCD estimator (results are deterministic).
+        Seed of the MCD estimator and of its subsample (results are deterministic).
+    max_mcd_points : int
+        Most segments the MCD is fitted on (a seeded subsample beyond that).
 
     Returns
     -------
@@ -188,7 +191,13 @@ def pca_screen(
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            mcd = MinCovDet(random_state=random_state).fit(S)
+            # Long flights have thousands of segments; the cluster's location and shape are
+            # estimated as well from a seeded subsample, and every segment is then scored.
+            fit_rows = S
+            if m > max_mcd_points:
+                pick = np.random.default_rng(random_state).choice(m, max_mcd_points, replace=False)
+                fit_rows = S[np.sort(pick)]
+            mcd = MinCovDet(random_state=random_state).fit(fit_rows)
         loc = mcd.location_
         cov = mcd.covariance_
         d2 = mcd.mahalanobis(S)

@@ -206,15 +206,15 @@ def time_derivative(
     o2 = out if out.ndim == 2 else out[:, None]
     h = np.diff(t)  # h[i] = t[i+1] - t[i]
     df = np.diff(f2, axis=0)
-    # Interior points (neither start nor end of a stretch): non-uniform central difference.
-    interior = ~(starts | ends)
-    idx = np.flatnonzero(interior)
-    if idx.size:
-        hs = h[idx - 1][:, None]
-        hd = h[idx][:, None]
-        o2[idx] = (hs**2 * f2[idx + 1] + (hd**2 - hs**2) * f2[idx] - hd**2 * f2[idx - 1]) / (
+    # Central non-uniform differences everywhere inside (slices, no gathers); the samples at
+    # stretch ends are overwritten below with one-sided differences (or 0).
+    if n > 2:
+        hs = h[:-1, None]
+        hd = h[1:, None]
+        o2[1:-1] = (hs * hs * f2[2:] + (hd * hd - hs * hs) * f2[1:-1] - hd * hd * f2[:-2]) / (
             hs * hd * (hd + hs)
         )
+    o2[starts & ends] = 0.0
     # Stretch starts with a successor in the same stretch: forward difference.
     first = np.flatnonzero(starts & ~ends)
     if first.size:
