@@ -1,0 +1,115 @@
+"""``aeromag compensate`` / ``calibrate`` through typer's runner and as a real subprocess."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from aeromag.cli import app
+
+from .conftest import hand_flight
+
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("cli")
+    df, _ = hand_flight(seed=11, n=6000)
+    df.drop(columns=["truth_mag_tl", "truth_clean"]).to_csv(d / "flight.csv", index=False)
+    renamed = df.rename(columns={"mag": "mag_1_uc", "flux_x": "fx"})
+    renamed.assign(fx=renamed["fx"] / 1000.0).to_csv(d / "renamed.csv", index=False)
+    return d
+
+
+def test_compensate_writes_csv_and_json(logs, tmp_path):
+    out = tmp_path / "o" / "comp.csv"
+    r = runner.invoke(app, ["compensate", str(logs / "flight.csv"), "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    assert "improvement ratio" in r.output
+    df = pd.read_csv(out)
+    assert {"mag_tl", "mag_comp", "segment", "segment_kept"} <= set(df.columns)
+    rep = json.loads(out.with_suffix(".json").read_text())
+    assert len(rep["coef"]) == 16 and rep["metrics"]["improvement_ratio"] > 10
+
+
+def test_calibrate_then_compensate_with_model(logs, tmp_path):
+    m = tmp_path / "aircraft.json"
+    r = runner.invoke(app, ["calibrate", str(logs / "flight.csv"), "-o", str(m)])
+    assert r.exit_code == 0, r.output
+    out = tmp_path / "s.csv"
+    r = runner.invoke(app, ["compensate", str(logs / "flight.csv"), "--model", str(m), "-o",
+                            str(out), "--no-filter", "--no-screen"])
+    assert r.exit_code == 0, r.output
+    assert set(pd.read_csv(out)["segment_kept"]) == {True}
+
+
+def test_column_map_and_units_options(logs, tmp_path):
+    out = tmp_path / "r.csv"
+    r = runner.invoke(app, ["compensate", str(logs / "renamed.csv"), "-o", str(out),
+                            "--col", "mag=mag_1_uc", "--col", "flux_x=fx", "--units",
+                            "flux_x=uT", "--band", "0.1", "0.9", "--terms", "16",
+                            "--segment-seconds", "60"])
+    assert r.exit_code == 0, r.output
+    rep = json.loads(out.with_suffix(".json").read_text())
+    assert rep["metrics"]["improvement_ratio"] > 10
+
+
+BAD = {
+    "missing_column": "time,mag,flux_x,flux_y\n0,1,2,3\n0.1,1,2,3\n",
+    "text_in_numbers": "time,mag,flux_x,flux_y,flux_z\n0,1,2,3,4\n0.1,x,2,3,4\n",
+    "empty": "",
+    "one_row": "time,mag,flux_x,flux_y,flux_z\n0,1,2,3,4\n",
+}
+
+
+@pytest.mark.parametrize("name", sorted(BAD) + ["constant_flux", "band_above_nyquist"])
+def test_bad_inputs_give_one_line_error_and_no_output(tmp_path, logs, name):
+    if name in BAD:
+        src = tmp_path / f"{name}.csv"
+        src.write_text(BAD[name])
+        extra: list[str] = []
+    elif name == "constant_flux":
+        src = tmp_path / "const.csv"
+        df = pd.read_csv(logs / "flight.csv").assign(flux_x=1.0, flux_y=2.0, flux_z=3.0)
+        df.to_csv(src, index=False)
+        extra = []
+    else:
+        src = logs / "flight.csv"
+        extra = ["--band", "0.1", "7"]
+    out = tmp_path / "out" / "x.csv"
+    r = runner.invoke(app, ["compensate", str(src), "-o", str(out), *extra])
+    assert r.exit_code != 0
+    msg = r.output.strip()
+    assert msg.startswith("error: ") and "\n" not in msg, msg
+    assert src.name in msg
+    assert "Traceback" not in msg
+    assert not out.exists() and not out.with_suffix(".json").exists()
+    if out.parent.exists():
+        assert list(out.parent.iterdir()) == []
+
+
+def test_real_subprocess(logs, tmp_path):
+    out = tmp_path / "sub.csv"
+    cmd = [sys.executable, "-c", "from aeromag.cli import main; main()", "compensate",
+           str(logs / "flight.csv"), "-o", str(out)]
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert out.exists() and out.with_suffix(".json").exists()
+    bad = subprocess.run(cmd[:4] + [str(tmp_path / "nope.csv"), "-o", str(out)],
+                         capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 1
+    assert bad.stderr.strip().count("\n") == 0 and "nope.csv" in bad.stderr
+    assert "Traceback" not in bad.stderr
+
+
+def test_help_lists_fixed_options():
+    r = runner.invoke(app, ["compensate", "--help"])
+    for opt in ("--model", "--band", "--terms", "--segment-seconds", "--no-screen",
+                "--no-filter", "--col"):
+        assert opt in r.output
