@@ -1,0 +1,66 @@
+"""``aeromag simulate``: synthetic calibration flight, survey, plan and ground truth."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..simulate import write_simulation
+from .app import app, setup_logging, user_errors
+
+log = logging.getLogger(__name__)
+
+
+def _mission_files(out_dir: Path, seed: int) -> dict[str, Path]:
+    """Write the multirotor mission-simulator files when that module is available."""
+    try:
+        from ..simulate_mission import write_mission_files
+    except ModuleNotFoundError as exc:
+        if exc.name != "aeromag.simulate_mission":
+            raise
+        log.debug("aeromag.simulate_mission not available; no mission files written")
+        return {}
+    return dict(write_mission_files(out_dir, seed=seed))
+
+
+_HELP = (
+    "Write a synthetic calibration flight, survey and plan with their ground truth.\n\n"
+    "Files written to the output folder: calibration.csv (boxes on the four cardinal headings "
+    "with pitch/roll/yaw manoeuvres, one line per manoeuvre, turns cut out), survey.csv "
+    "(parallel lines over buried dipoles, gusty attitude), plan.csv (survey waypoints: start "
+    "and end of each line) and truth.json (TL coefficients, Earth field, noise levels, faults)."
+    "\n\n"
+    "Every log carries ground-truth columns: truth_mag_tl (aircraft interference, nT), "
+    "truth_mag_clean, truth_anomaly, truth_diurnal, truth_fault (kind), truth_fault_nT."
+)
+
+
+@app.command(help=_HELP)
+def simulate(
+    output: Annotated[Path, typer.Option("-o", "--output", help="Output folder (created when "
+                                         "missing).", file_okay=False, show_default=False)],
+    seed: Annotated[int, typer.Option("--seed", help="Random seed; the same seed gives the "
+                                      "same files.")] = 0,
+    faults: Annotated[float, typer.Option(
+        "--faults", min=0.0, max=1.0, metavar="FRACTION",
+        help="Fraction of the segments (lines) of each flight carrying a fault, 0-1; kinds cycle "
+        "over noise_burst, onboard_source, flux_bias, scalar_drift (listed in truth.json).",
+    )] = 0.0,
+    rate: Annotated[float, typer.Option("--rate", metavar="HZ",
+                                        help="Sample rate, Hz.")] = 10.0,
+    small: Annotated[bool, typer.Option("--small", help="Small files (one calibration box of 12 "
+                                        "segments, four survey lines): the shipped samples.")]
+    = False,
+    verbose: Annotated[bool, typer.Option("-v", "--verbose", help="Log progress details.")]
+    = False,
+) -> None:
+    """Write a synthetic calibration flight, survey and plan with their ground truth."""
+    setup_logging(verbose)
+    with user_errors():
+        paths = write_simulation(output, seed=seed, faults=faults, rate_hz=rate, small=small)
+        paths.update(_mission_files(output, seed))
+    for path in paths.values():
+        typer.echo(str(path))
