@@ -87,7 +87,7 @@ class CompensationConfig:
         Fewest fitted segments for screening; fewer are fitted without screening.
     min_excess : float
         A segment outside the PCA main cluster is dropped only when the pooled fit leaves it a
-        band-passed residual std above ``min_excess`` times the median over kept segments
+        band-passed residual std above ``min_excess`` (default 1.5) times the median over kept segments
         (an outlier that the pool fits as well as any other segment is statistically, not
         practically, different and is kept).
     min_segment_seconds : float or None
@@ -97,8 +97,8 @@ class CompensationConfig:
     max_interp_s : float
         Longest NaN gap interpolated [s]; longer gaps split stretches.
     trim_s : float or None
-        Filter edge dropped at each stretch end before fitting [s]; default
-        ``0.5 / band_hz[0]``.
+        Filter edge dropped at each end of every segment piece before fitting [s]; default
+        ``0.25 / band_hz[0]``.
     """
 
     band_hz: tuple[float, float] = (0.1, 0.9)
@@ -114,7 +114,7 @@ class CompensationConfig:
     screen_quantile: float = 0.975
     max_iter: int = 10
     min_segments: int = 6
-    min_excess: float = 1.25
+    min_excess: float = 1.5
     min_segment_seconds: float | None = None
     max_gap_s: float | None = None
     max_interp_s: float = 1.0
@@ -244,7 +244,7 @@ def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = N
 def segment_normal_equations(
     prep: Prepared, terms: tuple[str, ...], cfg: CompensationConfig
 ) -> SegmentStats:
-    """Band-pass the design matrix and target per stretch; normal equations per segment.
+    """Band-pass the design matrix and target per segment piece; normal equations per segment.
 
     Parameters
     ----------
@@ -269,9 +269,13 @@ def segment_normal_equations(
     design_matrix(prep.flux[v], t, terms, stretch=st, out=X[:k].T)
     y = prep.mag[v]
     X[k] = y - np.median(y)
-    Xf = filter_stretches(X, st, sos, axis=1)
-    trim = (0.5 / cfg.band_hz[0]) if cfg.trim_s is None else cfg.trim_s
-    use = trim_mask(st, t, trim) & (seg >= 0) & np.isfinite(Xf[k])
+    # Each segment is filtered on its own (within each stretch): a fault in one segment must
+    # not leak through the filter into its neighbours' fits.
+    piece = np.cumsum(np.r_[True, (st[1:] != st[:-1]) | (seg[1:] != seg[:-1])]) - 1
+    piece = np.where(seg >= 0, piece, -1)
+    Xf = filter_stretches(X, piece, sos, axis=1)
+    trim = (0.25 / cfg.band_hz[0]) if cfg.trim_s is None else cfg.trim_s
+    use = trim_mask(piece, t, trim) & (seg >= 0) & np.isfinite(Xf[k])
     if not use.any():
         nmin = min_filter_length(sos) / prep.fs
         raise FitError(
@@ -529,9 +533,20 @@ def apply_model(
     ok = fstretch >= 0
     mag_tl[ok] = model.predict(prep.flux[ok], t[ok], fstretch[ok])
     comp = prep.mag - mag_tl
+    seg = prep.segment
+    if kept_segments is None:
+        kept = seg >= 0
+    else:
+        kept = np.isin(seg, kept_segments) & (seg >= 0)
     if cfg.filter_output:
         cut = cfg.lowpass_hz if cfg.lowpass_hz is not None else cfg.band_hz[1]
-        comp_out = lowpass_stretches(comp, t, prep.stretch, cut, cfg.order)
+        # Low-pass per stretch, but each dropped segment on its own: a fault (a source
+        # switching on, a drift step) must not ring through the filter into good data.
+        dropped = np.where((seg >= 0) & ~kept, seg, -1)
+        st = prep.stretch
+        lab = np.cumsum(np.r_[True, (st[1:] != st[:-1]) | (dropped[1:] != dropped[:-1])]) - 1
+        lab = np.where(st >= 0, lab, -1)
+        comp_out = lowpass_stretches(comp, t, lab, cut, cfg.order)
     else:
         comp_out = comp
     out = df.copy()
@@ -540,10 +555,6 @@ def apply_model(
     seg = prep.segment
     out["segment"] = pd.array(np.where(seg >= 0, seg, 0), dtype="Int64")
     out.loc[seg < 0, "segment"] = pd.NA
-    if kept_segments is None:
-        kept = seg >= 0
-    else:
-        kept = np.isin(seg, kept_segments) & (seg >= 0)
     out["segment_kept"] = kept
     metrics = compensation_metrics(prep.mag, comp_out, t, prep.stretch, cfg, kept=kept)
     return out, metrics

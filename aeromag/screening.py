@@ -16,7 +16,7 @@ aeromag's rule for "outside the main cluster" is robust and documented:
 * a segment is dropped when its **robust squared Mahalanobis distance** exceeds the
   chi-square quantile ``chi2.ppf(quantile, n_components)`` (default quantile 0.975);
 * an outlier is dropped only when it also *matters*: the pooled fit leaves it a band-passed
-  residual std above ``min_excess`` (default 1.25) times the median segment's.  With low
+  residual std above ``min_excess`` (default 1.5) times the median segment's.  With low
   noise, clean segments differ in ways that are statistically significant yet harmless;
 * the pipeline repeats pool -> shrunk fits -> PCA -> MCD on the kept set's pool until the kept
   set no longer changes.

@@ -35,6 +35,9 @@ Variance = Annotated[float, typer.Option("--pca-variance", help="Cumulative expl
                                          "of the PCA components used for screening.")]
 Quantile = Annotated[float, typer.Option("--screen-quantile", help="Chi-square quantile of the "
                                          "screening cut-off on the robust distance.")]
+MinExcess = Annotated[float, typer.Option("--min-excess", help="A PCA outlier is dropped only "
+                                          "when the pooled fit leaves it a residual above this "
+                                          "times the median segment's.")]
 MaxGap = Annotated[float | None, typer.Option("--max-gap", metavar="S", help="A time step longer "
                                               "than this starts a new stretch, s (default 5 dt).")]
 MaxInterp = Annotated[float, typer.Option("--max-interp", metavar="S", help="NaN gaps up to this "
@@ -67,6 +70,7 @@ def compensate(
     shrink: Shrink = 1.0,
     pca_variance: Variance = 0.8,
     screen_quantile: Quantile = 0.975,
+    min_excess: MinExcess = 1.5,
     max_gap: MaxGap = None,
     max_interp: MaxInterp = 1.0,
     fmt: Fmt = None,
@@ -82,6 +86,7 @@ def compensate(
             band_hz=band, terms=terms, segment_seconds=segment_seconds, screen=not no_screen,
             filter_output=not no_filter, lowpass_hz=lowpass, ridge=ridge, shrink=shrink,
             pca_variance=pca_variance, screen_quantile=screen_quantile, max_gap_s=max_gap,
+            min_excess=min_excess,
             max_interp_s=max_interp,
         )
         res = compensate_file(survey, output, cfg, model=model, columns=columns, units=unit_map,
@@ -104,6 +109,7 @@ def calibrate(
     shrink: Shrink = 1.0,
     pca_variance: Variance = 0.8,
     screen_quantile: Quantile = 0.975,
+    min_excess: MinExcess = 1.5,
     max_gap: MaxGap = None,
     max_interp: MaxInterp = 1.0,
     fmt: Fmt = None,
@@ -117,6 +123,7 @@ def calibrate(
             band_hz=band, terms=terms, segment_seconds=segment_seconds, screen=not no_screen,
             ridge=ridge, shrink=shrink, pca_variance=pca_variance,
             screen_quantile=screen_quantile, max_gap_s=max_gap, max_interp_s=max_interp,
+            min_excess=min_excess,
         )
         res = calibrate_file(cal, output, cfg, columns=columns, units=unit_map, fmt=fmt)
     _summary(res.report, output, None)
