@@ -87,8 +87,8 @@ class CompensationConfig:
         Fewest fitted segments for screening; fewer are fitted without screening.
     min_excess : float
         A segment outside the PCA main cluster is dropped only when the pooled fit leaves it a
-        band-passed residual std above ``min_excess`` (default 1.5) times the median over kept segments
-        (an outlier that the pool fits as well as any other segment is statistically, not
+        band-passed residual std above ``min_excess`` (default 1.5) times the median over kept
+        segments (an outlier that the pool fits as well as any other segment is statistically, not
         practically, different and is kept).
     min_segment_seconds : float or None
         Shortest usable segment after trimming [s]; default ``1 / band_hz[0]``.
