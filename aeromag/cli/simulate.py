@@ -23,7 +23,9 @@ def _mission_files(out_dir: Path, seed: int) -> dict[str, Path]:
             raise
         log.debug("aeromag.simulate_mission not available; no mission files written")
         return {}
-    return dict(write_mission_files(out_dir, seed=seed))
+    written = write_mission_files(out_dir, seed=seed)
+    # Its keys ("plan", "truth") would clash with ours: keep them apart.
+    return {k if k.startswith("mission") else f"mission_{k}": Path(v) for k, v in written.items()}
 
 
 _HELP = (
