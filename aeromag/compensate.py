@@ -47,7 +47,12 @@ from .filters import (
 )
 from .io import FLUX_COLUMNS, atomic_path, json_path_for, read_log, write_csv, write_json
 from .screening import RULE, ScreenResult, pca_screen, shrunk_segment_fits
-from .segments import assign_segments, find_stretches, interpolate_short_gaps
+from .segments import (
+    assign_segments,
+    find_stretches,
+    interpolate_short_gaps,
+    line_labels,
+)
 from .tolles_lawson import TLModel, design_matrix, parse_terms, solve_normal
 
 log = logging.getLogger(__name__)
@@ -144,6 +149,7 @@ class Prepared:
     fs: float
     source: str
     mag_from_flux: bool
+    line_of_segment: dict[int, float] | None = None
 
 
 @dataclass
@@ -238,7 +244,8 @@ def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = N
         line = None
     segment = assign_segments(t, stretch, line, cfg.segment_seconds)
     fs = sampling_rate(t)
-    return Prepared(t, flux, mag, flux_ok, valid, stretch, segment, fs, src, mag_from_flux)
+    return Prepared(t, flux, mag, flux_ok, valid, stretch, segment, fs, src, mag_from_flux,
+                    line_labels(line))
 
 
 def segment_normal_equations(
@@ -438,6 +445,9 @@ def fit_model(
                          "residual_std": None, "condition_number": None,
                          "reason": "too short to fit"})
     segments.sort(key=lambda e: e["id"])
+    if prep.line_of_segment:
+        for e in segments:
+            e["line"] = prep.line_of_segment.get(e["id"])
     screening: dict[str, Any] = {
         "enabled": bool(screened),
         "requested": bool(cfg.screen),

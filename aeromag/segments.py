@@ -105,7 +105,8 @@ def assign_segments(
     """Segment id per sample.
 
     With a ``line`` column the segment is the line number (a line interrupted by a gap stays
-    one segment; each continuous piece is filtered on its own).  Without it, every stretch is
+    one segment; each continuous piece is filtered on its own); non-integer line numbers
+    (e.g. ``1002.02``) are numbered 0, 1, ... in sorted order (see :func:`line_labels`).  Without it, every stretch is
     cut into ``round(duration / segment_seconds)`` (at least one) windows of equal duration,
     numbered consecutively over the flight.
 
@@ -130,7 +131,16 @@ def assign_segments(
         ln = np.asarray(line, dtype=np.float64)
         ok = np.isfinite(ln) & (st >= 0)
         seg = np.full(len(st), -1, dtype=np.int64)
-        seg[ok] = ln[ok].astype(np.int64)
+        vals = ln[ok]
+        if np.all(vals == np.round(vals)):
+            seg[ok] = vals.astype(np.int64)
+        else:
+            # Line numbers such as 1002.02 / 1002.20 (SGL): number them 0, 1, ... in sorted
+            # order so that distinct lines never merge; line_labels() gives the originals.
+            _, codes = np.unique(vals, return_inverse=True)
+            seg[ok] = codes
+            log.info("non-integer line numbers: segments numbered 0..%d in line order",
+                     int(codes.max()))
         return seg
     if segment_seconds <= 0:
         from .errors import InputError
@@ -155,3 +165,26 @@ def assign_segments(
     offset = np.r_[0, np.cumsum(nwin)[:-1]]
     seg[ok] = offset[sid] + win
     return seg
+
+
+def line_labels(line: np.ndarray | None) -> dict[int, float] | None:
+    """Map segment ids back to the original line numbers when those are not integers.
+
+    Parameters
+    ----------
+    line : ndarray or None
+        The ``line`` column.
+
+    Returns
+    -------
+    dict or None
+        ``{segment_id: line_number}``, or None when line numbers are integers (segment id =
+        line number) or absent.
+    """
+    if line is None:
+        return None
+    ln = np.asarray(line, dtype=np.float64)
+    vals = np.unique(ln[np.isfinite(ln)])
+    if vals.size == 0 or np.all(vals == np.round(vals)):
+        return None
+    return {i: float(v) for i, v in enumerate(vals)}

@@ -102,3 +102,14 @@ def test_trim_mask_and_run_bounds():
     m = trim_mask(s, t, 2.0)
     assert m.tolist() == [False] * 2 + [True] * 6 + [False] * 6 + [True] * 4 + [False] * 2
     assert sampling_rate(t) == 1.0
+
+
+def test_non_integer_line_numbers_never_merge():
+    from aeromag.segments import line_labels
+
+    t = np.arange(0, 30, 0.1)
+    line = np.repeat([1002.02, 1002.2, 1003.0], 100)
+    seg = assign_segments(t, find_stretches(t), line)
+    assert len(np.unique(seg)) == 3
+    assert line_labels(line) == {0: 1002.02, 1: 1002.2, 2: 1003.0}
+    assert line_labels(np.repeat([3.0, 4.0], 5)) is None
