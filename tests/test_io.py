@@ -127,3 +127,13 @@ def test_numbers_round_trip_through_csv(tmp_path_factory, values):
        st.text(alphabet="abcdefghij_0123", min_size=1, max_size=10))
 def test_parse_column_map_property(name, source):
     assert parse_column_map([f"{name}={source}"]) == {name: source}
+
+
+def test_outputs_get_normal_permissions(tmp_path):
+    import os
+    import stat
+
+    p = write_csv(pd.DataFrame({"a": [1.0]}), tmp_path / "p.csv")
+    mask = os.umask(0)
+    os.umask(mask)
+    assert stat.S_IMODE(p.stat().st_mode) == 0o666 & ~mask
