@@ -1,0 +1,73 @@
+"""``aeromag track``: DGPS track-deviation flags per leg, heading detector, combined verdict."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..io import json_path_for
+from ..track import DEFAULT_WAYPOINT_RADIUS_M, track_file
+from .app import app, column_options, setup_logging, user_errors
+
+
+@app.command()
+def track(
+    survey: Annotated[Path, typer.Argument(help="Survey log (CSV) with time, lat, lon, alt.",
+                                           show_default=False)],
+    plan: Annotated[Path, typer.Option("--plan", metavar="PLAN.csv",
+                                       help="Mission plan: waypoints lat, lon, alt in order.")],
+    output: Annotated[Path, typer.Option("-o", help="Output CSV (the per-leg report goes to "
+                                         "OUT.json).")],
+    threshold: Annotated[float, typer.Option("--threshold", metavar="M",
+                         help="Track alarm threshold, metres.")] = 1.0,
+    min_duration: Annotated[float, typer.Option("--min-duration", metavar="S",
+                            help="Exceedance must last this long before the track alarm, s.")]
+    = 0.0,
+    calm_window: Annotated[str, typer.Option("--calm-window", metavar="S|T0:T1",
+                           help="Calm reference window of the heading detector: seconds from "
+                           "the start, or a time range T0:T1.")] = "30",
+    heading_sigmas: Annotated[float, typer.Option("--heading-sigmas", metavar="K",
+                              help="Heading alarm above K sigma of the calm window.")] = 5.0,
+    declination: Annotated[float, typer.Option("--declination", metavar="DEG",
+                           help="Declination for a fluxgate-derived heading, degrees east.")]
+    = 0.0,
+    combine: Annotated[str, typer.Option("--combine", metavar="or|and",
+                       help="Combined verdict: either detector (or) or confirmed by both (and).")]
+    = "or",
+    waypoint_radius: Annotated[float, typer.Option("--waypoint-radius", metavar="M",
+                               help="Waypoint radius for leg assignment when the log has no "
+                               "'leg' column, m.")] = DEFAULT_WAYPOINT_RADIUS_M,
+    plot: Annotated[Path | None, typer.Option("--plot", metavar="DIR",
+                    help="Write track and time-series plots (PNG) to DIR.")] = None,
+    col: Annotated[list[str] | None, typer.Option("--col", metavar="NAME=SOURCE",
+                   help="Column map, repeatable (e.g. lat=gps_lat).")] = None,
+    map_file: Annotated[Path | None, typer.Option("--map", metavar="FILE",
+                        help="TOML column map ([columns], [units]).")] = None,
+    units: Annotated[list[str] | None, typer.Option("--units", metavar="NAME=UNIT",
+                     help="Convert a field column or group (flux, mag) to nT.")] = None,
+    verbose: Annotated[bool, typer.Option("-v", "--verbose", help="Log progress details.")]
+    = False,
+) -> None:
+    """Flag DGPS track deviations per mission leg (xtrack_m > --threshold), run the heading
+    detector when the columns allow, combine them; write OUT.csv and OUT.json ({"legs": [...]}).
+    """
+    setup_logging(verbose)
+    with user_errors():
+        columns, unit_map = column_options(col, map_file, units)
+        res = track_file(
+            survey, plan, output, threshold_m=threshold, min_duration_s=min_duration,
+            calm_window=calm_window, heading_sigmas=heading_sigmas, declination_deg=declination,
+            combine=combine, waypoint_radius_m=waypoint_radius, columns=columns, units=unit_map,
+            plot_dir=plot,
+        )
+    rep = res.report
+    flagged = rep.get("flagged_legs", [])
+    line = (f"wrote {output} and {json_path_for(output)}: {len(flagged)}/{rep.get('n_legs', 0)}"
+            " legs flagged")
+    if flagged:
+        line += f" ({', '.join(map(str, flagged))})"
+    if not rep.get("heading_detector", {}).get("available"):
+        line += "; heading detector skipped (no heading columns)"
+    typer.echo(line)
