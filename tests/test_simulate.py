@@ -437,8 +437,8 @@ def test_shipped_samples_match_the_recipe(tmp_path: Path) -> None:
     if not (SAMPLES / "truth.json").exists():
         pytest.skip("data_samples not generated yet (cli/make_samples.sh)")
     recipe = (REPO / "cli" / "make_samples.sh").read_text()
-    assert "--small" in recipe and "--seed 1" in recipe
-    write_simulation(tmp_path, seed=1, small=True)
+    assert "--small" in recipe and "--seed 1" in recipe and "--faults 0.1" in recipe
+    write_simulation(tmp_path, seed=1, small=True, faults=0.1)
     for name in ("calibration.csv", "survey.csv", "plan.csv"):
         assert (SAMPLES / name).stat().st_size < 600_000
         shipped = pd.read_csv(SAMPLES / name, keep_default_na=False)

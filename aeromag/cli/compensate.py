@@ -142,4 +142,7 @@ def _summary(report: dict, out: Path, out_json: Path | None) -> None:
     rs = m.get("residual_std_nT")
     if ir is not None and rs is not None:
         line += f"; improvement ratio {ir:.2f}, residual std {rs:.4f} nT"
+        kir = m.get("kept_improvement_ratio")
+        if scr.get("dropped") and kir is not None:
+            line += f" ({kir:.2f} and {m['kept_residual_std_nT']:.4f} nT on kept segments)"
     typer.echo(line)
