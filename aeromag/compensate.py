@@ -235,6 +235,7 @@ def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = N
             f"{src}: columns flux_x, flux_y, flux_z are constant: the fluxgate did not record"
             " attitude changes; check the column map (--col) or the instrument"
         )
+    _warn_units(src, bt[flux_ok], None if mag_from_flux else mag)
     valid = flux_ok & np.isfinite(mag)
     if valid.sum() < 2:
         raise InputError(f"{src}: column 'mag' holds no usable sample")
@@ -246,6 +247,21 @@ def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = N
     fs = sampling_rate(t)
     return Prepared(t, flux, mag, flux_ok, valid, stretch, segment, fs, src, mag_from_flux,
                     line_labels(line))
+
+
+def _warn_units(src: str, bt: np.ndarray, mag: np.ndarray | None) -> None:
+    """Warn (never convert) when field magnitudes do not look like nT."""
+    med = float(np.median(bt))
+    if not 1_000.0 <= med <= 200_000.0:
+        log.warning(
+            "%s: the fluxgate magnitude is %.4g, not an Earth field in nT (20000-70000);"
+            " if the fluxgate is in uT, mT or G pass --units flux=uT (or mT, G)", src, med)
+    if mag is not None:
+        mm = float(np.nanmedian(mag))
+        if np.isfinite(mm) and not 0.1 < mm / med < 10.0:
+            log.warning(
+                "%s: median mag %.4g and fluxgate magnitude %.4g differ by more than 10x;"
+                " check their units (--units mag=..., --units flux=...)", src, mm, med)
 
 
 def segment_normal_equations(

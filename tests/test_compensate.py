@@ -158,3 +158,12 @@ def test_model_with_other_terms_round_trips(tmp_path, flight):
     assert len(res.report["coef"]) == 9
     m = TLModel.from_dict(res.report)
     assert m.terms == tuple(res.report["terms"])
+
+
+def test_implausible_units_warn_but_never_convert(flight, caplog):
+    df, _ = flight
+    ut = df.assign(flux_x=df.flux_x / 1000, flux_y=df.flux_y / 1000, flux_z=df.flux_z / 1000)
+    with caplog.at_level("WARNING"):
+        res = compensate(ut)
+    assert "--units flux=uT" in caplog.text
+    assert np.isfinite(res.data["mag_comp"]).all()
