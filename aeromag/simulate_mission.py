@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 from pyproj import Transformer
+from scipy.signal import lfilter
 
 from .io import write_csv, write_json
 
@@ -197,8 +198,6 @@ def simulate_mission(
     white = rng.standard_normal((max_steps, 2))
     fnoise = rng.standard_normal((max_steps, 3)) * flux_noise_nT
     if flux_noise_tau_s > 0:
-        from scipy.signal import lfilter
-
         fa = math.exp(-dt / flux_noise_tau_s)
         fnoise = lfilter([math.sqrt(1.0 - fa * fa)], [1.0, -fa], fnoise, axis=0)
 

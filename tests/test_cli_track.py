@@ -1,0 +1,103 @@
+"""``aeromag track`` through typer's CliRunner and as a real process."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from aeromag.cli import app
+from aeromag.simulate_mission import write_mission_files
+
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def mission(tmp_path_factory):
+    return write_mission_files(tmp_path_factory.mktemp("mission"), seed=1)
+
+
+def test_cli_track_outputs(mission, tmp_path):
+    out = tmp_path / "out.csv"
+    r = runner.invoke(app, ["track", str(mission["mission"]), "--plan", str(mission["plan"]),
+                            "-o", str(out), "--plot", str(tmp_path / "plots")])
+    assert r.exit_code == 0, r.output
+    assert "legs flagged" in r.output
+    df = pd.read_csv(out, keep_default_na=False, dtype=str)
+    src = pd.read_csv(mission["mission"])
+    assert list(df.columns[: len(src.columns)]) == list(src.columns)
+    for c in ("leg", "xtrack_m", "xtrack_h_m", "xtrack_v_m", "along_m", "track_alarm",
+              "heading_diff_deg", "heading_alarm", "alarm"):
+        assert c in df.columns
+    assert set(df["alarm"]) <= {"true", "false"}
+    off = df["leg"] == ""
+    assert off.any() and (df.loc[off, "alarm"] == "false").all()
+    rep = json.loads(out.with_suffix(".json").read_text())
+    truth = json.loads(mission["truth"].read_text())
+    assert len(rep["legs"]) == len(truth["legs"])
+    for row, tl in zip(rep["legs"], truth["legs"], strict=True):
+        assert {"leg", "max_xtrack_m", "first_alarm_time", "flagged"} <= set(row)
+        assert row["flagged"] == (tl["disturbance"] is not None)
+        if not row["flagged"]:
+            assert row["first_alarm_time"] is None
+    assert (tmp_path / "plots" / "track_map.png").stat().st_size > 0
+    assert (tmp_path / "plots" / "track_timeseries.png").stat().st_size > 0
+
+
+def test_cli_options(mission, tmp_path):
+    out = tmp_path / "o.csv"
+    r = runner.invoke(app, ["track", str(mission["mission"]), "--plan", str(mission["plan"]),
+                            "-o", str(out), "--threshold", "50", "--combine", "and",
+                            "--calm-window", "0:30", "--heading-sigmas", "6",
+                            "--min-duration", "1"])
+    assert r.exit_code == 0, r.output
+    rep = json.loads(out.with_suffix(".json").read_text())
+    assert rep["n_flagged"] == 0 and rep["combine"] == "and"
+
+
+def _bad(tmp_path, mission, plan_text=None, log_df=None, extra=()):
+    plan = mission["plan"]
+    if plan_text is not None:
+        plan = tmp_path / "plan.csv"
+        plan.write_text(plan_text)
+    log = mission["mission"]
+    if log_df is not None:
+        log = tmp_path / "log.csv"
+        log_df.to_csv(log, index=False)
+    out = tmp_path / "bad.csv"
+    r = runner.invoke(app, ["track", str(log), "--plan", str(plan), "-o", str(out), *extra])
+    assert r.exit_code != 0
+    assert not out.exists() and not out.with_suffix(".json").exists()
+    msg = r.output.strip()
+    assert msg.startswith("error:") and "\n" not in msg and "Traceback" not in msg
+    return msg
+
+
+def test_bad_plans_and_logs(mission, tmp_path):
+    assert "at least 2" in _bad(tmp_path, mission, "lat,lon,alt\n47.3,8.5,500\n")
+    assert "zero-length" in _bad(tmp_path, mission,
+                                 "lat,lon,alt\n47.3,8.5,500\n47.3,8.5,500\n47.31,8.5,500\n")
+    assert "alt" in _bad(tmp_path, mission, "lat,lon\n47.3,8.5\n47.31,8.5\n")
+    assert "plan.csv" in _bad(tmp_path, mission, "lat,lon,alt\n47.3,x,500\n47.31,8.5,500\n")
+    src = pd.read_csv(mission["mission"]).head(400)
+    msg = _bad(tmp_path, mission, log_df=src.drop(columns=["lat", "lon"]))
+    assert "lat" in msg and "log.csv" in msg
+    assert "--combine" in _bad(tmp_path, mission, extra=("--combine", "xor"))
+
+
+def test_cli_subprocess(mission, tmp_path):
+    out = tmp_path / "p.csv"
+    cmd = [sys.executable, "-c", "from aeromag.cli import main; main()", "track",
+           str(mission["mission"]), "--plan", str(mission["plan"]), "-o", str(out)]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert out.exists() and out.with_suffix(".json").exists()
+    bad = subprocess.run(cmd[:3] + ["track", str(mission["mission"]), "--plan",
+                                     str(tmp_path / "missing.csv"), "-o", str(out)],
+                         capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 1 and bad.stderr.startswith("error:")
+    assert len(bad.stderr.strip().splitlines()) == 1
