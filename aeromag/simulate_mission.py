@@ -14,8 +14,9 @@ legs) on RTK DGPS.  Its flight controller:
 Wind gusts (an Ornstein-Uhlenbeck process, zero mean) push the vehicle through linear drag; the
 logged position has RTK noise (2 cm per axis by default).  A disturbance is a field added to the
 magnetometer's body Y axis, ramping at a given rate (G/s, 1 G = 1e5 nT) from its onset to a
-ceiling (0.2 G), held, and removed ``hold_s`` (60 s) after onset or at the end of the leg.  The vehicle hovers at
-each waypoint (turning to the next leg) long enough for the filter to re-converge.
+ceiling (0.2 G), held, and removed ``hold_s`` (60 s) after onset or at the end of the leg.  The
+vehicle hovers at each waypoint (turning to the next leg) long enough for the filter to
+re-converge.
 
 Truth columns: ``truth_xtrack_m`` (noise-free distance to the current leg's line in NED, NaN off
 leg), ``truth_leg`` (the leg being flown, -1 otherwise), ``truth_heading`` (true heading, deg),
