@@ -451,7 +451,7 @@ def test_cli_calls_the_mission_simulator_hook(tmp_path: Path, monkeypatch) -> No
 
     calls = []
 
-    def fake(out_dir, *, seed=0):
+    def fake(out_dir, *, seed=0, small=False):
         calls.append((Path(out_dir), seed))
         p = Path(out_dir) / "mission.csv"
         p.write_text("time\n0\n")

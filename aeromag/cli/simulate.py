@@ -14,16 +14,11 @@ from .app import app, setup_logging, user_errors
 log = logging.getLogger(__name__)
 
 
-def _mission_files(out_dir: Path, seed: int) -> dict[str, Path]:
-    """Write the multirotor mission-simulator files when that module is available."""
-    try:
-        from ..simulate_mission import write_mission_files
-    except ModuleNotFoundError as exc:
-        if exc.name != "aeromag.simulate_mission":
-            raise
-        log.debug("aeromag.simulate_mission not available; no mission files written")
-        return {}
-    written = write_mission_files(out_dir, seed=seed)
+def _mission_files(out_dir: Path, seed: int, small: bool) -> dict[str, Path]:
+    """Write the multirotor mission-simulator files (DGPS track check)."""
+    from ..simulate_mission import write_mission_files
+
+    written = write_mission_files(out_dir, seed=seed, small=small)
     # Its keys ("plan", "truth") would clash with ours: keep them apart.
     return {k if k.startswith("mission") else f"mission_{k}": Path(v) for k, v in written.items()}
 
@@ -63,6 +58,6 @@ def simulate(
     setup_logging(verbose)
     with user_errors():
         paths = write_simulation(output, seed=seed, faults=faults, rate_hz=rate, small=small)
-        paths.update(_mission_files(output, seed))
+        paths.update(_mission_files(output, seed, small))
     for path in paths.values():
         typer.echo(str(path))
