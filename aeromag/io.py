@@ -214,6 +214,9 @@ def _csv_ready(df: pd.DataFrame) -> pd.DataFrame:
 def write_csv(df: pd.DataFrame, path: str | os.PathLike[str]) -> Path:
     """Write a log to CSV atomically; booleans are written ``true``/``false``.
 
+    Uses pyarrow's multi-threaded CSV writer when available (numbers in their shortest
+    round-trip form, missing values empty), pandas otherwise.
+
     Parameters
     ----------
     df : DataFrame
@@ -228,8 +231,45 @@ def write_csv(df: pd.DataFrame, path: str | os.PathLike[str]) -> Path:
     """
     target = Path(path)
     with atomic_path(target) as tmp:
-        _csv_ready(df).to_csv(tmp, index=False, lineterminator="\n")
+        if not _write_csv_arrow(df, tmp):
+            _csv_ready(df).to_csv(tmp, index=False, lineterminator="\n")
     return target
+
+
+def _csv_header(columns: Iterable[Any]) -> str:
+    """The header row, quoted only where a name needs it (as pandas writes it)."""
+    import csv
+    import io as _io
+
+    buf = _io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow([str(c) for c in columns])
+    return buf.getvalue()
+
+
+def _write_csv_arrow(df: pd.DataFrame, dest: Path) -> bool:
+    """Write ``df`` with pyarrow; return False (nothing written) when pyarrow cannot."""
+    try:
+        import pyarrow as pa
+        import pyarrow.csv as pacsv
+    except ImportError:  # pragma: no cover - pyarrow is optional
+        return False
+    try:
+        table = pa.Table.from_pandas(df, preserve_index=False)
+    except (pa.ArrowException, TypeError, ValueError):
+        return False
+    if any(pa.types.is_temporal(f.type) or pa.types.is_nested(f.type) for f in table.schema):
+        return False
+    with open(dest, "wb") as fh:
+        fh.write(_csv_header(df.columns).encode("utf-8"))
+        try:
+            pacsv.write_csv(table, fh, pacsv.WriteOptions(include_header=False,
+                                                           quoting_style="none"))
+        except pa.ArrowInvalid:  # a string needs quoting
+            fh.seek(len(_csv_header(df.columns).encode("utf-8")))
+            fh.truncate()
+            pacsv.write_csv(table, fh, pacsv.WriteOptions(include_header=False,
+                                                           quoting_style="needed"))
+    return True
 
 
 def _json_default(obj: Any) -> Any:
@@ -299,27 +339,69 @@ def _read_table(path: Path, fmt: str | None) -> pd.DataFrame:
     suffix = path.suffix.lower()
     if fmt not in (None, "csv") or suffix not in (".csv", ".txt", ""):
         # Other formats live in their own module; imported lazily so CSV needs nothing more.
+        from . import formats
+
+        return formats.read_table(path, fmt)
+    if fmt is None and path.is_file():
+        from . import formats
+
+        if formats.sniff_csv(path) is not None:  # a MagArrow / MagDrone native log
+            return formats.read_table(path, None)
+    return _read_csv(path)
+
+
+def _read_csv(path: Path) -> pd.DataFrame:
+    """Read a CSV table (pyarrow's multi-threaded reader when available, else pandas)."""
+    if path.is_dir():
+        raise InputError(f"{path}: is a folder, not a log file")
+    df = _read_csv_arrow(path)
+    if df is None:
         try:
-            from . import formats
-        except ImportError:  # pragma: no cover - formats module optional during development
-            formats = None  # type: ignore[assignment]
-        if formats is not None and hasattr(formats, "read_table"):
-            return formats.read_table(path, fmt)
-        if fmt not in (None, "csv"):
-            raise InputError(f"{path}: format {fmt!r} is not supported; use --format csv")
-    try:
-        df = pd.read_csv(path, skipinitialspace=True, low_memory=False)
-    except FileNotFoundError:
-        raise InputError(f"{path}: file not found") from None
-    except IsADirectoryError:
-        raise InputError(f"{path}: is a folder, not a log file") from None
-    except pd.errors.EmptyDataError:
-        raise InputError(f"{path}: the file is empty; expected a CSV log with a header row") from None
-    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
-        msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
-        raise InputError(f"{path}: cannot parse as CSV ({msg}); check the delimiter and quoting") from None
+            df = pd.read_csv(path, skipinitialspace=True, low_memory=False)
+        except FileNotFoundError:
+            raise InputError(f"{path}: file not found") from None
+        except pd.errors.EmptyDataError:
+            raise InputError(
+                f"{path}: the file is empty; expected a CSV log with a header row") from None
+        except (pd.errors.ParserError, UnicodeDecodeError) as exc:
+            msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+            raise InputError(
+                f"{path}: cannot parse as CSV ({msg}); check the delimiter and quoting") from None
     df.columns = [str(c).strip() for c in df.columns]
     return df
+
+
+def _read_csv_arrow(path: Path) -> pd.DataFrame | None:
+    """Read with pyarrow; None when pyarrow is missing or the table needs pandas' rules."""
+    try:
+        import pyarrow as pa
+        import pyarrow.csv as pacsv
+    except ImportError:  # pragma: no cover - pyarrow is optional
+        return None
+    if not path.exists():
+        raise InputError(f"{path}: file not found")
+    if path.stat().st_size == 0:
+        raise InputError(f"{path}: the file is empty; expected a CSV log with a header row")
+    try:
+        table = pacsv.read_csv(path)
+    except pa.ArrowInvalid as exc:
+        text = str(exc).strip()
+        if "Empty CSV file" in text:
+            raise InputError(
+                f"{path}: the file is empty; expected a CSV log with a header row") from None
+        # Ragged rows, bad quoting, invalid UTF-8: let pandas decide and word the error.
+        return None
+    if any(not (pa.types.is_floating(f.type) or pa.types.is_integer(f.type)
+                or pa.types.is_boolean(f.type) or pa.types.is_null(f.type))
+           for f in table.schema):
+        # Text or dates somewhere: pandas' type inference (skipinitialspace, no date parsing)
+        # keeps the exact behaviour for those columns.
+        return None
+    nulls = [i for i, f in enumerate(table.schema) if pa.types.is_null(f.type)]
+    for i in nulls:  # an all-empty column is float NaN, as pandas reads it
+        table = table.set_column(i, table.schema[i].name,
+                                 table.column(i).cast(pa.float64()))
+    return table.to_pandas()
 
 
 def apply_column_map(
