@@ -1,0 +1,36 @@
+"""``aeromag report``: QC figures, qc.json and a self-contained HTML page."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from .app import app, setup_logging, user_errors
+
+
+@app.command()
+def report(
+    out_csv: Annotated[Path, typer.Argument(help="Compensated log written by 'aeromag "
+                                            "compensate' (OUT.csv; OUT.json is read too).",
+                                            show_default=False)],
+    output: Annotated[Path, typer.Option("-o", help="Output folder for the PNG figures, "
+                                         "qc.json and report.html.")],
+    report_json: Annotated[Path | None, typer.Option("--report", metavar="JSON",
+                           help="Report to use instead of OUT.json beside OUT.csv.")] = None,
+    maneuver_column: Annotated[str | None, typer.Option(
+        "--maneuver-column", metavar="COL",
+        help="Column naming each sample's manoeuvre (pitch/roll/yaw) instead of detection.")]
+    = None,
+    verbose: Annotated[bool, typer.Option("-v", "--verbose", help="Log progress details.")]
+    = False,
+) -> None:
+    """Quality control of a compensation: FOM (before/after), improvement ratio, residuals per
+    segment and heading, noise, VIF, cross-validation; PNG figures and report.html in -o DIR."""
+    setup_logging(verbose)
+    with user_errors():
+        from ..report import build_report
+
+        page = build_report(out_csv, output, report_json, maneuver_column=maneuver_column)
+    typer.echo(str(page))
