@@ -246,6 +246,24 @@ def _csv_header(columns: Iterable[Any]) -> str:
     return buf.getvalue()
 
 
+def _floats_as_pandas_text(table: Any) -> Any:
+    """Format float columns as pandas does: shortest round trip, integral values with ``.0``.
+
+    Arrow writes ``1.0`` as ``1``; read back, a float column would turn into integers.
+    """
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    for i, f in enumerate(table.schema):
+        if not pa.types.is_floating(f.type):
+            continue
+        txt = pc.cast(table.column(i), pa.string())
+        has_point = pc.match_substring_regex(txt, "[.eEnN]")
+        txt = pc.if_else(has_point, txt, pc.binary_join_element_wise(txt, ".0", ""))
+        table = table.set_column(i, f.name, txt)
+    return table
+
+
 def _write_csv_arrow(df: pd.DataFrame, dest: Path) -> bool:
     """Write ``df`` with pyarrow; return False (nothing written) when pyarrow cannot."""
     try:
@@ -259,6 +277,7 @@ def _write_csv_arrow(df: pd.DataFrame, dest: Path) -> bool:
         return False
     if any(pa.types.is_temporal(f.type) or pa.types.is_nested(f.type) for f in table.schema):
         return False
+    table = _floats_as_pandas_text(table)
     with open(dest, "wb") as fh:
         fh.write(_csv_header(df.columns).encode("utf-8"))
         try:
