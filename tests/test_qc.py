@@ -1,0 +1,101 @@
+"""QC metrics on the simulator: FOM vs truth, improvement, VIF, leave-one-segment-out CV."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from aeromag.compensate import CompensationConfig, compensate, prepare, segment_normal_equations
+from aeromag.qc import (
+    compute_qc,
+    fom_summary,
+    fom_table,
+    fourth_difference_noise,
+    loso_cv,
+    quality_metrics,
+    variance_inflation,
+)
+from aeromag.simulate import simulate_calibration
+from aeromag.tolles_lawson import TERMS_16
+
+
+@pytest.fixture(scope="module")
+def cal_result():
+    df, truth = simulate_calibration(seed=5, n_boxes=1)
+    return compensate(df), truth
+
+
+def test_fom_matches_truth_and_drops(cal_result):
+    res, _ = cal_result
+    q = compute_qc(res.data, res.report)
+    fom = q.metrics["fom"]
+    assert fom["complete_boxes"] == [0]
+    assert fom["n_maneuvers"] == 12
+    assert abs(fom["fom_before_nT"] - fom["fom_truth_nT"]) < 0.1 * fom["fom_truth_nT"]
+    assert fom["fom_after_nT"] < 0.05 * fom["fom_before_nT"]
+    assert len(fom["per_maneuver"]) == 12
+    # The truth FOM with the true manoeuvre labels agrees with the detected intervals.
+    tab = fom_table(res.data, band_hz=(0.1, 0.9), maneuver_column="truth_maneuver")
+    assert fom_summary(tab)["fom_truth_nT"] == pytest.approx(fom["fom_truth_nT"], rel=0.1)
+
+
+def test_metrics_block(cal_result):
+    res, _ = cal_result
+    m = quality_metrics(res.data, res.report)
+    assert m["improvement_ratio"] == pytest.approx(res.report["metrics"]["improvement_ratio"],
+                                                   rel=1e-6)
+    assert set(m["residual_std_by_heading_nT"]) == {"N", "E", "S", "W"}
+    assert len(m["residual_std_by_segment_nT"]) == 12
+    fit = m["fit"]
+    assert fit["condition_number_scaled"] == pytest.approx(
+        res.report["fit"]["condition_number_scaled"], rel=0.05)
+    assert len(fit["vif"]) == 16 and min(fit["vif"].values()) >= 1 - 1e-9
+    assert fit["cv_residual_std_nT"] >= fit["fit_residual_std_nT"]
+    assert fit["cv_residual_std_nT"] < 0.1  # nT: the model generalises across segments
+    assert m["noise"]["fourth_difference_before_nT"] == pytest.approx(0.02, rel=0.3)
+
+
+def test_loso_equals_explicit_refit():
+    rng = np.random.default_rng(0)
+    from aeromag.compensate import SegmentStats
+
+    m, k, n = 6, 3, 50
+    A = rng.normal(size=(m, n, k))
+    y = A @ np.array([1.0, -2.0, 0.5]) + rng.normal(0, 0.1, (m, n))
+    stats = SegmentStats(np.arange(m), np.full(m, n), np.einsum("mni,mnj->mij", A, A),
+                         np.einsum("mni,mn->mi", A, y), np.einsum("mn,mn->m", y, y), {})
+    kept = np.ones(m, bool)
+    cv = loso_cv(stats, kept)
+    for j in range(m):
+        o = np.delete(np.arange(m), j)
+        c = np.linalg.lstsq(A[o].reshape(-1, k), y[o].ravel(), rcond=None)[0]
+        assert cv["cv_residual_std_nT"][j] == pytest.approx(
+            np.sqrt(np.mean((y[j] - A[j] @ c) ** 2)), rel=1e-8)
+
+
+def test_vif_and_noise():
+    rng = np.random.default_rng(1)
+    X = rng.normal(size=(2000, 3))
+    X[:, 2] = X[:, 0] + 0.1 * rng.normal(size=2000)
+    v = variance_inflation(X.T @ X)
+    assert v[1] == pytest.approx(1.0, abs=0.02) and v[0] > 50
+    t = np.arange(5000) * 0.1
+    x = rng.normal(0, 0.5, 5000) + np.sin(t / 20)
+    assert fourth_difference_noise(x, t) == pytest.approx(0.5, rel=0.05)
+
+
+def test_segment_stats_reuse(cal_result):
+    res, _ = cal_result
+    cfg = CompensationConfig()
+    stats = segment_normal_equations(prepare(res.data, cfg), TERMS_16, cfg)
+    assert len(stats.ids) == 12
+
+
+def test_no_maneuvers_no_fom():
+    t = np.arange(3000) * 0.1
+    rng = np.random.default_rng(2)
+    df = pd.DataFrame({"time": t, "mag": 50000 + rng.normal(0, 0.1, t.size),
+                       "mag_comp": 50000 + rng.normal(0, 0.05, t.size)})
+    q = compute_qc(df)
+    assert q.metrics["fom"] is None and q.notes
