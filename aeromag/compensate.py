@@ -104,6 +104,9 @@ class CompensationConfig:
     trim_s : float or None
         Filter edge dropped at each end of every segment piece before fitting [s]; default
         ``0.25 / band_hz[0]``.
+    fom : bool or None
+        Detect manoeuvres and report the Figure of Merit in the ``qc`` block; None = on for
+        calibration (:func:`calibrate_file`), off otherwise.
     """
 
     band_hz: tuple[float, float] = (0.1, 0.9)
@@ -124,6 +127,7 @@ class CompensationConfig:
     max_gap_s: float | None = None
     max_interp_s: float = 1.0
     trim_s: float | None = None
+    fom: bool | None = None
 
     def __post_init__(self) -> None:
         self.band_hz = (float(self.band_hz[0]), float(self.band_hz[1]))
@@ -185,6 +189,69 @@ class CompensationResult:
     report: dict[str, Any]
     screen: ScreenResult | None = None
     segment_table: pd.DataFrame | None = field(default=None, repr=False)
+
+    # Figures (matplotlib Figure objects, headless; see aeromag.plot.compensation).
+    def plot_pca_scores(self, **kw: Any) -> Any:
+        """The PCA score plot (PC1 vs PC2): kept/dropped segments, decision boundary."""
+        from .plot import compensation as pc
+
+        return pc.plot_pca_scores(self.report, **kw)
+
+    def plot_explained_variance(self, **kw: Any) -> Any:
+        """Explained-variance bars of the screening PCA."""
+        from .plot import compensation as pc
+
+        return pc.plot_explained_variance(self.report, **kw)
+
+    def plot_timeseries(self, **kw: Any) -> Any:
+        """Uncompensated vs compensated total field against time."""
+        from .plot import compensation as pc
+
+        return pc.plot_timeseries(self._data(), **kw)
+
+    def plot_psd(self, **kw: Any) -> Any:
+        """Power spectral density before and after compensation."""
+        from .plot import compensation as pc
+
+        kw.setdefault("band_hz", tuple(self.report["band_hz"]))
+        return pc.plot_psd(self._data(), **kw)
+
+    def plot_term_contributions(self, **kw: Any) -> Any:
+        """Permanent / induced / eddy contributions to ``mag_tl``."""
+        from .plot import compensation as pc
+
+        return pc.plot_term_contributions(self._data(), self.report, **kw)
+
+    def plot_fom(self, **kw: Any) -> Any:
+        """FOM bars per heading and manoeuvre (calibration flights)."""
+        from .plot import compensation as pc
+        from .qc import fom_table
+
+        table = fom_table(self._data(), band_hz=tuple(self.report["band_hz"]))
+        return pc.plot_fom(table, **kw)
+
+    def plot_map(self, **kw: Any) -> Any:
+        """Map of the flight coloured by the compensated field (needs lat/lon)."""
+        from .plot import compensation as pc
+
+        return pc.plot_map(self._data(), **kw)
+
+    def qc(self, **kw: Any) -> Any:
+        """All quality-control metrics (:func:`aeromag.qc.compute_qc`)."""
+        from .qc import compute_qc
+
+        return compute_qc(self._data(), self.report, **kw)
+
+    def write_report(self, out_dir: str | os.PathLike[str]) -> Path:
+        """Write the figures, ``qc.json`` and ``report.html`` into ``out_dir``."""
+        from .report import write_report
+
+        return write_report(self._data(), self.report, out_dir)
+
+    def _data(self) -> pd.DataFrame:
+        if self.data is None:
+            raise InputError("this result holds no compensated data (use compensate())")
+        return self.data
 
 
 # --------------------------------------------------------------------------- preparation
@@ -439,6 +506,10 @@ def fit_model(
         coef[terms.index("bias")] = float(np.mean(prep.mag[inkeep] - A @ coef_fit))
     resid = _residual_std(stats, coef_fit)
     seg_cond = _scaled_cond(stats.gram)
+    from .qc import diagnostics_from_stats  # qc builds on this module: import here
+
+    diag, cv_segs = diagnostics_from_stats(stats, kept, fit_terms, cfg.ridge)
+    cv_resid = cv_segs["cv_residual_std_nT"].to_numpy()
     n_fit = int(stats.n[kept].sum())
     sse = float(stats.yy[kept].sum() - 2 * coef_fit @ b + coef_fit @ G @ coef_fit)
     segments = []
@@ -449,6 +520,7 @@ def fit_model(
             "kept": bool(kept[j]),
             "scores": screen.scores[j].tolist() if screen is not None else None,
             "residual_std": float(resid[j]),
+            "cv_residual_std": float(cv_resid[j]),
             "condition_number": float(seg_cond[j]),
         }
         if screen is not None:
@@ -500,6 +572,10 @@ def fit_model(
             "condition_number_scaled": cond_s,
             "ridge": cfg.ridge,
             "residual_std_nT": float(np.sqrt(max(sse, 0.0) / max(n_fit, 1))),
+            "vif": diag["vif"],
+            "max_vif": diag["max_vif"],
+            "cv_residual_std_nT": diag["cv_residual_std_nT"],
+            "cv_ratio": diag["cv_ratio"],
         },
         "segments": segments,
         "screening": screening,
@@ -673,6 +749,7 @@ def compensate(
         report = dict(fit.report)
         report["metrics"] = metrics
         report["model_source"] = "fitted"
+        report["qc"] = _qc_block(data, report, cfg)
         fit.model.meta["metrics"] = metrics
         return CompensationResult(data, fit.model, report, fit.screen, fit.segment_table)
     data, metrics = apply_model(df, model, cfg, prep=prep)
@@ -696,7 +773,16 @@ def compensate(
         "config": _config_dict(cfg),
     }
     _segment_residuals(report, data, prep, cfg)
+    report["qc"] = _qc_block(data, report, cfg)
     return CompensationResult(data, model, report, None, None)
+
+
+def _qc_block(data: pd.DataFrame, report: dict[str, Any], cfg: CompensationConfig) -> dict:
+    """The ``qc`` block of a report (FOM only when ``cfg.fom``; fit diagnostics are in
+    ``report["fit"]`` already, computed from the fit's own statistics)."""
+    from .qc import quality_metrics  # qc builds on this module: import here
+
+    return quality_metrics(data, report, cfg, fit=False, detect=bool(cfg.fom))
 
 
 def _segment_residuals(report: dict[str, Any], data: pd.DataFrame, prep: Prepared,
@@ -794,6 +880,8 @@ def calibrate_file(
         ``data`` is the calibration log with the model applied (not written).
     """
     cfg = cfg or CompensationConfig()
+    if cfg.fom is None:
+        cfg = dataclasses.replace(cfg, fom=True)
     df = read_log(path, columns=columns, units=units, required=("time", *FLUX_COLUMNS), fmt=fmt)
     res = compensate(df, cfg, source=str(path))
     write_json(res.report, model_path)

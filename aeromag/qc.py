@@ -441,12 +441,38 @@ def fit_diagnostics(
     kept = np.isin(stats.ids, kept_ids)
     if not kept.any():
         kept = np.ones(len(stats.ids), dtype=bool)
+    return diagnostics_from_stats(stats, kept, fit_terms, cfg.ridge)
+
+
+def diagnostics_from_stats(
+    stats: SegmentStats, kept: np.ndarray, fit_terms: tuple[str, ...], ridge: float = 0.0,
+) -> tuple[dict[str, Any], pd.DataFrame]:
+    """Condition numbers, VIF and leave-one-segment-out CV from per-segment normal equations.
+
+    Parameters
+    ----------
+    stats : SegmentStats
+        Per-segment band-passed normal equations.
+    kept : ndarray of bool, shape (m,)
+        Segments used in the fit.
+    fit_terms : tuple of str
+        Names of the fitted terms.
+    ridge : float
+        Relative ridge parameter of the fit.
+
+    Returns
+    -------
+    diagnostics : dict
+        See :func:`fit_diagnostics`.
+    segments : DataFrame
+        Output of :func:`loso_cv`.
+    """
     G = stats.gram[kept].sum(axis=0)
     ev = np.linalg.eigvalsh(G)
     d = np.sqrt(np.maximum(np.diag(G), 1e-300))
     evs = np.linalg.eigvalsh(G / d[:, None] / d[None, :])
     vif = variance_inflation(G)
-    segs = loso_cv(stats, kept, cfg.ridge)
+    segs = loso_cv(stats, kept, ridge)
     nk = segs.loc[segs["kept"], "n"].to_numpy()
 
     def pooled(col: str) -> float:
@@ -479,6 +505,7 @@ def compute_qc(
     maneuvers: ManeuverResult | None = None,
     maneuver_column: str | None = None,
     fit: bool = True,
+    detect: bool = True,
 ) -> QCResult:
     """All quality-control metrics of a compensated log.
 
@@ -497,6 +524,10 @@ def compute_qc(
         Column naming the manoeuvre of each sample (instead of detection).
     fit : bool
         Compute the fit diagnostics (VIF, condition number, CV); needs the fluxgate.
+    detect : bool
+        Detect manoeuvres and compute the FOM (a calibration flight); False skips it unless
+        ``maneuvers`` or ``maneuver_column`` is given (surveys have no manoeuvres, and the
+        detection costs more than the compensation on long logs).
 
     Returns
     -------
@@ -539,7 +570,9 @@ def compute_qc(
     }
     # Manoeuvres, heading legs, FOM.
     fom = None
-    if maneuvers is None:
+    if maneuvers is None and not detect and maneuver_column is None:
+        notes.append("manoeuvre detection skipped (no FOM): run 'aeromag report' or --fom")
+    elif maneuvers is None:
         try:
             maneuvers = detect_maneuvers(data, maneuver_column=maneuver_column,
                                          max_gap_s=cfg.max_gap_s)

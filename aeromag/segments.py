@@ -107,8 +107,8 @@ def assign_segments(
     With a ``line`` column the segment is the line number (a line interrupted by a gap stays
     one segment; each continuous piece is filtered on its own); non-integer line numbers
     (e.g. ``1002.02``) are numbered 0, 1, ... in sorted order (see :func:`line_labels`).
-    Without it, every stretch is cut into ``round(duration / segment_seconds)`` (at least one) windows of equal duration,
-    numbered consecutively over the flight.
+    Without it, every stretch is cut into ``round(duration / segment_seconds)`` (at least
+    one) windows of equal duration, numbered consecutively over the flight.
 
     Parameters
     ----------

@@ -9,6 +9,7 @@ import typer
 
 from ..compensate import CompensationConfig, calibrate_file, compensate_file
 from ..io import json_path_for
+from ..report import write_report
 from .app import app, column_options, setup_logging, user_errors
 
 Band = Annotated[
@@ -45,6 +46,8 @@ MaxInterp = Annotated[float, typer.Option("--max-interp", metavar="S", help="NaN
 Fmt = Annotated[str | None, typer.Option("--format", help="Input format (default: from the "
                                          "extension).")]
 Verbose = Annotated[bool, typer.Option("-v", "--verbose", help="Log progress details.")]
+Plot = Annotated[Path | None, typer.Option("--plot", metavar="DIR", help="Also write the QC "
+                                           "figures (PNG) and report.html into DIR.")]
 
 
 @app.command()
@@ -74,6 +77,9 @@ def compensate(
     max_gap: MaxGap = None,
     max_interp: MaxInterp = 1.0,
     fmt: Fmt = None,
+    fom: Annotated[bool, typer.Option("--fom", help="Detect manoeuvres and report the Figure of "
+                                      "Merit (for a calibration-style flight).")] = False,
+    plot: Plot = None,
     verbose: Verbose = False,
 ) -> None:
     """Fit the Tolles-Lawson model on the survey itself (per segment, PCA screening, refit) or
@@ -86,12 +92,15 @@ def compensate(
             band_hz=band, terms=terms, segment_seconds=segment_seconds, screen=not no_screen,
             filter_output=not no_filter, lowpass_hz=lowpass, ridge=ridge, shrink=shrink,
             pca_variance=pca_variance, screen_quantile=screen_quantile, max_gap_s=max_gap,
-            min_excess=min_excess,
-            max_interp_s=max_interp,
+            min_excess=min_excess, max_interp_s=max_interp, fom=fom or None,
         )
         res = compensate_file(survey, output, cfg, model=model, columns=columns, units=unit_map,
                               fmt=fmt)
+        if plot is not None:
+            page = write_report(res.data, res.report, plot, cfg=cfg)
     _summary(res.report, output, json_path_for(output))
+    if plot is not None:
+        typer.echo(f"wrote {page}")
 
 
 @app.command()
@@ -113,9 +122,12 @@ def calibrate(
     max_gap: MaxGap = None,
     max_interp: MaxInterp = 1.0,
     fmt: Fmt = None,
+    plot: Plot = None,
     verbose: Verbose = False,
 ) -> None:
-    """Fit and screen the Tolles-Lawson model on a calibration flight; write the model JSON."""
+    """Fit and screen the Tolles-Lawson model on a calibration flight; write the model JSON
+    (coefficients, per-segment PCA scores, screening, metrics and the FOM).
+    """
     setup_logging(verbose)
     with user_errors():
         columns, unit_map = column_options(col, map_file, units)
@@ -126,7 +138,11 @@ def calibrate(
             min_excess=min_excess,
         )
         res = calibrate_file(cal, output, cfg, columns=columns, units=unit_map, fmt=fmt)
+        if plot is not None:
+            page = write_report(res.data, res.report, plot, cfg=cfg)
     _summary(res.report, output, None)
+    if plot is not None:
+        typer.echo(f"wrote {page}")
 
 
 def _summary(report: dict, out: Path, out_json: Path | None) -> None:
