@@ -42,6 +42,8 @@ from .filters import (
     filter_stretches,
     lowpass_stretches,
     min_filter_length,
+    piece_normal_equations,
+    run_bounds,
     sampling_rate,
     trim_mask,
 )
@@ -363,39 +365,33 @@ def segment_normal_equations(
     # not leak through the filter into its neighbours' fits.
     piece = np.cumsum(np.r_[True, (st[1:] != st[:-1]) | (seg[1:] != seg[:-1])]) - 1
     piece = np.where(seg >= 0, piece, -1)
-    Xf = filter_stretches(X, piece, sos, axis=1)
+    p_start, p_stop, _ = run_bounds(piece)
+    p_seg = seg[p_start]
     trim = (0.25 / cfg.band_hz[0]) if cfg.trim_s is None else cfg.trim_s
-    use = trim_mask(piece, t, trim) & (seg >= 0) & np.isfinite(Xf[k])
-    if not use.any():
+    M, n_used = piece_normal_equations(X, t, p_start, p_stop, sos, trim)
+    if not n_used.any():
         nmin = min_filter_length(sos) / prep.fs
         raise FitError(
             f"{prep.source}: no continuous stretch is long enough to band-pass and trim"
             f" (needs > {max(nmin, 2 * trim):.0f} s without gaps); use longer stretches,"
             " a higher --band LOW, or a larger --max-gap"
         )
-    sidx = seg[use]
-    Xs = Xf[:, use]
-    if np.any(np.diff(sidx) < 0):  # a line flown twice: gather each segment's samples
-        order = np.argsort(sidx, kind="stable")
-        Xs = Xs[:, order]
-        sidx = sidx[order]
-    ids, first, counts = np.unique(sidx, return_index=True, return_counts=True)
+    # Sum the pieces of each segment (a line flown twice, or cut by a gap, has several).
+    ids, inv = np.unique(p_seg, return_inverse=True)
+    counts = np.bincount(inv, weights=n_used).astype(np.int64)
+    Mseg = np.zeros((len(ids), k + 1, k + 1))
+    np.add.at(Mseg, inv, M)
     min_s = (1.0 / cfg.band_hz[0]) if cfg.min_segment_seconds is None else cfg.min_segment_seconds
     nmin = max(int(np.ceil(min_s * prep.fs)), 3 * k)
     ok = counts >= nmin
     too_short = {int(i): int(c) for i, c in zip(ids[~ok], counts[~ok], strict=True)}
-    # Segments that vanished entirely (all inside trimmed edges) are too short too.
+    # Segments with no valid sample at all are too short too.
     all_ids = np.unique(prep.segment[prep.segment >= 0])
     for i in np.setdiff1d(all_ids, ids):
         too_short[int(i)] = 0
-    m = int(ok.sum())
-    gram = np.empty((m, k, k))
-    rhs = np.empty((m, k))
-    yy = np.empty(m)
-    for j, (a, c) in enumerate(zip(first[ok], counts[ok], strict=True)):
-        blk = Xs[:, a:a + c]
-        M = blk @ blk.T
-        gram[j], rhs[j], yy[j] = M[:k, :k], M[:k, k], M[k, k]
+    gram = Mseg[ok, :k, :k]
+    rhs = Mseg[ok, :k, k]
+    yy = Mseg[ok, k, k]
     return SegmentStats(ids[ok], counts[ok], gram, rhs, yy, too_short)
 
 
@@ -651,12 +647,12 @@ def apply_model(
         comp_out = lowpass_stretches(comp, t, lab, cut, cfg.order)
     else:
         comp_out = comp
-    out = df.copy()
+    # A shallow copy: pandas' copy-on-write keeps the caller's frame untouched.
+    out = df.copy(deep=False)
     out["mag_tl"] = mag_tl
     out["mag_comp"] = comp_out
-    seg = prep.segment
-    out["segment"] = pd.array(np.where(seg >= 0, seg, 0), dtype="Int64")
-    out.loc[seg < 0, "segment"] = pd.NA
+    out["segment"] = pd.arrays.IntegerArray(np.where(seg >= 0, seg, 0).astype(np.int64),
+                                            seg < 0)
     out["segment_kept"] = kept
     metrics = compensation_metrics(prep.mag, comp_out, t, prep.stretch, cfg, kept=kept)
     return out, metrics
@@ -782,7 +778,8 @@ def _qc_block(data: pd.DataFrame, report: dict[str, Any], cfg: CompensationConfi
     ``report["fit"]`` already, computed from the fit's own statistics)."""
     from .qc import quality_metrics  # qc builds on this module: import here
 
-    return quality_metrics(data, report, cfg, fit=False, detect=bool(cfg.fom))
+    return quality_metrics(data, report, cfg, fit=False, detect=bool(cfg.fom),
+                           base_metrics=report.get("metrics"))
 
 
 def _segment_residuals(report: dict[str, Any], data: pd.DataFrame, prep: Prepared,

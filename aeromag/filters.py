@@ -21,7 +21,7 @@ log = logging.getLogger(__name__)
 #: Threads used to filter many columns of a long stretch at once (scipy releases the GIL).
 #: Override with the environment variable ``AEROMAG_FILTER_THREADS`` (1 disables threading).
 FILTER_THREADS = max(1, int(os.environ.get("AEROMAG_FILTER_THREADS", min(4, os.cpu_count() or 1))))
-_THREADED_MIN_SAMPLES = 200_000
+_THREADED_MIN_SAMPLES = 1_000_000  # values in the array, below which threads do not pay
 
 
 def sampling_rate(time_s: np.ndarray) -> float:
@@ -166,7 +166,7 @@ def filter_stretches(
 
 def _sosfiltfilt(sos: np.ndarray, x: np.ndarray, axis: int) -> np.ndarray:
     """``sosfiltfilt`` along ``axis``, split over threads across the other axis when large."""
-    if FILTER_THREADS < 2 or x.ndim != 2 or x.shape[axis] < _THREADED_MIN_SAMPLES:
+    if FILTER_THREADS < 2 or x.ndim != 2 or x.size < _THREADED_MIN_SAMPLES:
         return signal.sosfiltfilt(sos, x, axis=axis)
     other = 1 - axis
     m = x.shape[other]
@@ -317,3 +317,61 @@ def bandpass_pieces(
     k = A.shape[1]
     M = Xu @ Xu.T
     return M[:k, :k], M[:k, k], float(M[k, k]), int(use.sum())
+
+
+def piece_normal_equations(
+    X: np.ndarray, time_s: np.ndarray, starts: np.ndarray, stops: np.ndarray,
+    sos: np.ndarray, trim_s: float, *, batch_samples: int = 1_000_000,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Zero-phase filter every piece on its own and form its cross-product matrix.
+
+    Pieces of equal length are stacked and filtered in one call (many short segments cost no
+    more than one long one); the cross products are batched matrix products.  The result is
+    identical to filtering each piece with ``sosfiltfilt`` and forming ``Xf @ Xf.T``.
+
+    Parameters
+    ----------
+    X : ndarray, shape (r, n)
+        Rows to filter (e.g. the design matrix's terms and the target), samples along axis 1.
+    time_s : ndarray, shape (n,)
+        Times [s] (for the edge trimming).
+    starts, stops : ndarray of int, shape (p,)
+        Half-open sample ranges of the pieces.
+    sos : ndarray
+        Second-order sections.
+    trim_s : float
+        Samples within this many seconds of either end of a piece are left out [s].
+    batch_samples : int
+        Samples stacked per filtering call (bounds the extra memory).
+
+    Returns
+    -------
+    M : ndarray, shape (p, r, r)
+        ``Xf_p @ Xf_p.T`` over each piece's kept samples (zero for pieces too short to filter).
+    n_used : ndarray of int, shape (p,)
+        Samples kept per piece.
+    """
+    r = X.shape[0]
+    p = len(starts)
+    M = np.zeros((p, r, r))
+    n_used = np.zeros(p, dtype=np.int64)
+    lens = np.asarray(stops) - np.asarray(starts)
+    nmin = min_filter_length(sos)
+    for L in np.unique(lens):
+        if L < nmin:
+            continue
+        sel = np.flatnonzero(lens == L)
+        per = max(1, batch_samples // int(L))
+        ar = np.arange(L)
+        for b0 in range(0, len(sel), per):
+            s = sel[b0:b0 + per]
+            q = len(s)
+            idx = starts[s][:, None] + ar  # (q, L)
+            Xg = X[:, idx].reshape(r * q, L)
+            Xf = _sosfiltfilt(sos, Xg, 1).reshape(r, q, L)
+            tg = time_s[idx]
+            keep = ((tg - tg[:, :1]) >= trim_s) & ((tg[:, -1:] - tg) >= trim_s)
+            Xq = np.ascontiguousarray(np.transpose(Xf * keep[None], (1, 0, 2)))  # (q, r, L)
+            M[s] = Xq @ np.transpose(Xq, (0, 2, 1))
+            n_used[s] = keep.sum(axis=1)
+    return M, n_used

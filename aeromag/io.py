@@ -249,13 +249,19 @@ def _csv_header(columns: Iterable[Any]) -> str:
 def _floats_as_pandas_text(table: Any) -> Any:
     """Format float columns as pandas does: shortest round trip, integral values with ``.0``.
 
-    Arrow writes ``1.0`` as ``1``; read back, a float column would turn into integers.
+    Arrow writes ``1.0`` as ``1``; read back, a float column whose values are all integral
+    would turn into integers.  Only such columns are rewritten (a column with any fractional
+    value reads back as float anyway), which keeps the writer fast on measurement data.
     """
     import pyarrow as pa
     import pyarrow.compute as pc
 
     for i, f in enumerate(table.schema):
         if not pa.types.is_floating(f.type):
+            continue
+        vals = table.column(i).to_numpy(zero_copy_only=False)
+        fin = vals[np.isfinite(vals)]
+        if fin.size == 0 or not np.all(fin == np.floor(fin)):
             continue
         txt = pc.cast(table.column(i), pa.string())
         has_point = pc.match_substring_regex(txt, "[.eEnN]")

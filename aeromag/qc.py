@@ -506,6 +506,7 @@ def compute_qc(
     maneuver_column: str | None = None,
     fit: bool = True,
     detect: bool = True,
+    base_metrics: dict[str, Any] | None = None,
 ) -> QCResult:
     """All quality-control metrics of a compensated log.
 
@@ -524,6 +525,9 @@ def compute_qc(
         Column naming the manoeuvre of each sample (instead of detection).
     fit : bool
         Compute the fit diagnostics (VIF, condition number, CV); needs the fluxgate.
+    base_metrics : dict, optional
+        :func:`aeromag.compensate.compensation_metrics` already computed for this log (the
+        report's ``metrics``), so they are not computed twice.
     detect : bool
         Detect manoeuvres and compute the FOM (a calibration flight); False skips it unless
         ``maneuvers`` or ``maneuver_column`` is given (surveys have no manoeuvres, and the
@@ -546,7 +550,7 @@ def compute_qc(
     comp = data["mag_comp"].to_numpy(dtype=np.float64)
     band = cfg.band_hz
     st = find_stretches(t, np.isfinite(mag) & np.isfinite(comp), cfg.max_gap_s)
-    base = compensation_metrics(mag, comp, t, st, cfg)
+    base = base_metrics or compensation_metrics(mag, comp, t, st, cfg)
     metrics: dict[str, Any] = {
         "band_hz": list(band),
         "improvement_ratio": base["improvement_ratio"],

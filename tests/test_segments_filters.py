@@ -113,3 +113,24 @@ def test_non_integer_line_numbers_never_merge():
     assert len(np.unique(seg)) == 3
     assert line_labels(line) == {0: 1002.02, 1: 1002.2, 2: 1003.0}
     assert line_labels(np.repeat([3.0, 4.0], 5)) is None
+
+
+def test_batched_piece_normal_equations_equal_one_by_one():
+    from aeromag.filters import piece_normal_equations
+
+    rng = np.random.default_rng(2)
+    t = np.arange(0, 200, 0.1)
+    X = rng.normal(size=(3, len(t)))
+    starts = np.array([0, 300, 600, 900, 1500])
+    stops = np.array([300, 600, 900, 1500, 1510])  # equal lengths, a longer one, a too-short one
+    sos = signal.butter(4, (0.1, 0.9), "bandpass", fs=10, output="sos")
+    M, n = piece_normal_equations(X, t, starts, stops, sos, 2.5, batch_samples=500)
+    for j, (a, b) in enumerate(zip(starts, stops, strict=True)):
+        if b - a < 30:
+            assert n[j] == 0 and not M[j].any()
+            continue
+        xf = signal.sosfiltfilt(sos, X[:, a:b], axis=1)
+        tt = t[a:b]
+        keep = (tt - tt[0] >= 2.5) & (tt[-1] - tt >= 2.5)
+        np.testing.assert_allclose(M[j], xf[:, keep] @ xf[:, keep].T, rtol=1e-10, atol=1e-12)
+        assert n[j] == keep.sum()
