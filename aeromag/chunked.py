@@ -436,6 +436,14 @@ def apply_model_chunked(
             out["segment"] = pd.array(np.where(sc >= 0, sc, 0), dtype="Int64")
             out.loc[sc < 0, "segment"] = pd.NA
             out["segment_kept"] = kept[core]
+            for c in ("line", "leg"):
+                # Read as float (a chunk may hold gaps); written as the integers they are.
+                if c in out.columns and out[c].dtype.kind == "f":
+                    v = out[c].to_numpy()
+                    fin = np.isfinite(v)
+                    if np.all(v[fin] == np.round(v[fin])):
+                        out[c] = pd.arrays.IntegerArray(np.where(fin, v, 0).astype(np.int64),
+                                                        ~fin)
             table = _floats_as_pandas_text(pa.Table.from_pandas(out, preserve_index=False))
             if not header_written:
                 fh.write(_csv_header(out.columns).encode("utf-8"))

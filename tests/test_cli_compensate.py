@@ -113,3 +113,19 @@ def test_help_lists_fixed_options():
     for opt in ("--model", "--band", "--terms", "--segment-seconds", "--no-screen",
                 "--no-filter", "--col"):
         assert opt in r.output
+
+
+def test_chunked_model_application_equals_in_memory(logs, tmp_path):
+    m = tmp_path / "m.json"
+    assert runner.invoke(app, ["calibrate", str(logs / "flight.csv"), "-o", str(m)]).exit_code == 0
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    r1 = runner.invoke(app, ["compensate", str(logs / "flight.csv"), "--model", str(m), "-o",
+                             str(a)])
+    r2 = runner.invoke(app, ["compensate", str(logs / "flight.csv"), "--model", str(m), "-o",
+                             str(b), "--chunk-rows", "1000"])
+    assert r1.exit_code == 0 and r2.exit_code == 0, r2.output
+    da, db = pd.read_csv(a), pd.read_csv(b)
+    pd.testing.assert_frame_equal(da, db, check_exact=False, rtol=1e-9, atol=1e-9)
+    r3 = runner.invoke(app, ["compensate", str(logs / "flight.csv"), "-o", str(b),
+                             "--chunk-rows", "1000"])
+    assert r3.exit_code == 1 and "--model" in r3.output

@@ -8,8 +8,10 @@ from typing import Annotated
 import typer
 
 from ..compensate import CompensationConfig, calibrate_file, compensate_file
+from ..errors import InputError
 from ..io import json_path_for
 from ..report import write_report
+from ..tolles_lawson import TLModel
 from .app import app, column_options, setup_logging, user_errors
 
 Band = Annotated[
@@ -80,6 +82,9 @@ def compensate(
     fom: Annotated[bool, typer.Option("--fom", help="Detect manoeuvres and report the Figure of "
                                       "Merit (for a calibration-style flight).")] = False,
     plot: Plot = None,
+    chunk_rows: Annotated[int | None, typer.Option("--chunk-rows", metavar="N", help="With "
+                          "--model: apply it in chunks of N rows, memory bounded by the chunk "
+                          "size (identical output; for very large logs).")] = None,
     verbose: Verbose = False,
 ) -> None:
     """Fit the Tolles-Lawson model on the survey itself (per segment, PCA screening, refit) or
@@ -94,6 +99,21 @@ def compensate(
             pca_variance=pca_variance, screen_quantile=screen_quantile, max_gap_s=max_gap,
             min_excess=min_excess, max_interp_s=max_interp, fom=fom or None,
         )
+        if chunk_rows is not None:
+            if model is None:
+                raise InputError("--chunk-rows applies a saved model: add --model MODEL.json")
+            if plot is not None:
+                raise InputError("--plot needs the whole log in memory: drop --chunk-rows, or "
+                                 "run 'aeromag report' on the output")
+            if chunk_rows < 1:
+                raise InputError(f"--chunk-rows {chunk_rows}: must be a positive row count")
+            from ..chunked import apply_model_chunked
+
+            report = apply_model_chunked(survey, output, TLModel.load(model), cfg,
+                                         chunk_rows=chunk_rows, columns=columns,
+                                         units=unit_map, fmt=fmt)
+            _summary(report, output, json_path_for(output))
+            return
         res = compensate_file(survey, output, cfg, model=model, columns=columns, units=unit_map,
                               fmt=fmt)
         if plot is not None:
