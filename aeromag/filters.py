@@ -321,7 +321,7 @@ def bandpass_pieces(
 
 def piece_normal_equations(
     X: np.ndarray, time_s: np.ndarray, starts: np.ndarray, stops: np.ndarray,
-    sos: np.ndarray, trim_s: float, *, batch_samples: int = 1_000_000,
+    sos: np.ndarray, trim_s: float, *, batch_samples: int = 65_536,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Zero-phase filter every piece on its own and form its cross-product matrix.
 
@@ -342,7 +342,9 @@ def piece_normal_equations(
     trim_s : float
         Samples within this many seconds of either end of a piece are left out [s].
     batch_samples : int
-        Samples stacked per filtering call (bounds the extra memory).
+        Samples stacked per filtering call.  It bounds the extra memory, and small batches
+        reuse the allocator's memory instead of page-faulting fresh 100 MB temporaries on every
+        call (at 1e6 samples: 0.55 s steady, against 0.5-1.9 s with 1e6-sample batches).
 
     Returns
     -------
