@@ -10,7 +10,6 @@ import typer
 from ..compensate import CompensationConfig, calibrate_file, compensate_file
 from ..errors import InputError
 from ..io import json_path_for
-from ..report import write_report
 from ..tolles_lawson import TLModel
 from .app import app, column_options, setup_logging, user_errors
 
@@ -117,6 +116,8 @@ def compensate(
         res = compensate_file(survey, output, cfg, model=model, columns=columns, units=unit_map,
                               fmt=fmt)
         if plot is not None:
+            from ..report import write_report  # matplotlib only when figures are asked for
+
             page = write_report(res.data, res.report, plot, cfg=cfg)
     _summary(res.report, output, json_path_for(output))
     if plot is not None:
@@ -159,6 +160,8 @@ def calibrate(
         )
         res = calibrate_file(cal, output, cfg, columns=columns, units=unit_map, fmt=fmt)
         if plot is not None:
+            from ..report import write_report  # matplotlib only when figures are asked for
+
             page = write_report(res.data, res.report, plot, cfg=cfg)
     _summary(res.report, output, None)
     if plot is not None:
