@@ -299,7 +299,7 @@ def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = N
     if not flux_ok.any():
         raise InputError(f"{src}: columns flux_x/flux_y/flux_z hold no usable sample")
     fz = flux[flux_ok]
-    if np.all(np.ptp(fz, axis=0) == 0):
+    if not np.any(fz != fz[0]):
         raise FitError(
             f"{src}: columns flux_x, flux_y, flux_z are constant: the fluxgate did not record"
             " attitude changes; check the column map (--col) or the instrument"
@@ -736,7 +736,7 @@ def compensate(
     CompensationResult
         ``data`` holds the output table, ``report`` the JSON report.
     """
-    cfg = cfg or CompensationConfig()
+    cfg = _resolve_gap(cfg or CompensationConfig(), df)
     prep = prepare(df, cfg, source=source)
     if model is None:
         fit = fit_model(df, cfg, prep=prep)
@@ -771,6 +771,17 @@ def compensate(
     _segment_residuals(report, data, prep, cfg)
     report["qc"] = _qc_block(data, report, cfg)
     return CompensationResult(data, model, report, None, None)
+
+
+def _resolve_gap(cfg: CompensationConfig, df: pd.DataFrame) -> CompensationConfig:
+    """Fix the default gap (5 median time steps) once, so no step recomputes the median."""
+    if cfg.max_gap_s is not None or "time" not in df.columns or len(df) < 2:
+        return cfg
+    t = df["time"].to_numpy(dtype=np.float64)
+    med = float(np.median(np.diff(t)))
+    if not med > 0:
+        return cfg
+    return dataclasses.replace(cfg, max_gap_s=5.0 * med)
 
 
 def _qc_block(data: pd.DataFrame, report: dict[str, Any], cfg: CompensationConfig) -> dict:
