@@ -455,6 +455,7 @@ def fit_model(
     screen: ScreenResult | None = None
     notes: list[str] = []
     iterations = 0
+    seg_coef = np.full((m, len(fit_terms)), np.nan)
     screened = cfg.screen and m >= cfg.min_segments
     if cfg.screen and not screened:
         notes.append(
@@ -485,6 +486,12 @@ def fit_model(
             kept = new
         else:
             notes.append(f"screening did not settle within {cfg.max_iter} rounds")
+    else:
+        # Not screened: each segment's own (shrunk) fit is still recorded for the report.
+        G0 = stats.gram.sum(axis=0)
+        pooled0, _, _ = solve_normal(G0, stats.rhs.sum(axis=0), max(cfg.ridge, 1e-9))
+        seg_coef = shrunk_segment_fits(stats.gram, stats.rhs, stats.n.astype(float), pooled0,
+                                       np.diag(G0) / stats.n.sum(), cfg.shrink)
     G = stats.gram[kept].sum(axis=0)
     b = stats.rhs[kept].sum(axis=0)
     try:
@@ -518,6 +525,7 @@ def fit_model(
             "residual_std": float(resid[j]),
             "cv_residual_std": float(cv_resid[j]),
             "condition_number": float(seg_cond[j]),
+            "coef": [float(c) for c in seg_coef[j]],
         }
         if screen is not None:
             entry["robust_distance"] = float(screen.distance[j])

@@ -48,7 +48,8 @@ def test_output_columns_and_report_keys_follow_the_interface(flight):
     r = res.report
     assert r["terms"] == list(TERMS_16) and len(r["coef"]) == 16
     for s in r["segments"]:
-        assert {"id", "n", "kept", "scores", "residual_std"} <= set(s)
+        assert {"id", "n", "kept", "scores", "residual_std", "condition_number"} <= set(s)
+        assert len(s["coef"]) == 16 and len(s["scores"]) >= 2
     assert {"improvement_ratio", "residual_std_nT"} <= set(r["metrics"])
     assert {"explained_variance_ratio", "rule", "cutoff", "n_components"} <= set(r["screening"])
 
