@@ -97,6 +97,10 @@ class CompensationConfig:
         band-passed residual std above ``min_excess`` (default 1.5) times the median over kept
         segments (an outlier that the pool fits as well as any other segment is statistically, not
         practically, different and is kept).
+    min_excess_nT : float
+        ... and only when that residual also exceeds the median by this much [nT]: with a quiet
+        sensor at a high rate, in-band residuals of 0.001 nT differ by large ratios that no
+        survey can see.
     min_segment_seconds : float or None
         Shortest usable segment after trimming [s]; default ``1 / band_hz[0]``.
     max_gap_s : float or None
@@ -125,6 +129,7 @@ class CompensationConfig:
     max_iter: int = 10
     min_segments: int = 6
     min_excess: float = 1.5
+    min_excess_nT: float = 0.01
     min_segment_seconds: float | None = None
     max_gap_s: float | None = None
     max_interp_s: float = 1.0
@@ -473,8 +478,10 @@ def fit_model(
             screen = pca_screen(seg_coef, variance=cfg.pca_variance,
                                 quantile=cfg.screen_quantile)
             r_pool = _residual_std(stats, pooled)
-            excess = r_pool / np.median(r_pool[kept])
-            new = screen.kept | (excess <= cfg.min_excess)
+            med = np.median(r_pool[kept])
+            excess = r_pool / med
+            material = (excess > cfg.min_excess) & (r_pool - med > cfg.min_excess_nT)
+            new = screen.kept | ~material
             if new.sum() < max(3, (m + 1) // 2):
                 # Never let the "main cluster" be a minority: keep the closest half.
                 order = np.argsort(screen.distance)
@@ -549,6 +556,7 @@ def fit_model(
         "quantile": cfg.screen_quantile,
         "shrink": cfg.shrink,
         "min_excess": cfg.min_excess,
+        "min_excess_nT": cfg.min_excess_nT,
         "iterations": iterations,
         "n_segments": m,
         "n_kept": int(kept.sum()),

@@ -168,3 +168,13 @@ def test_implausible_units_warn_but_never_convert(flight, caplog):
         res = compensate(ut)
     assert "--units flux=uT" in caplog.text
     assert np.isfinite(res.data["mag_comp"]).all()
+
+
+def test_high_rate_quiet_sensor_loses_no_clean_segment():
+    """1 kHz: in-band residuals of 0.001 nT differ by large ratios that no survey can see."""
+    df, h = hand_flight(seed=3, n=300_000, fs=1000.0, seg_s=25)
+    res = compensate(df)
+    assert res.report["screening"]["dropped"] == []
+    assert res.report["metrics"]["improvement_ratio"] > 1000
+    d = res.data["mag_tl"].to_numpy() - h
+    assert np.std(d - d.mean()) < 0.02

@@ -40,6 +40,8 @@ Quantile = Annotated[float, typer.Option("--screen-quantile", help="Chi-square q
 MinExcess = Annotated[float, typer.Option("--min-excess", help="A PCA outlier is dropped only "
                                           "when the pooled fit leaves it a residual above this "
                                           "times the median segment's.")]
+MinExcessNT = Annotated[float, typer.Option("--min-excess-nt", help="... and by at least this "
+                                            "much in nT (harmless differences are kept).")]
 MaxGap = Annotated[float | None, typer.Option("--max-gap", metavar="S", help="A time step longer "
                                               "than this starts a new stretch, s (default 5 dt).")]
 MaxInterp = Annotated[float, typer.Option("--max-interp", metavar="S", help="NaN gaps up to this "
@@ -75,6 +77,7 @@ def compensate(
     pca_variance: Variance = 0.8,
     screen_quantile: Quantile = 0.975,
     min_excess: MinExcess = 1.5,
+    min_excess_nt: MinExcessNT = 0.01,
     max_gap: MaxGap = None,
     max_interp: MaxInterp = 1.0,
     fmt: Fmt = None,
@@ -96,7 +99,8 @@ def compensate(
             band_hz=band, terms=terms, segment_seconds=segment_seconds, screen=not no_screen,
             filter_output=not no_filter, lowpass_hz=lowpass, ridge=ridge, shrink=shrink,
             pca_variance=pca_variance, screen_quantile=screen_quantile, max_gap_s=max_gap,
-            min_excess=min_excess, max_interp_s=max_interp, fom=fom or None,
+            min_excess=min_excess, min_excess_nT=min_excess_nt, max_interp_s=max_interp,
+            fom=fom or None,
         )
         if chunk_rows is not None:
             if model is None:
@@ -140,6 +144,7 @@ def calibrate(
     pca_variance: Variance = 0.8,
     screen_quantile: Quantile = 0.975,
     min_excess: MinExcess = 1.5,
+    min_excess_nt: MinExcessNT = 0.01,
     max_gap: MaxGap = None,
     max_interp: MaxInterp = 1.0,
     fmt: Fmt = None,
@@ -156,7 +161,7 @@ def calibrate(
             band_hz=band, terms=terms, segment_seconds=segment_seconds, screen=not no_screen,
             ridge=ridge, shrink=shrink, pca_variance=pca_variance,
             screen_quantile=screen_quantile, max_gap_s=max_gap, max_interp_s=max_interp,
-            min_excess=min_excess,
+            min_excess=min_excess, min_excess_nT=min_excess_nt,
         )
         res = calibrate_file(cal, output, cfg, columns=columns, units=unit_map, fmt=fmt)
         if plot is not None:
