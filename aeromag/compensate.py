@@ -55,7 +55,16 @@ from .segments import (
     interpolate_short_gaps,
     line_labels,
 )
-from .tolles_lawson import TLModel, design_matrix, parse_terms, solve_normal
+from .tolles_lawson import (
+    FIELD_SCALE_NT,
+    TLModel,
+    design_matrix,
+    direction_cosines,
+    parse_terms,
+    solve_normal,
+    terms_from_cosines,
+    time_derivative,
+)
 
 log = logging.getLogger(__name__)
 
@@ -362,10 +371,21 @@ def segment_normal_equations(
     st = prep.stretch[v]
     seg = prep.segment[v]
     k = len(terms)
-    X = np.empty((k + 1, int(v.sum())), dtype=np.float64)
-    design_matrix(prep.flux[v], t, terms, stretch=st, out=X[:k].T)
+    # Cosines and their derivatives over whole stretches (as when the model is applied), then
+    # the terms batch by batch: the full 17 x n design matrix never exists.
+    cos, bt = direction_cosines(prep.flux[v])
+    dcos = time_derivative(cos, t, st)
+    scale = bt / FIELD_SCALE_NT
     y = prep.mag[v]
-    X[k] = y - np.median(y)
+    y = y - np.median(y)
+
+    def rows(idx: np.ndarray) -> np.ndarray:
+        flat = idx.ravel()
+        out = np.empty((k + 1, flat.size))
+        terms_from_cosines(cos[flat], dcos[flat], scale[flat], terms, out=out[:k].T)
+        out[k] = y[flat]
+        return out.reshape(k + 1, *idx.shape)
+
     # Each segment is filtered on its own (within each stretch): a fault in one segment must
     # not leak through the filter into its neighbours' fits.
     piece = np.cumsum(np.r_[True, (st[1:] != st[:-1]) | (seg[1:] != seg[:-1])]) - 1
@@ -373,7 +393,7 @@ def segment_normal_equations(
     p_start, p_stop, _ = run_bounds(piece)
     p_seg = seg[p_start]
     trim = (0.25 / cfg.band_hz[0]) if cfg.trim_s is None else cfg.trim_s
-    M, n_used = piece_normal_equations(X, t, p_start, p_stop, sos, trim)
+    M, n_used = piece_normal_equations(rows, t, p_start, p_stop, sos, trim)
     if not n_used.any():
         nmin = min_filter_length(sos) / prep.fs
         raise FitError(

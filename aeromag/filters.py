@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import os
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -320,8 +321,9 @@ def bandpass_pieces(
 
 
 def piece_normal_equations(
-    X: np.ndarray, time_s: np.ndarray, starts: np.ndarray, stops: np.ndarray,
-    sos: np.ndarray, trim_s: float, *, batch_samples: int = 65_536,
+    X: np.ndarray | Callable[[np.ndarray], np.ndarray], time_s: np.ndarray,
+    starts: np.ndarray, stops: np.ndarray, sos: np.ndarray, trim_s: float, *,
+    batch_samples: int = 65_536,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Zero-phase filter every piece on its own and form its cross-product matrix.
 
@@ -331,8 +333,11 @@ def piece_normal_equations(
 
     Parameters
     ----------
-    X : ndarray, shape (r, n)
-        Rows to filter (e.g. the design matrix's terms and the target), samples along axis 1.
+    X : ndarray, shape (r, n), or callable
+        Rows to filter (e.g. the design matrix's terms and the target), samples along axis 1;
+        or a function ``rows(idx)`` that builds them for the sample indices ``idx`` (shape
+        (q, L): q pieces of L samples) and returns shape (r, q, L), so that the whole (r, n)
+        array never exists (memory bounded by ``batch_samples``).
     time_s : ndarray, shape (n,)
         Times [s] (for the edge trimming).
     starts, stops : ndarray of int, shape (p,)
@@ -353,7 +358,8 @@ def piece_normal_equations(
     n_used : ndarray of int, shape (p,)
         Samples kept per piece.
     """
-    r = X.shape[0]
+    build = X if callable(X) else (lambda idx: X[:, idx])
+    r = build(np.asarray(starts[:1])[:, None]).shape[0] if len(starts) else 0
     p = len(starts)
     M = np.zeros((p, r, r))
     n_used = np.zeros(p, dtype=np.int64)
@@ -369,7 +375,7 @@ def piece_normal_equations(
             s = sel[b0:b0 + per]
             q = len(s)
             idx = starts[s][:, None] + ar  # (q, L)
-            Xg = X[:, idx].reshape(r * q, L)
+            Xg = build(idx).reshape(r * q, L)
             Xf = _sosfiltfilt(sos, Xg, 1).reshape(r, q, L)
             tg = time_s[idx]
             keep = ((tg - tg[:, :1]) >= trim_s) & ((tg[:, -1:] - tg) >= trim_s)

@@ -271,7 +271,32 @@ def design_matrix(
     cos, bt = direction_cosines(flux_nT)
     need_d = any(t.endswith("'") for t in terms)
     dcos = time_derivative(cos, time_s, stretch) if need_d else cos
-    scale = bt / FIELD_SCALE_NT
+    return terms_from_cosines(cos, dcos, bt / FIELD_SCALE_NT, terms, out=out)
+
+
+def terms_from_cosines(
+    cos: np.ndarray, dcos: np.ndarray, scale: np.ndarray, terms: Sequence[str] = TERMS_16,
+    *, out: np.ndarray | None = None,
+) -> np.ndarray:
+    """TL design matrix from direction cosines, their derivatives and the field scale.
+
+    Parameters
+    ----------
+    cos : ndarray, shape (n, 3)
+        Direction cosines [dimensionless].
+    dcos : ndarray, shape (n, 3)
+        Their time derivatives [1/s].
+    scale : ndarray, shape (n,)
+        ``|B| / 50000 nT`` [dimensionless].
+    terms : sequence of str
+        Term names.
+    out : ndarray, shape (n, len(terms)), optional
+        Preallocated output.
+
+    Returns
+    -------
+    ndarray, shape (n, len(terms))
+    """
     A = out if out is not None else np.empty((len(cos), len(terms)), dtype=np.float64)
     for j, name in enumerate(terms):
         A[:, j] = _term_column(name, cos, dcos, scale)
