@@ -30,9 +30,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy import stats
-from sklearn.covariance import MinCovDet
-from sklearn.decomposition import PCA
 
 log = logging.getLogger(__name__)
 
@@ -165,6 +162,11 @@ def pca_screen(
     -------
     ScreenResult
     """
+    # Imported here: applying a saved model never screens, and these cost ~0.3 s to import.
+    from scipy import stats
+    from sklearn.covariance import MinCovDet
+    from sklearn.decomposition import PCA
+
     X = np.asarray(coefs, dtype=np.float64)
     m, k = X.shape
     notes: list[str] = []

@@ -101,3 +101,10 @@ def test_cli_subprocess(mission, tmp_path):
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode == 1 and bad.stderr.startswith("error:")
     assert len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_cli_waypoint_radius_default_matches_the_library():
+    from aeromag.cli import track as cli_track
+    from aeromag.track import DEFAULT_WAYPOINT_RADIUS_M
+
+    assert cli_track.DEFAULT_WAYPOINT_RADIUS_M == DEFAULT_WAYPOINT_RADIUS_M

@@ -15,7 +15,6 @@ from pathlib import Path
 import typer
 
 from ..errors import AeromagError
-from ..io import parse_column_map, read_map_file
 
 app = typer.Typer(
     name="aeromag",
@@ -42,6 +41,8 @@ def user_errors() -> Iterator[None]:
 
 def column_options(col: list[str] | None, map_file: Path | None, units: list[str] | None):
     """Merge ``--col``, ``--map`` and ``--units`` options into (columns, units) dicts."""
+    from ..io import parse_column_map, read_map_file
+
     columns: dict[str, str] = {}
     unit_map: dict[str, str] = {}
     if map_file is not None:

@@ -7,8 +7,6 @@ from typing import Annotated
 
 import typer
 
-from ..batch import run_batch
-from ..compensate import CompensationConfig
 from .app import EXIT_USER_ERROR, app, column_options, setup_logging, user_errors
 from .compensate import Band, Col, Fmt, MapFile, NoScreen, SegSec, Terms, Units, Verbose
 
@@ -52,6 +50,9 @@ def batch(
     reported in the summary without stopping the others; exit status 1 when any failed.
     """
     setup_logging(verbose, quiet=not verbose)
+    from ..batch import run_batch
+    from ..compensate import CompensationConfig
+
     with user_errors():
         columns, unit_map = column_options(col, map_file, units)
         cfg = CompensationConfig(band_hz=band, terms=terms, segment_seconds=segment_seconds,

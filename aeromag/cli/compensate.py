@@ -7,10 +7,7 @@ from typing import Annotated
 
 import typer
 
-from ..compensate import CompensationConfig, calibrate_file, compensate_file
 from ..errors import InputError
-from ..io import json_path_for
-from ..tolles_lawson import TLModel
 from .app import app, column_options, setup_logging, user_errors
 
 Band = Annotated[
@@ -93,6 +90,11 @@ def compensate(
     apply a saved --model; write OUT.csv (mag_tl, mag_comp, segment, segment_kept) and OUT.json.
     """
     setup_logging(verbose)
+    # Library imports here, not at module level: 'aeromag --help' stays instant.
+    from ..compensate import CompensationConfig, compensate_file
+    from ..io import json_path_for
+    from ..tolles_lawson import TLModel
+
     with user_errors():
         columns, unit_map = column_options(col, map_file, units)
         cfg = CompensationConfig(
@@ -155,6 +157,8 @@ def calibrate(
     (coefficients, per-segment PCA scores, screening, metrics and the FOM).
     """
     setup_logging(verbose)
+    from ..compensate import CompensationConfig, calibrate_file
+
     with user_errors():
         columns, unit_map = column_options(col, map_file, units)
         cfg = CompensationConfig(

@@ -8,7 +8,6 @@ from typing import Annotated
 
 import typer
 
-from ..simulate import write_simulation
 from .app import app, setup_logging, user_errors
 
 log = logging.getLogger(__name__)
@@ -49,13 +48,16 @@ def simulate(
     rate: Annotated[float, typer.Option("--rate", metavar="HZ",
                                         help="Sample rate, Hz.")] = 10.0,
     small: Annotated[bool, typer.Option("--small", help="Small files (one calibration box of 12 "
-                                        "segments, four survey lines): the shipped samples.")]
+                                        "segments, ten short survey lines, a short mission): "
+                                        "the shipped samples.")]
     = False,
     verbose: Annotated[bool, typer.Option("-v", "--verbose", help="Log progress details.")]
     = False,
 ) -> None:
     """Write a synthetic calibration flight, survey and plan with their ground truth."""
     setup_logging(verbose)
+    from ..simulate import write_simulation
+
     with user_errors():
         paths = write_simulation(output, seed=seed, faults=faults, rate_hz=rate, small=small)
         paths.update(_mission_files(output, seed, small))

@@ -7,9 +7,11 @@ from typing import Annotated
 
 import typer
 
-from ..io import json_path_for
-from ..track import DEFAULT_WAYPOINT_RADIUS_M, track_file
 from .app import app, column_options, setup_logging, user_errors
+
+# Same as aeromag.track.DEFAULT_WAYPOINT_RADIUS_M (a test checks it); literal here so that
+# 'aeromag --help' does not import the geodesy stack.
+DEFAULT_WAYPOINT_RADIUS_M = 5.0
 
 
 @app.command()
@@ -54,6 +56,9 @@ def track(
     detector when the columns allow, combine them; write OUT.csv and OUT.json ({"legs": [...]}).
     """
     setup_logging(verbose)
+    from ..io import json_path_for
+    from ..track import track_file
+
     with user_errors():
         columns, unit_map = column_options(col, map_file, units)
         res = track_file(
