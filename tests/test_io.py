@@ -137,3 +137,35 @@ def test_outputs_get_normal_permissions(tmp_path):
     mask = os.umask(0)
     os.umask(mask)
     assert stat.S_IMODE(p.stat().st_mode) == 0o666 & ~mask
+
+
+def test_parallel_writer_is_byte_identical_to_one_thread(tmp_path, monkeypatch):
+    """Slices formatted on several threads give exactly the single-threaded file, including
+    NaN (empty), booleans, integers with missing values, whole-number floats (``.0``) and
+    text that needs quoting (the writer falls back to quoting on every slice)."""
+    from aeromag import io as aio
+
+    rng = np.random.default_rng(3)
+    n = 5 * 1000 + 17
+    x = rng.normal(0, 1e4, n)
+    x[rng.integers(0, n, 40)] = np.nan
+    df = pd.DataFrame({
+        "time": np.arange(n) * 0.1, "x": x, "whole": np.floor(x / 100) * 100,
+        "seg": pd.array(np.where(np.arange(n) % 97 == 0, None, np.arange(n) // 50),
+                        dtype="Int64"),
+        "kept": np.arange(n) % 3 > 0,
+    })
+    monkeypatch.setattr(aio, "WRITE_SLICE_ROWS", 1000)
+    outs = {}
+    for threads in ("1", "3"):
+        monkeypatch.setenv("AEROMAG_WRITE_THREADS", threads)
+        outs[threads] = aio.write_csv(df, tmp_path / f"t{threads}.csv").read_bytes()
+        df2 = df.assign(note=np.where(np.arange(n) == n - 3, 'a "quoted", text', "plain"))
+        outs[threads + "q"] = aio.write_csv(df2, tmp_path / f"q{threads}.csv").read_bytes()
+    assert outs["1"] == outs["3"]
+    assert outs["1q"] == outs["3q"]
+    back = pd.read_csv(tmp_path / "t3.csv")
+    np.testing.assert_array_equal(back["x"].to_numpy(), df["x"].to_numpy())
+    assert back["whole"].dtype == np.float64
+    assert back["kept"].dtype == bool
+    assert b'"a ""quoted"", text"' in outs["3q"]
