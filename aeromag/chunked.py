@@ -49,6 +49,7 @@ from .io import (
     atomic_path,
     convert_units,
     json_path_for,
+    write_arrow_csv,
     write_json,
 )
 from .segments import find_stretches, interpolate_short_gaps
@@ -372,7 +373,6 @@ def apply_model_chunked(
     out_csv = Path(out_path)
     header_written = False
     import pyarrow as pa
-    import pyarrow.csv as pacsv
 
     with atomic_path(out_csv) as tmp, open(tmp, "wb") as fh:
         for w, a, b, _ in _windows((canon(x) for x in iter_batches(src, fmt)),
@@ -422,7 +422,7 @@ def apply_model_chunked(
             ids, cnt = np.unique(sc[sc >= 0], return_counts=True)
             for i, c in zip(ids.tolist(), cnt.tolist(), strict=True):
                 seg_n[i] = seg_n.get(i, 0) + c
-            good = np.isfinite(Xc[1]) & (sc >= 0)
+            good = use[core] & (sc >= 0)  # edges trimmed, as compensate() does
             if good.any():
                 gi, ginv = np.unique(sc[good], return_inverse=True)
                 cf = Xc[1][good]
@@ -448,8 +448,13 @@ def apply_model_chunked(
             if not header_written:
                 fh.write(_csv_header(out.columns).encode("utf-8"))
                 header_written = True
-            pacsv.write_csv(table, fh, pacsv.WriteOptions(include_header=False,
-                                                          quoting_style="needed"))
+            pos = fh.tell()
+            try:
+                write_arrow_csv(table, fh, "none")
+            except pa.ArrowInvalid:  # a string needs quoting
+                fh.seek(pos)
+                fh.truncate()
+                write_arrow_csv(table, fh, "needed")
         fh.flush()
         metrics = _metrics(m_use, m_kept, m_fin, cfg)
         residual = {i: float(np.sqrt(max(s[2] / s[0] - (s[1] / s[0]) ** 2, 0.0)))

@@ -39,7 +39,7 @@ from . import __version__
 from .errors import FitError, InputError
 from .filters import (
     butter_sos,
-    filter_stretches,
+    filter_stretches_each,
     lowpass_stretches,
     min_filter_length,
     piece_normal_equations,
@@ -300,25 +300,31 @@ def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = N
     for j, c in enumerate(FLUX_COLUMNS):
         flux[:, j], _ = interpolate_short_gaps(df[c].to_numpy(dtype=np.float64), t,
                                                cfg.max_interp_s)
+    # |B|^2 is NaN where any axis is, so one pass finds the usable fluxgate samples.
+    bt2 = np.einsum("ij,ij->i", flux, flux)
+    flux_ok = np.isfinite(bt2) & (bt2 > 0)
     mag_from_flux = "mag" not in df.columns
     if mag_from_flux:
-        mag = np.sqrt(np.einsum("ij,ij->i", flux, flux))
+        mag = np.sqrt(bt2)
         log.info("%s: no 'mag' column: the fluxgate magnitude is the measured total field", src)
     else:
         mag, _ = interpolate_short_gaps(df["mag"].to_numpy(dtype=np.float64), t, cfg.max_interp_s)
-    flux_ok = np.all(np.isfinite(flux), axis=1)
-    bt = np.sqrt(np.einsum("ij,ij->i", np.where(flux_ok[:, None], flux, 0.0),
-                           np.where(flux_ok[:, None], flux, 0.0)))
-    flux_ok &= bt > 0
     if not flux_ok.any():
         raise InputError(f"{src}: columns flux_x/flux_y/flux_z hold no usable sample")
-    fz = flux[flux_ok]
-    if not np.any(fz != fz[0]):
+    first = flux[int(np.argmax(flux_ok))]
+    varies = False
+    for j in range(3):
+        col = flux[:, j]
+        if np.any((col != first[j]) & flux_ok):
+            varies = True
+            break
+    if not varies:
         raise FitError(
             f"{src}: columns flux_x, flux_y, flux_z are constant: the fluxgate did not record"
             " attitude changes; check the column map (--col) or the instrument"
         )
-    _warn_units(src, bt[flux_ok], None if mag_from_flux else mag)
+    _warn_units(src, np.sqrt(bt2[flux_ok][::_every(flux_ok)]),
+                None if mag_from_flux else mag[:: _every(mag)])
     valid = flux_ok & np.isfinite(mag)
     if valid.sum() < 2:
         raise InputError(f"{src}: column 'mag' holds no usable sample")
@@ -330,6 +336,11 @@ def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = N
     fs = sampling_rate(t)
     return Prepared(t, flux, mag, flux_ok, valid, stretch, segment, fs, src, mag_from_flux,
                     line_labels(line))
+
+
+def _every(x: np.ndarray, most: int = 100_000) -> int:
+    """Stride that leaves at most ``most`` samples of ``x`` (for cheap medians)."""
+    return max(1, len(x) // most)
 
 
 def _warn_units(src: str, bt: np.ndarray, mag: np.ndarray | None) -> None:
@@ -659,14 +670,28 @@ def apply_model(
     metrics : dict
         ``improvement_ratio``, ``residual_std_nT`` and friends (band-passed, see interface.md).
     """
-    cfg = cfg or CompensationConfig()
+    out, metrics, _ = _apply(df, model, cfg or CompensationConfig(), prep=prep,
+                             kept_segments=kept_segments, source=source)
+    return out, metrics
+
+
+def _apply(
+    df: pd.DataFrame, model: TLModel, cfg: CompensationConfig, *, prep: Prepared | None,
+    kept_segments: np.ndarray | None, source: str | None,
+) -> tuple[pd.DataFrame, dict[str, Any], np.ndarray]:
+    """:func:`apply_model`, also returning the band-passed ``mag_comp`` (edges trimmed to NaN)
+    that the metrics were computed on, so the per-segment residuals and the QC block reuse it.
+    """
     prep = prep or prepare(df, cfg, source=source)
     t = prep.time
-    fstretch = find_stretches(t, prep.flux_ok, cfg.max_gap_s)
-    mag_tl = np.full(len(t), np.nan)
-    ok = fstretch >= 0
-    mag_tl[ok] = model.predict(prep.flux[ok], t[ok], fstretch[ok])
-    comp = prep.mag - mag_tl
+    ok = prep.flux_ok
+    if ok.all():
+        mag_tl = model.predict(prep.flux, t, find_stretches(t, None, cfg.max_gap_s))
+    else:
+        fstretch = find_stretches(t, ok, cfg.max_gap_s)
+        mag_tl = np.full(len(t), np.nan)
+        mag_tl[ok] = model.predict(prep.flux[ok], t[ok], fstretch[ok])
+    comp = np.subtract(prep.mag, mag_tl)
     seg = prep.segment
     if kept_segments is None:
         kept = seg >= 0
@@ -676,22 +701,25 @@ def apply_model(
         cut = cfg.lowpass_hz if cfg.lowpass_hz is not None else cfg.band_hz[1]
         # Low-pass per stretch, but each dropped segment on its own: a fault (a source
         # switching on, a drift step) must not ring through the filter into good data.
-        dropped = np.where((seg >= 0) & ~kept, seg, -1)
         st = prep.stretch
-        lab = np.cumsum(np.r_[True, (st[1:] != st[:-1]) | (dropped[1:] != dropped[:-1])]) - 1
-        lab = np.where(st >= 0, lab, -1)
-        comp_out = lowpass_stretches(comp, t, lab, cut, cfg.order)
+        if kept_segments is None or kept[seg >= 0].all():
+            lab = st
+        else:
+            dropped = np.where((seg >= 0) & ~kept, seg, -1)
+            lab = np.cumsum(np.r_[True, (st[1:] != st[:-1]) | (dropped[1:] != dropped[:-1])]) - 1
+            lab = np.where(st >= 0, lab, -1)
+        comp_out = lowpass_stretches(comp, t, lab, cut, cfg.order, fs_hz=prep.fs)
     else:
         comp_out = comp
     # A shallow copy: pandas' copy-on-write keeps the caller's frame untouched.
     out = df.copy(deep=False)
     out["mag_tl"] = mag_tl
     out["mag_comp"] = comp_out
-    out["segment"] = pd.arrays.IntegerArray(np.where(seg >= 0, seg, 0).astype(np.int64),
-                                            seg < 0)
+    out["segment"] = pd.arrays.IntegerArray(np.where(seg >= 0, seg, 0), seg < 0)
     out["segment_kept"] = kept
-    metrics = compensation_metrics(prep.mag, comp_out, t, prep.stretch, cfg, kept=kept)
-    return out, metrics
+    metrics, comp_bp = _band_metrics(prep.mag, comp_out, t, prep.stretch, cfg, kept=kept,
+                                     fs_hz=prep.fs)
+    return out, metrics, comp_bp
 
 
 def compensation_metrics(
@@ -720,33 +748,43 @@ def compensation_metrics(
         ``residual_std_nT`` (std band-passed ``mag_comp``), ``std_before_nT``, ``n_samples``,
         and the same over kept segments.
     """
-    fs = sampling_rate(time_s)
+    return _band_metrics(mag, mag_comp, time_s, stretch, cfg, kept=kept)[0]
+
+
+def _band_metrics(
+    mag: np.ndarray, mag_comp: np.ndarray, time_s: np.ndarray, stretch: np.ndarray,
+    cfg: CompensationConfig, kept: np.ndarray | None = None, fs_hz: float | None = None,
+) -> tuple[dict[str, Any], np.ndarray]:
+    """:func:`compensation_metrics` and the band-passed ``mag_comp`` it used (NaN outside)."""
+    fs = sampling_rate(time_s) if fs_hz is None else fs_hz
     sos = butter_sos("bandpass", cfg.band_hz, fs, cfg.order)
-    st = np.where(np.isfinite(mag_comp), stretch, -1)
+    fin = np.isfinite(mag_comp)
     # Re-label so a NaN inside a stretch splits it (filters never run over NaN).
-    st = find_stretches(time_s, st >= 0, cfg.max_gap_s)
-    X = np.vstack([mag, mag_comp])
-    Xf = filter_stretches(X, st, sos, axis=1)
+    st = stretch if fin[stretch >= 0].all() else find_stretches(
+        time_s, fin & (stretch >= 0), cfg.max_gap_s)
+    mag_bp, comp_bp = filter_stretches_each([mag, mag_comp], st, sos)
     trim = (0.5 / cfg.band_hz[0]) if cfg.trim_s is None else cfg.trim_s
-    use = trim_mask(st, time_s, trim) & np.all(np.isfinite(Xf), axis=0)
+    fin = np.isfinite(mag_bp) & np.isfinite(comp_bp)
+    use = trim_mask(st, time_s, trim) & fin
     if use.sum() < 10:
-        use = np.all(np.isfinite(Xf), axis=0)
+        use = fin
     out: dict[str, Any] = {"n_samples": int(use.sum())}
-    before = float(np.std(Xf[0, use])) if use.any() else float("nan")
-    after = float(np.std(Xf[1, use])) if use.any() else float("nan")
+    before = float(np.std(mag_bp[use])) if use.any() else float("nan")
+    after = float(np.std(comp_bp[use])) if use.any() else float("nan")
     out["std_before_nT"] = before
     out["residual_std_nT"] = after
     out["improvement_ratio"] = before / after if after > 0 else float("nan")
     if kept is not None:
         uk = use & kept
         if uk.any():
-            b2 = float(np.std(Xf[0, uk]))
-            a2 = float(np.std(Xf[1, uk]))
+            b2 = float(np.std(mag_bp[uk]))
+            a2 = float(np.std(comp_bp[uk]))
             out["kept_std_before_nT"] = b2
             out["kept_residual_std_nT"] = a2
             out["kept_improvement_ratio"] = b2 / a2 if a2 > 0 else float("nan")
     out["band_hz"] = list(cfg.band_hz)
-    return out
+    comp_bp[~use] = np.nan
+    return out, comp_bp
 
 
 def compensate(
@@ -777,15 +815,17 @@ def compensate(
     if model is None:
         fit = fit_model(df, cfg, prep=prep)
         kept_ids = np.array([s["id"] for s in fit.report["segments"] if s["kept"]], dtype=np.int64)
-        data, metrics = apply_model(df, fit.model, cfg, prep=prep, kept_segments=kept_ids)
+        data, metrics, comp_bp = _apply(df, fit.model, cfg, prep=prep, kept_segments=kept_ids,
+                                        source=source)
         report = dict(fit.report)
         report["metrics"] = metrics
         report["model_source"] = "fitted"
-        report["qc"] = _qc_block(data, report, cfg)
+        report["qc"] = _qc_block(data, report, cfg, comp_bp, prep)
         fit.model.meta["metrics"] = metrics
         return CompensationResult(data, fit.model, report, fit.screen, fit.segment_table)
-    data, metrics = apply_model(df, model, cfg, prep=prep)
-    seg_ids, counts = np.unique(prep.segment[prep.segment >= 0], return_counts=True)
+    data, metrics, comp_bp = _apply(df, model, cfg, prep=prep, kept_segments=None,
+                                    source=source)
+    seg_ids, counts = segment_counts(prep.segment)
     report = {
         "aeromag_version": __version__,
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
@@ -804,8 +844,10 @@ def compensate(
         "metrics": metrics,
         "config": _config_dict(cfg),
     }
-    _segment_residuals(report, data, prep, cfg)
-    report["qc"] = _qc_block(data, report, cfg)
+    report["qc"] = _qc_block(data, report, cfg, comp_bp, prep)
+    by_seg = report["qc"].get("residual_std_by_segment_nT") or {}
+    for e in report["segments"]:
+        e["residual_std"] = by_seg.get(str(e["id"]))
     return CompensationResult(data, model, report, None, None)
 
 
@@ -820,34 +862,44 @@ def _resolve_gap(cfg: CompensationConfig, df: pd.DataFrame) -> CompensationConfi
     return dataclasses.replace(cfg, max_gap_s=5.0 * med)
 
 
-def _qc_block(data: pd.DataFrame, report: dict[str, Any], cfg: CompensationConfig) -> dict:
+def _qc_block(data: pd.DataFrame, report: dict[str, Any], cfg: CompensationConfig,
+              comp_bp: np.ndarray | None = None, prep: Prepared | None = None) -> dict:
     """The ``qc`` block of a report (FOM only when ``cfg.fom``; fit diagnostics are in
-    ``report["fit"]`` already, computed from the fit's own statistics)."""
+    ``report["fit"]`` already, computed from the fit's own statistics).  ``comp_bp`` is the
+    band-passed ``mag_comp`` of the metrics, reused rather than filtered again."""
     from .qc import quality_metrics  # qc builds on this module: import here
 
+    extra: dict[str, Any] = {}
+    if comp_bp is not None and prep is not None:
+        extra = {"comp_bp": comp_bp, "segment": prep.segment, "fs_hz": prep.fs}
     return quality_metrics(data, report, cfg, fit=False, detect=bool(cfg.fom),
-                           base_metrics=report.get("metrics"))
+                           base_metrics=report.get("metrics"), **extra)
 
 
-def _segment_residuals(report: dict[str, Any], data: pd.DataFrame, prep: Prepared,
-                       cfg: CompensationConfig) -> None:
-    """Fill per-segment band-passed residual std of ``mag_comp`` into the report."""
-    comp = data["mag_comp"].to_numpy(dtype=np.float64)
-    sos = butter_sos("bandpass", cfg.band_hz, prep.fs, cfg.order)
-    st = find_stretches(prep.time, np.isfinite(comp) & (prep.stretch >= 0), cfg.max_gap_s)
-    cf = filter_stretches(comp[None, :], st, sos, axis=1)[0]
-    seg = prep.segment
-    good = np.isfinite(cf) & (seg >= 0)
-    if not good.any():
-        return
-    ids, inv = np.unique(seg[good], return_inverse=True)
-    n = np.bincount(inv)
-    s1 = np.bincount(inv, cf[good])
-    s2 = np.bincount(inv, cf[good] ** 2)
-    std = np.sqrt(np.maximum(s2 / n - (s1 / n) ** 2, 0.0))
-    lookup = dict(zip(ids.tolist(), std.tolist(), strict=True))
-    for e in report["segments"]:
-        e["residual_std"] = lookup.get(e["id"])
+def segment_counts(segment: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Segment ids present (ascending) and their sample counts (-1 = no segment).
+
+    Parameters
+    ----------
+    segment : ndarray of int, shape (n,)
+        Segment id per sample.
+
+    Returns
+    -------
+    ids, counts : ndarray of int64
+    """
+    seg = np.asarray(segment)
+    good = seg[seg >= 0]
+    if good.size == 0:
+        e = np.zeros(0, dtype=np.int64)
+        return e, e
+    top = int(good.max())
+    if top <= 4 * good.size + 1024:  # small ids: a histogram, no sort
+        counts = np.bincount(good, minlength=top + 1)
+        ids = np.flatnonzero(counts)
+        return ids.astype(np.int64), counts[ids].astype(np.int64)
+    ids, counts = np.unique(good, return_counts=True)
+    return ids.astype(np.int64), counts.astype(np.int64)
 
 
 # --------------------------------------------------------------------------- files

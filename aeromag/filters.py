@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -144,9 +144,13 @@ def filter_stretches(
         Filtered samples, NaN outside stretches and on stretches too short to filter.
     """
     xa = np.asarray(x, dtype=np.float64)
-    out = np.full_like(xa, np.nan)
     starts, stops, _ = run_bounds(stretch)
     nmin = min_filter_length(sos)
+    n = xa.shape[axis]
+    if len(starts) == 1 and starts[0] == 0 and stops[0] == n and n >= nmin \
+            and np.isfinite(xa).all():
+        return _sosfiltfilt(sos, xa, axis)  # one stretch over everything: no copies
+    out = np.full_like(xa, np.nan)
     short = 0
     for a, b in zip(starts, stops, strict=True):
         if b - a < nmin:
@@ -184,6 +188,36 @@ def _sosfiltfilt(sos: np.ndarray, x: np.ndarray, axis: int) -> np.ndarray:
     return np.concatenate(res, axis=other)
 
 
+def filter_stretches_each(
+    series: Sequence[np.ndarray], stretch: np.ndarray, sos: np.ndarray
+) -> list[np.ndarray]:
+    """:func:`filter_stretches` of several 1-D series at once, one per thread.
+
+    Parameters
+    ----------
+    series : sequence of ndarray, each shape (n,)
+        Samples.
+    stretch : ndarray of int, shape (n,)
+        Stretch labels (negative = invalid).
+    sos : ndarray
+        Second-order sections.
+
+    Returns
+    -------
+    list of ndarray
+        The filtered series, in order.
+    """
+
+    def one(x: np.ndarray) -> np.ndarray:
+        return filter_stretches(np.asarray(x, dtype=np.float64)[None, :], stretch, sos,
+                                axis=1)[0]
+
+    if FILTER_THREADS < 2 or len(series) < 2 or len(stretch) < 100_000:
+        return [one(x) for x in series]
+    with ThreadPoolExecutor(min(FILTER_THREADS, len(series))) as ex:
+        return list(ex.map(one, series))
+
+
 def bandpass_stretches(
     x: np.ndarray, time_s: np.ndarray, stretch: np.ndarray,
     band_hz: tuple[float, float] = (0.1, 0.9), order: int = 4,
@@ -214,6 +248,7 @@ def bandpass_stretches(
 
 def lowpass_stretches(
     x: np.ndarray, time_s: np.ndarray, stretch: np.ndarray, cutoff_hz: float, order: int = 4,
+    *, fs_hz: float | None = None,
 ) -> np.ndarray:
     """Low-pass a 1-D series stretch by stretch (zero phase; keeps the level).
 
@@ -229,6 +264,8 @@ def lowpass_stretches(
         Cut-off frequency [Hz].
     order : int
         Butterworth order.
+    fs_hz : float, optional
+        Sampling rate [Hz] when already known (default: from ``time_s``).
 
     Returns
     -------
@@ -236,7 +273,8 @@ def lowpass_stretches(
         Low-passed samples; stretches too short to filter are returned unfiltered.
     """
     xv = np.asarray(x, dtype=np.float64)
-    sos = butter_sos("lowpass", cutoff_hz, sampling_rate(time_s), order, option="--lowpass")
+    fs = sampling_rate(time_s) if fs_hz is None else fs_hz
+    sos = butter_sos("lowpass", cutoff_hz, fs, order, option="--lowpass")
     out = filter_stretches(xv[None, :], stretch, sos, axis=1)[0]
     # A stretch too short to filter keeps its unfiltered values rather than vanishing.
     fill = np.isnan(out) & (np.asarray(stretch) >= 0)

@@ -96,7 +96,7 @@ def config_from_report(report: dict[str, Any] | None) -> CompensationConfig:
 
 def band_passed(
     x: np.ndarray, time_s: np.ndarray, band_hz: tuple[float, float], order: int = 4,
-    max_gap_s: float | None = None, trim_s: float = 0.0,
+    max_gap_s: float | None = None, trim_s: float = 0.0, fs_hz: float | None = None,
 ) -> np.ndarray:
     """Zero-phase band-pass of a series, per continuous finite stretch.
 
@@ -114,6 +114,8 @@ def band_passed(
         A longer time step starts a new stretch [s].
     trim_s : float
         Samples closer than this to a stretch end become NaN [s].
+    fs_hz : float, optional
+        Sampling rate [Hz] when known (default: from ``time_s``).
 
     Returns
     -------
@@ -123,7 +125,8 @@ def band_passed(
     xv = np.asarray(x, dtype=np.float64)
     t = np.asarray(time_s, dtype=np.float64)
     st = find_stretches(t, np.isfinite(xv), max_gap_s)
-    sos = butter_sos("bandpass", band_hz, sampling_rate(t), order)
+    fs = sampling_rate(t) if fs_hz is None else fs_hz
+    sos = butter_sos("bandpass", band_hz, fs, order)
     out = filter_stretches(xv[None, :], st, sos, axis=1)[0]
     if trim_s > 0:
         out[~trim_mask(st, t, trim_s)] = np.nan
@@ -298,11 +301,22 @@ def grouped_std(x: np.ndarray, groups: np.ndarray) -> dict[int, float]:
     ok = np.isfinite(x) & (g >= 0)
     if not ok.any():
         return {}
-    ids, inv = np.unique(g[ok], return_inverse=True)
-    n = np.bincount(inv)
-    s1 = np.bincount(inv, x[ok])
-    s2 = np.bincount(inv, x[ok] ** 2)
-    std = np.sqrt(np.maximum(s2 / n - (s1 / n) ** 2, 0.0))
+    gk = g[ok].astype(np.int64, copy=False)
+    xk = x[ok]
+    top = int(gk.max())
+    if top <= 4 * gk.size + 1024:  # small labels: histograms, no sort
+        n = np.bincount(gk, minlength=top + 1)
+        ids = np.flatnonzero(n)
+        s1 = np.bincount(gk, xk, minlength=top + 1)[ids]
+        s2 = np.bincount(gk, xk * xk, minlength=top + 1)[ids]
+        n = n[ids]
+    else:
+        ids, inv = np.unique(gk, return_inverse=True)
+        n = np.bincount(inv)
+        s1 = np.bincount(inv, xk)
+        s2 = np.bincount(inv, xk * xk)
+    mean = s1 / n
+    std = np.sqrt(np.maximum(s2 / n - mean * mean, 0.0))
     return {int(i): float(s) for i, s in zip(ids, std, strict=True)}
 
 
@@ -507,6 +521,9 @@ def compute_qc(
     fit: bool = True,
     detect: bool = True,
     base_metrics: dict[str, Any] | None = None,
+    comp_bp: np.ndarray | None = None,
+    segment: np.ndarray | None = None,
+    fs_hz: float | None = None,
 ) -> QCResult:
     """All quality-control metrics of a compensated log.
 
@@ -532,6 +549,13 @@ def compute_qc(
         Detect manoeuvres and compute the FOM (a calibration flight); False skips it unless
         ``maneuvers`` or ``maneuver_column`` is given (surveys have no manoeuvres, and the
         detection costs more than the compensation on long logs).
+    comp_bp : ndarray, shape (n,), optional
+        ``mag_comp`` already band-passed in ``band_hz`` with stretch edges NaN (the pipeline
+        passes the array its metrics used); filtered here when not given.
+    segment : ndarray of int, shape (n,), optional
+        Segment id per sample (default: the ``segment`` column).
+    fs_hz : float, optional
+        Sampling rate [Hz] when known.
 
     Returns
     -------
@@ -549,17 +573,22 @@ def compute_qc(
                              axis=1)
     comp = data["mag_comp"].to_numpy(dtype=np.float64)
     band = cfg.band_hz
-    st = find_stretches(t, np.isfinite(mag) & np.isfinite(comp), cfg.max_gap_s)
-    base = base_metrics or compensation_metrics(mag, comp, t, st, cfg)
+    if base_metrics is None:
+        st = find_stretches(t, np.isfinite(mag) & np.isfinite(comp), cfg.max_gap_s)
+        base = compensation_metrics(mag, comp, t, st, cfg)
+    else:
+        base = base_metrics
     metrics: dict[str, Any] = {
         "band_hz": list(band),
         "improvement_ratio": base["improvement_ratio"],
         "residual_std_nT": base["residual_std_nT"],
         "std_before_nT": base["std_before_nT"],
     }
-    trim = 0.5 / band[0]
-    comp_bp = band_passed(comp, t, band, cfg.order, cfg.max_gap_s, trim_s=trim)
-    seg = _segment_labels(data)
+    if comp_bp is None:
+        trim = (0.5 / band[0]) if cfg.trim_s is None else cfg.trim_s
+        comp_bp = band_passed(comp, t, band, cfg.order, cfg.max_gap_s, trim_s=trim,
+                              fs_hz=fs_hz)
+    seg = _segment_labels(data) if segment is None else np.asarray(segment)
     seg_std = grouped_std(comp_bp, seg)
     metrics["residual_std_by_segment_nT"] = {str(k): v for k, v in seg_std.items()}
     # Noise levels.

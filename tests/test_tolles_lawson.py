@@ -176,3 +176,22 @@ def test_design_matrix_is_scale_invariant_in_direction(scale, v):
     # (atol: hypothesis finds subnormal components, where only absolute agreement holds)
     np.testing.assert_allclose(a1[:, :3], a2[:, :3], rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(2 * a1[:, 3:8], a2[:, 3:8], rtol=1e-12, atol=1e-14)
+
+
+@pytest.mark.parametrize("block", [1, 2, 7, 64, 10_000])
+def test_blocked_prediction_equals_design_matrix(block):
+    """Block-by-block evaluation (one sample of context each side) equals A @ coef, also
+    where stretches begin or end on a block boundary and for one-sample stretches."""
+    from aeromag.tolles_lawson import predict_interference
+
+    rng = np.random.default_rng(block)
+    n = 300
+    t = np.cumsum(rng.uniform(0.05, 0.15, n))
+    flux = rng.normal(0, 1, (n, 3)) * 300 + np.array([20000.0, 3000.0, 45000.0])
+    stretch = np.repeat(np.arange(8), [7, 1, 56, 64, 2, 100, 1, 69])
+    coef = rng.normal(0, 5, 16)
+    want = design_matrix(flux, t, stretch=stretch) @ coef
+    got = predict_interference(flux, t, TERMS_16, coef, stretch=stretch, block=block)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+    m = TLModel(TERMS_16, coef)
+    np.testing.assert_allclose(m.predict(flux, t, stretch), want, rtol=0, atol=1e-9)
