@@ -11,9 +11,9 @@ import logging
 import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 
 import numpy as np
-from scipy import signal
 
 from .errors import InputError
 
@@ -23,6 +23,17 @@ log = logging.getLogger(__name__)
 #: Override with the environment variable ``AEROMAG_FILTER_THREADS`` (1 disables threading).
 FILTER_THREADS = max(1, int(os.environ.get("AEROMAG_FILTER_THREADS", min(4, os.cpu_count() or 1))))
 _THREADED_MIN_SAMPLES = 1_000_000  # values in the array, below which threads do not pay
+
+
+def _signal() -> Any:
+    """``scipy.signal``, imported on first use.
+
+    It takes most of a second to import; deferring it lets the command line start reading a
+    log while a background thread imports it (see :func:`aeromag.warm.warm_imports`).
+    """
+    from scipy import signal
+
+    return signal
 
 
 def sampling_rate(time_s: np.ndarray) -> float:
@@ -87,7 +98,7 @@ def butter_sos(
             f" {nyq:g} Hz of this log (sampled at {fs_hz:g} Hz); choose a lower cut-off"
         )
     wn = edges if kind == "bandpass" else float(edges[0])
-    return signal.butter(order, wn, btype=kind, fs=fs_hz, output="sos")
+    return _signal().butter(order, wn, btype=kind, fs=fs_hz, output="sos")
 
 
 def min_filter_length(sos: np.ndarray) -> int:
@@ -172,16 +183,16 @@ def filter_stretches(
 def _sosfiltfilt(sos: np.ndarray, x: np.ndarray, axis: int) -> np.ndarray:
     """``sosfiltfilt`` along ``axis``, split over threads across the other axis when large."""
     if FILTER_THREADS < 2 or x.ndim != 2 or x.size < _THREADED_MIN_SAMPLES:
-        return signal.sosfiltfilt(sos, x, axis=axis)
+        return _signal().sosfiltfilt(sos, x, axis=axis)
     other = 1 - axis
     m = x.shape[other]
     if m < 2:
-        return signal.sosfiltfilt(sos, x, axis=axis)
+        return _signal().sosfiltfilt(sos, x, axis=axis)
     parts = np.array_split(np.arange(m), min(FILTER_THREADS, m))
 
     def run(idx: np.ndarray) -> np.ndarray:
         sub = x[idx] if other == 0 else x[:, idx]
-        return signal.sosfiltfilt(sos, sub, axis=axis)
+        return _signal().sosfiltfilt(sos, sub, axis=axis)
 
     with ThreadPoolExecutor(len(parts)) as ex:
         res = list(ex.map(run, parts))

@@ -26,6 +26,17 @@ CHILD = {
         t = c.read_csv(SRC)
         c.write_csv(t, OUT)
     """,
+    "io_threads": """
+        import pyarrow.csv as c
+        from aeromag.io import write_arrow_csv
+        t = c.read_csv(SRC)
+        with open(OUT, "wb") as fh:
+            write_arrow_csv(t, fh)
+    """,
+    "baseline": """
+        import pyarrow.csv, scipy.signal, sklearn.decomposition, sklearn.covariance
+        import aeromag.cli, aeromag.compensate, aeromag.qc, aeromag.chunked
+    """,
     "compensate": """
         from aeromag.cli import main
         sys.argv = ["aeromag", "compensate", SRC, "-o", OUT]
@@ -45,10 +56,20 @@ CHILD = {
     "numerics": """
         from aeromag.io import read_log
         from aeromag.compensate import compensate
-        import aeromag.qc  # lazily imported by the pipeline: imports are not numerics
+        import aeromag.qc, scipy.signal, sklearn.decomposition, sklearn.covariance  # imports
         df = read_log(SRC, required=("time", "flux_x", "flux_y", "flux_z"))
         T0 = time.perf_counter()
         compensate(df)
+    """,
+    "numerics_model": """
+        from aeromag.io import read_log
+        from aeromag.compensate import compensate
+        from aeromag.tolles_lawson import TLModel
+        import aeromag.qc, scipy.signal  # imports are not numerics
+        df = read_log(SRC, required=("time", "flux_x", "flux_y", "flux_z"))
+        m = TLModel.load(MODEL)
+        T0 = time.perf_counter()
+        compensate(df, model=m)
     """,
     "chunked": """
         from aeromag.chunked import apply_model_chunked
@@ -73,36 +94,62 @@ def run(kind: str, src: Path, out: Path, model: Path | None) -> dict:
     return json.loads(p.stdout.strip().splitlines()[-1])
 
 
+def median_run(kind: str, src: Path, out: Path, model: Path, repeat: int) -> dict:
+    """Median time (and the largest peak memory) of ``repeat`` fresh-process runs."""
+    runs = [run(kind, src, out, model) for _ in range(repeat)]
+    ts = sorted(r["s"] for r in runs)
+    return {"s": ts[len(ts) // 2], "s_min": ts[0], "s_max": ts[-1],
+            "rss": max(r["rss"] for r in runs)}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--sizes", nargs="+", type=float, default=[1e5, 1e6, 1e7])
     ap.add_argument("--dir", type=Path, default=Path("/tmp/aeromag-bench"))
+    ap.add_argument("--repeat", type=int, default=3,
+                    help="runs per measurement; the median time is reported")
     args = ap.parse_args()
     args.dir.mkdir(parents=True, exist_ok=True)
     rows = []
+    model = args.dir / "model.json"
+    if not model.exists():
+        from aeromag.compensate import calibrate_file
+
+        calibrate_file(write_log(100_000, args.dir / "log_100000.csv"), model)
+    base = median_run("baseline", model, args.dir / "unused", model, 1)["rss"]
     for n in (int(s) for s in args.sizes):
         src = write_log(n, args.dir / f"log_{n}.csv")
-        model = args.dir / "model.json"
-        if not model.exists():
-            from aeromag.compensate import calibrate_file
-
-            calibrate_file(write_log(100_000, args.dir / "log_100000.csv"), model)
         data_mb = 9 * 8 * n / 1e6  # nine float64 columns in memory
-        r = {k: run(k, src, args.dir / f"out_{k}_{n}.csv", model) for k in CHILD}
+        rep = 1 if n >= 5_000_000 else args.repeat
+        r = {k: median_run(k, src, args.dir / f"out_{k}_{n}.csv", model, rep)
+             for k in CHILD if k != "baseline"}
         rows.append((n, src.stat().st_size / 1e6, data_mb, r))
-        print(json.dumps({"n": n, **{k: v for k, v in r.items()}}), flush=True)
-    print("\n| rows | CSV MB | (a) I/O floor s | (b) compensate s | (b)/(a) | (b) peak MB (x data)"
-          " | (b') compensate --model s | (b')/(a) | (b') peak MB | (c) numerics s"
-          " | (c) samples/s | chunked --model s | chunked peak MB |")
-    print("|" + "---|" * 13)
-    for n, mb, data_mb, r in rows:
-        a, b, bm, c, d = (r[k] for k in ("io", "compensate", "compensate_model", "numerics",
-                                         "chunked"))
-        print(f"| {n:.0e} | {mb:.0f} | {a['s']:.2f} | {b['s']:.2f} | {b['s'] / a['s']:.2f} "
-              f"| {b['rss'] / 1e6:.0f} ({b['rss'] / 1e6 / data_mb:.1f}x)"
-              f" | {bm['s']:.2f} | {bm['s'] / a['s']:.2f} | {bm['rss'] / 1e6:.0f}"
-              f" | {c['s']:.2f} | {n / c['s'] / 1e6:.2f} M | {d['s']:.2f} "
-              f"| {d['rss'] / 1e6:.0f} |")
+        print(json.dumps({"n": n, **r}), flush=True)
+    print(f"\nlibrary baseline (imports only): {base / 1e6:.0f} MB peak RSS")
+    print("\n| rows | CSV MB | (a) I/O floor s | (a') floor, threaded writer s"
+          " | (b) compensate s | (b)/(a) | (b)/(a') | (b') --model s | (b')/(a) | (b')/(a')"
+          " | chunked --model s |")
+    print("|" + "---|" * 11)
+    for n, mb, _, r in rows:
+        a, a2, b, bm, d = (r[k]["s"] for k in ("io", "io_threads", "compensate",
+                                              "compensate_model", "chunked"))
+        print(f"| {n:.0e} | {mb:.0f} | {a:.2f} | {a2:.2f} | {b:.2f} | {b / a:.2f} | {b / a2:.2f}"
+              f" | {bm:.2f} | {bm / a:.2f} | {bm / a2:.2f} | {d:.2f} |")
+    print("\n| rows | (c) fit + apply s | samples/s | (c') apply s | samples/s |")
+    print("|" + "---|" * 5)
+    for n, _, _, r in rows:
+        c, cm = r["numerics"]["s"], r["numerics_model"]["s"]
+        print(f"| {n:.0e} | {c:.3f} | {n / c / 1e6:.2f} M | {cm:.3f} | {n / cm / 1e6:.2f} M |")
+    print("\nPeak RSS in MB; in brackets, above the library baseline as a multiple of the data"
+          " (nine float64 columns).")
+    print("\n| rows | data MB | (a) floor | (b) compensate | (b') --model | chunked --model |")
+    print("|" + "---|" * 6)
+    for n, _, data_mb, r in rows:
+        cells = []
+        for k in ("io", "compensate", "compensate_model", "chunked"):
+            rss = r[k]["rss"]
+            cells.append(f"{rss / 1e6:.0f} ({(rss - base) / 1e6 / data_mb:.1f}x)")
+        print(f"| {n:.0e} | {data_mb:.0f} | " + " | ".join(cells) + " |")
 
 
 if __name__ == "__main__":

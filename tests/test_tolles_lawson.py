@@ -195,3 +195,22 @@ def test_blocked_prediction_equals_design_matrix(block):
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
     m = TLModel(TERMS_16, coef)
     np.testing.assert_allclose(m.predict(flux, t, stretch), want, rtol=0, atol=1e-9)
+
+
+def test_blocked_derivative_equals_whole_array():
+    """time_derivative works block by block on long logs: bitwise the same as one pass, with
+    stretch boundaries right at, before and after block edges."""
+    from aeromag.tolles_lawson import PREDICT_BLOCK, _time_derivative, time_derivative
+
+    rng = np.random.default_rng(5)
+    n = 3 * PREDICT_BLOCK + 123
+    t = np.cumsum(rng.uniform(0.05, 0.15, n))
+    f = rng.normal(size=(n, 3))
+    cuts = [PREDICT_BLOCK - 1, PREDICT_BLOCK, PREDICT_BLOCK + 1, 2 * PREDICT_BLOCK,
+            2 * PREDICT_BLOCK + 2, 3 * PREDICT_BLOCK]
+    st = np.zeros(n, dtype=np.int64)
+    for c in cuts:
+        st[c:] += 1
+    np.testing.assert_array_equal(time_derivative(f, t, st), _time_derivative(f, t, st))
+    np.testing.assert_allclose(time_derivative(f[:, 0], t), np.gradient(f[:, 0], t),
+                               rtol=1e-9, atol=1e-12)

@@ -50,6 +50,16 @@ Plot = Annotated[Path | None, typer.Option("--plot", metavar="DIR", help="Also w
                                            "figures (PNG) and report.html into DIR.")]
 
 
+def _warm(screen: bool) -> None:
+    """Import scipy.signal (and scikit-learn when screening) while the log is being read."""
+    from ..warm import warm_imports
+
+    mods = ["scipy.signal", "aeromag.qc"]
+    if screen:
+        mods += ["sklearn.decomposition", "sklearn.covariance", "scipy.stats"]
+    warm_imports(*mods)
+
+
 @app.command()
 def compensate(
     survey: Annotated[Path, typer.Argument(help="Survey log (CSV).", show_default=False)],
@@ -90,6 +100,7 @@ def compensate(
     apply a saved --model; write OUT.csv (mag_tl, mag_comp, segment, segment_kept) and OUT.json.
     """
     setup_logging(verbose)
+    _warm(screen=model is None and not no_screen)
     # Library imports here, not at module level: 'aeromag --help' stays instant.
     from ..compensate import CompensationConfig, compensate_file
     from ..io import json_path_for
@@ -157,6 +168,7 @@ def calibrate(
     (coefficients, per-segment PCA scores, screening, metrics and the FOM).
     """
     setup_logging(verbose)
+    _warm(screen=not no_screen)
     from ..compensate import CompensationConfig, calibrate_file
 
     with user_errors():
