@@ -308,7 +308,8 @@ def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = N
         mag = np.sqrt(bt2)
         log.info("%s: no 'mag' column: the fluxgate magnitude is the measured total field", src)
     else:
-        mag, _ = interpolate_short_gaps(df["mag"].to_numpy(dtype=np.float64), t, cfg.max_interp_s)
+        mag, _ = interpolate_short_gaps(df["mag"].to_numpy(dtype=np.float64), t, cfg.max_interp_s,
+                                        copy=False)
     if not flux_ok.any():
         raise InputError(f"{src}: columns flux_x/flux_y/flux_z hold no usable sample")
     first = flux[int(np.argmax(flux_ok))]
@@ -325,6 +326,7 @@ def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = N
         )
     _warn_units(src, np.sqrt(bt2[flux_ok][::_every(flux_ok)]),
                 None if mag_from_flux else mag[:: _every(mag)])
+    del bt2
     valid = flux_ok & np.isfinite(mag)
     if valid.sum() < 2:
         raise InputError(f"{src}: column 'mag' holds no usable sample")

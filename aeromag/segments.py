@@ -54,7 +54,7 @@ def find_stretches(
 
 
 def interpolate_short_gaps(
-    values: np.ndarray, time_s: np.ndarray, max_gap_s: float
+    values: np.ndarray, time_s: np.ndarray, max_gap_s: float, *, copy: bool = True
 ) -> tuple[np.ndarray, int]:
     """Linearly interpolate NaN runs that last at most ``max_gap_s``.
 
@@ -69,19 +69,23 @@ def interpolate_short_gaps(
         Times [s].
     max_gap_s : float
         Longest gap filled [s]; 0 fills nothing.
+    copy : bool
+        False returns ``values`` itself (as float64) when there is nothing to fill, saving a
+        copy of the column; the caller must then not modify the result.
 
     Returns
     -------
     filled : ndarray, shape (n,)
-        A copy with short gaps filled.
+        A copy with short gaps filled (see ``copy``).
     n_filled : int
         Samples filled.
     """
-    x = np.array(values, dtype=np.float64, copy=True)
+    x = np.asarray(values, dtype=np.float64)
     t = np.asarray(time_s, dtype=np.float64)
     bad = ~np.isfinite(x)
     if not bad.any() or max_gap_s <= 0 or bad.all():
-        return x, 0
+        return (x.copy() if copy else x), 0
+    x = x.copy()
     n = len(x)
     idx = np.arange(n)
     prev = np.maximum.accumulate(np.where(~bad, idx, -1))

@@ -99,3 +99,19 @@ def test_no_maneuvers_no_fom():
                        "mag_comp": 50000 + rng.normal(0, 0.05, t.size)})
     q = compute_qc(df)
     assert q.metrics["fom"] is None and q.notes
+
+
+def test_fourth_difference_noise_blocked_equals_direct():
+    """Blocked moments give the std of all in-stretch fourth differences (gaps excluded)."""
+    rng = np.random.default_rng(4)
+    n = 200_003
+    t = np.arange(n) * 0.1
+    t[150_000:] += 30.0  # a gap: differences across it are left out
+    x = rng.normal(0, 0.3, n) + np.sin(t / 50)
+    x[70_000:70_010] = np.nan
+    d4 = np.diff(np.nan_to_num(x), n=4)
+    ok = np.isfinite(x)
+    seg = np.cumsum(np.r_[True, ~(ok[1:] & ok[:-1] & (np.diff(t) <= 0.5))]) * ok
+    same = (seg[4:] == seg[:-4]) & (seg[4:] > 0)
+    want = np.std(d4[same]) / np.sqrt(70)
+    assert fourth_difference_noise(x, t, 0.5) == pytest.approx(want, rel=1e-12)
