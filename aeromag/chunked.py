@@ -368,6 +368,9 @@ def apply_model_chunked(
     sos_band = butter_sos("bandpass", cfg.band_hz, fs, cfg.order)
     trim = (0.5 / cfg.band_hz[0]) if cfg.trim_s is None else cfg.trim_s
     m_use, m_kept, m_fin = _Moments(), _Moments(), _Moments()
+    # Fourth differences of mag and of mag - mag_tl (the QC noise levels), by first sample.
+    d4_before = _Moments(mean=np.zeros(1), m2=np.zeros(1))
+    d4_after = _Moments(mean=np.zeros(1), m2=np.zeros(1))
     seg_n: dict[int, int] = {}
     seg_stats: dict[int, np.ndarray] = {}
     out_csv = Path(out_path)
@@ -416,6 +419,14 @@ def apply_model_chunked(
             kept = seg >= 0
             Xc = Xf[:, core]
             m_fin.add(Xc[:, fin[core]])
+            # As compute_qc: the mag column as read (gaps not interpolated).
+            if has_mag:
+                raw_mag = w["mag"].to_numpy(np.float64)
+            else:
+                fl = w[list(FLUX_COLUMNS)].to_numpy(np.float64)
+                raw_mag = np.sqrt(np.einsum("ij,ij->i", fl, fl))
+            for mom, x in ((d4_before, raw_mag), (d4_after, raw_mag - mag_tl)):
+                mom.add(_fourth_differences(x, t, max_gap, a, b)[None, :])
             m_use.add(Xc[:, use[core]])
             m_kept.add(Xc[:, (use & kept)[core]])
             sc = seg[core]
@@ -459,6 +470,7 @@ def apply_model_chunked(
         metrics = _metrics(m_use, m_kept, m_fin, cfg)
         residual = {i: float(np.sqrt(max(s[2] / s[0] - (s[1] / s[0]) ** 2, 0.0)))
                     for i, s in seg_stats.items()}
+        qc = _qc_block(metrics, residual, d4_before, d4_after, cfg)
         report: dict[str, Any] = {
             "aeromag_version": __version__,
             "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
@@ -475,11 +487,53 @@ def apply_model_chunked(
                           "notes": ["a saved model was applied: nothing fitted"]},
             "metrics": metrics,
             "config": _config_dict(cfg),
+            "qc": qc,
             "n_rows": n_rows,
             "chunked": {"chunk_rows": int(chunk_rows), "overlap_rows": int(overlap)},
         }
         write_json(report, json_path_for(out_csv))
     return report
+
+
+def _fourth_differences(x: np.ndarray, t: np.ndarray, max_gap_s: float, a: int, b: int
+                        ) -> np.ndarray:
+    """Fourth differences starting at rows ``a..b-1`` of a window, inside continuous finite
+    stretches only (as :func:`aeromag.qc.fourth_difference_noise` counts them)."""
+    st = find_stretches(t, np.isfinite(x), max_gap_s)
+    stop = min(b, len(x) - 4)
+    if stop <= a:
+        return np.zeros(0)
+    seg = x[a:stop + 4]
+    d4 = np.diff(np.where(np.isfinite(seg), seg, 0.0), n=4)
+    same = (st[a + 4:stop + 4] == st[a:stop]) & (st[a:stop] >= 0)
+    return d4[same]
+
+
+def _qc_block(metrics: dict[str, Any], residual: dict[int, float], d4_before: _Moments,
+              d4_after: _Moments, cfg: CompensationConfig) -> dict[str, Any]:
+    """The report's ``qc`` block, as ``compensate()`` writes it for an applied model."""
+    from .qc import FOURTH_DIFF_NORM
+
+    def noise(m: _Moments) -> float:
+        return float(m.std()[0] / FOURTH_DIFF_NORM) if m.n else float("nan")
+
+    note = "manoeuvre detection skipped (no FOM): run 'aeromag report' or --fom"
+    return {
+        "band_hz": list(cfg.band_hz),
+        "improvement_ratio": metrics["improvement_ratio"],
+        "residual_std_nT": metrics["residual_std_nT"],
+        "std_before_nT": metrics["std_before_nT"],
+        "residual_std_by_segment_nT": {str(k): v for k, v in sorted(residual.items())},
+        "noise": {
+            "band_hz": list(cfg.band_hz),
+            "band_std_before_nT": metrics["std_before_nT"],
+            "band_std_after_nT": metrics["residual_std_nT"],
+            "fourth_difference_before_nT": noise(d4_before),
+            "fourth_difference_after_nT": noise(d4_after),
+        },
+        "fom": None,
+        "notes": [note],
+    }
 
 
 def _median_from_counts(counts: dict[float, int]) -> float:

@@ -68,6 +68,15 @@ def test_chunked_equals_in_memory(tmp_path, model_path, with_line, ext):
     for sa, sb in zip(a["segments"], b["segments"], strict=True):
         assert sb["residual_std"] == pytest.approx(sa["residual_std"], rel=1e-8, abs=1e-12)
     assert ref.report["terms"] == b["terms"]
+    # The QC block too: noise levels from fourth differences across chunk edges, and the
+    # per-segment residuals.
+    qa, qb = a["qc"], b["qc"]
+    assert set(qa) == set(qb) and qb["fom"] is None
+    for k, v in qa["noise"].items():
+        assert qb["noise"][k] == pytest.approx(v, rel=1e-9), k
+    assert qa["residual_std_by_segment_nT"].keys() == qb["residual_std_by_segment_nT"].keys()
+    for k, v in qa["residual_std_by_segment_nT"].items():
+        assert qb["residual_std_by_segment_nT"][k] == pytest.approx(v, rel=1e-8, abs=1e-12)
 
 
 def test_median_and_overlap():
