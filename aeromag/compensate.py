@@ -47,7 +47,15 @@ from .filters import (
     sampling_rate,
     trim_mask,
 )
-from .io import FLUX_COLUMNS, atomic_path, json_path_for, read_log, write_csv, write_json
+from .io import (
+    FLUX_COLUMNS,
+    atomic_path,
+    json_path_for,
+    read_log,
+    write_csv,
+    write_csv_passthrough,
+    write_json,
+)
 from .screening import RULE, ScreenResult, pca_screen, shrunk_segment_fits
 from .segments import (
     assign_segments,
@@ -940,15 +948,32 @@ def compensate_file(
     df = read_log(path, columns=columns, units=units, required=("time", *FLUX_COLUMNS), fmt=fmt)
     res = compensate(df, cfg, model=model, source=str(path))
     out = Path(out_path)
-    write_outputs(res.data, res.report, out)
+    write_outputs(res.data, res.report, out, passthrough=df.attrs.get("passthrough_csv"))
     return res
 
 
-def write_outputs(data: pd.DataFrame, report: dict[str, Any], out_csv: Path) -> None:
-    """Write the output log and its JSON report; both appear or neither does."""
+def write_outputs(data: pd.DataFrame, report: dict[str, Any], out_csv: Path, *,
+                  passthrough: dict[str, Any] | None = None) -> None:
+    """Write the output log and its JSON report; both appear or neither does.
+
+    ``passthrough`` (``{"path", "columns"}``, set by :func:`aeromag.io.read_log` on a plain
+    CSV) says that ``data`` starts with that file's columns, unchanged: their lines are then
+    copied verbatim and only the added columns are formatted
+    (:func:`aeromag.io.write_csv_passthrough`).
+    """
     out_json = json_path_for(out_csv)
     with atomic_path(out_csv) as tmp_csv:
-        write_csv(data, tmp_csv)
+        done = False
+        if passthrough:
+            cols = list(passthrough["columns"])
+            if list(data.columns[: len(cols)]) == cols and len(data.columns) > len(cols):
+                done = write_csv_passthrough(passthrough["path"], cols,
+                                             data.iloc[:, len(cols):], tmp_csv)
+                if not done:
+                    log.info("%s: not a plain CSV, output written column by column",
+                             passthrough["path"])
+        if not done:
+            write_csv(data, tmp_csv)
         write_json(report, out_json)
 
 

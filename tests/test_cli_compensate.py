@@ -96,8 +96,9 @@ def test_bad_inputs_give_one_line_error_and_no_output(tmp_path, logs, name):
 
 def test_real_subprocess(logs, tmp_path):
     out = tmp_path / "sub.csv"
-    cmd = [sys.executable, "-c", "from aeromag.cli import main; main()", "compensate",
-           str(logs / "flight.csv"), "-o", str(out)]
+    # ``python -m aeromag``: the real entry point, with its background import thread.
+    cmd = [sys.executable, "-m", "aeromag", "compensate", str(logs / "flight.csv"), "-o",
+           str(out)]
     p = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
     assert out.exists() and out.with_suffix(".json").exists()

@@ -199,3 +199,67 @@ def test_streaming_reader_falls_back_when_later_blocks_change_type(tmp_path, mon
     a, b = read_log(q), pd.read_csv(q)
     for c in b.columns:
         np.testing.assert_array_equal(a[c].to_numpy(), b[c].to_numpy())
+
+
+def _plain_log(tmp_path, name="plain.csv", eol="\n", tail_newline=True, extra_line=None):
+    rows = ["time,flux_x,flux_y,flux_z,mag,line"]
+    for i in range(2500):
+        rows.append(f"{i * 0.1:.1f},{20000 + i % 13}.25,3000,45000,{50000 + i / 3:.4f},{i // 500}")
+    if extra_line is not None:
+        rows.append(extra_line)
+        rows.append("250.1,20000,3000,45000,50000,5")
+    text = eol.join(rows) + (eol if tail_newline else "")
+    p = tmp_path / name
+    p.write_bytes(text.encode())
+    return p
+
+
+@pytest.mark.parametrize("eol,tail", [("\n", True), ("\r\n", True), ("\n", False)])
+def test_passthrough_copies_input_lines_and_appends_columns(tmp_path, monkeypatch, eol, tail):
+    """Input lines copied verbatim (their own number formatting kept), added columns appended,
+    across many blocks and threads; values equal to the column-by-column writer's."""
+    from aeromag import io as aio
+
+    monkeypatch.setattr(aio, "PASSTHROUGH_BLOCK_BYTES", 997)
+    src = _plain_log(tmp_path, eol=eol, tail_newline=tail)
+    df = read_log(src)
+    assert df.attrs["passthrough_csv"]["columns"] == list(df.columns)
+    extra = pd.DataFrame({"mag_tl": np.linspace(-3, 3, len(df)) / 7,
+                          "segment": pd.array(np.arange(len(df)) // 100, dtype="Int64"),
+                          "segment_kept": np.arange(len(df)) % 5 > 0})
+    out = tmp_path / "out.csv"
+    assert aio.write_csv_passthrough(src, list(df.columns), extra, out)
+    lines = out.read_text().split("\n")
+    src_lines = src.read_text().replace("\r\n", "\n").rstrip("\n").split("\n")
+    assert lines[0] == src_lines[0] + ",mag_tl,segment,segment_kept"
+    assert lines[1].startswith(src_lines[1] + ",")  # e.g. '20000.25' and '50000.0000' kept
+    assert lines[-1] == "" and len(lines) == len(df) + 2
+    ref = tmp_path / "ref.csv"
+    write_csv(pd.concat([df, extra], axis=1), ref)
+    a, b = pd.read_csv(out), pd.read_csv(ref)
+    assert list(a.columns) == list(b.columns)
+    for c in a.columns:
+        np.testing.assert_array_equal(a[c].to_numpy(), b[c].to_numpy())
+
+
+@pytest.mark.parametrize("bad", ["", '250.0,"20000",3000,45000,50000,5'])
+def test_passthrough_refuses_files_that_are_not_plain(tmp_path, bad):
+    """A blank line (which the readers skip) or quoting: the caller writes column by column."""
+    from aeromag import io as aio
+
+    src = _plain_log(tmp_path, extra_line=bad)
+    df = read_log(src)
+    extra = pd.DataFrame({"mag_tl": np.zeros(len(df))})
+    assert not aio.write_csv_passthrough(src, list(df.columns), extra, tmp_path / "o.csv")
+
+
+def test_passthrough_only_when_the_log_is_as_read(tmp_path):
+    """Column maps, unit conversions and dropped duplicate rows turn the passthrough off."""
+    src = _plain_log(tmp_path)
+    assert "passthrough_csv" in read_log(src).attrs
+    assert "passthrough_csv" not in read_log(src, columns={"mag": "mag"}).attrs
+    assert "passthrough_csv" not in read_log(src, units={"flux": "nT"}).attrs
+    dup = tmp_path / "dup.csv"
+    text = src.read_text().split("\n")
+    dup.write_text("\n".join(text[:5] + text[4:5] + text[5:]))
+    assert "passthrough_csv" not in read_log(dup).attrs
