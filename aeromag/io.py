@@ -605,27 +605,12 @@ def _read_csv(path: Path) -> pd.DataFrame:
     return df
 
 
-#: Bytes of CSV text parsed per block by the streaming reader.
-READ_BLOCK_BYTES = 4 << 20
-
-
 def _read_csv_streaming(path: Path) -> Any:
-    """Read a CSV with pyarrow's streaming reader, or None when it cannot.
+    """The prefetched table of this file (see :mod:`aeromag.warm`), else a streamed read."""
+    from . import warm
 
-    As fast as ``pyarrow.csv.read_csv`` here, with about half its peak memory (the whole text is
-    never held: at 1e6 rows 190 MB against 330 MB).  Column types come from the first block;
-    a later block that does not fit them (an integer column with a decimal further down, text
-    after empty cells) returns None, and the caller reads the file whole.
-    """
-    import pyarrow as pa
-    import pyarrow.csv as pacsv
-
-    try:
-        reader = pacsv.open_csv(path, read_options=pacsv.ReadOptions(
-            block_size=READ_BLOCK_BYTES))
-        return pa.Table.from_batches(list(reader), schema=reader.schema)
-    except (pa.ArrowInvalid, UnicodeDecodeError, ValueError, StopIteration):
-        return None
+    table = warm.take_prefetched(path)
+    return table if table is not None else warm.read_csv_table(path)
 
 
 def _read_csv_arrow(path: Path) -> pd.DataFrame | None:

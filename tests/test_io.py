@@ -174,9 +174,9 @@ def test_parallel_writer_is_byte_identical_to_one_thread(tmp_path, monkeypatch):
 def test_streaming_reader_falls_back_when_later_blocks_change_type(tmp_path, monkeypatch):
     """Types frozen on the first block must not break a log whose integer column turns
     decimal further down, or whose text column starts empty: the file is read whole."""
-    from aeromag import io as aio
+    from aeromag import warm
 
-    monkeypatch.setattr(aio, "READ_BLOCK_BYTES", 1024)
+    monkeypatch.setattr(warm, "READ_BLOCK_BYTES", 1024)
     n = 3000
     rows = ["time,flux_x,flux_y,flux_z,mag,count,note"]
     for i in range(n):
@@ -263,3 +263,22 @@ def test_passthrough_only_when_the_log_is_as_read(tmp_path):
     text = src.read_text().split("\n")
     dup.write_text("\n".join(text[:5] + text[4:5] + text[5:]))
     assert "passthrough_csv" not in read_log(dup).attrs
+
+
+def test_prefetched_table_used_only_for_the_same_unchanged_file(tmp_path):
+    """The command line prefetches the log; read_log takes it only if the file is unchanged."""
+    import time
+
+    from aeromag import warm
+
+    p = tmp_path / "log.csv"
+    p.write_text("time,mag\n0,1.5\n1,2.5\n")
+    warm.prefetch_csv(p)
+    assert read_log(p)["mag"].tolist() == [1.5, 2.5]
+    assert warm.take_prefetched(p) is None  # taken once
+    warm.prefetch_csv(p)
+    time.sleep(0.05)
+    p.write_text("time,mag\n0,7.5\n1,8.5\n2,9.5\n")  # changed after the prefetch
+    assert read_log(p)["mag"].tolist() == [7.5, 8.5, 9.5]
+    warm.prefetch_csv(tmp_path / "missing.csv")  # nothing to prefetch: no error
+    assert warm.take_prefetched(tmp_path / "missing.csv") is None

@@ -50,10 +50,13 @@ Plot = Annotated[Path | None, typer.Option("--plot", metavar="DIR", help="Also w
                                            "figures (PNG) and report.html into DIR.")]
 
 
-def _warm(screen: bool) -> None:
-    """Import scipy.signal (and scikit-learn when screening) while the log is being read."""
-    from ..warm import warm_imports
+def _warm(screen: bool, log: Path | None = None, fmt: str | None = None) -> None:
+    """Start reading ``log`` (a CSV) on a thread, and import scipy.signal (and scikit-learn
+    when screening) on another, while the main thread imports the pipeline."""
+    from ..warm import prefetch_csv, warm_imports
 
+    if log is not None and fmt in (None, "csv"):
+        prefetch_csv(log)
     mods = ["scipy.signal", "aeromag.qc"]
     if screen:
         mods += ["sklearn.decomposition", "sklearn.covariance", "scipy.stats"]
@@ -100,7 +103,7 @@ def compensate(
     apply a saved --model; write OUT.csv (mag_tl, mag_comp, segment, segment_kept) and OUT.json.
     """
     setup_logging(verbose)
-    _warm(screen=model is None and not no_screen)
+    _warm(screen=model is None and not no_screen, log=None if chunk_rows else survey, fmt=fmt)
     # Library imports here, not at module level: 'aeromag --help' stays instant.
     from ..compensate import CompensationConfig, compensate_file
     from ..io import json_path_for
@@ -168,7 +171,7 @@ def calibrate(
     (coefficients, per-segment PCA scores, screening, metrics and the FOM).
     """
     setup_logging(verbose)
-    _warm(screen=not no_screen)
+    _warm(screen=not no_screen, log=cal, fmt=fmt)
     from ..compensate import CompensationConfig, calibrate_file
 
     with user_errors():
