@@ -696,7 +696,8 @@ def _apply(
     t = prep.time
     ok = prep.flux_ok
     if ok.all():
-        mag_tl = model.predict(prep.flux, t, find_stretches(t, None, cfg.max_gap_s))
+        st_all = prep.stretch if prep.valid.all() else find_stretches(t, None, cfg.max_gap_s)
+        mag_tl = model.predict(prep.flux, t, st_all)
     else:
         fstretch = find_stretches(t, ok, cfg.max_gap_s)
         mag_tl = np.full(len(t), np.nan)

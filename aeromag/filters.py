@@ -314,7 +314,36 @@ def trim_mask(stretch: np.ndarray, time_s: np.ndarray, trim_s: float) -> np.ndar
     starts, stops, _ = run_bounds(stretch)
     if trim_s <= 0 or len(starts) == 0:
         return keep
-    # Start and end time of each sample's stretch, broadcast with np.repeat (no loop).
+    n = len(t)
+    if n > 1 and not (t[1:] > t[:-1]).all():
+        return _trim_mask_any(t, keep, starts, stops, trim_s)
+    # Time increases, so each stretch keeps one contiguous range [lo, hi): found by binary
+    # search, then marked with a difference array (a few passes, no n-sized gathers).  The
+    # ends are then nudged so the test is exactly ``t - t_start >= trim`` and
+    # ``t_end - t >= trim`` (rounding of ``t_start + trim`` can differ by one sample).
+    t0 = t[starts]
+    t1 = t[stops - 1]
+    lo = np.clip(np.searchsorted(t, t0 + trim_s, side="left"), starts, stops)
+    hi = np.clip(np.searchsorted(t, t1 - trim_s, side="right"), starts, stops)
+    for _ in range(2):
+        back = (lo > starts) & (t[np.maximum(lo - 1, 0)] - t0 >= trim_s)
+        lo[back] -= 1
+        fwd = (lo < stops) & (t[np.minimum(lo, n - 1)] - t0 < trim_s)
+        lo[fwd] += 1
+        up = (hi < stops) & (t1 - t[np.minimum(hi, n - 1)] >= trim_s)
+        hi[up] += 1
+        down = (hi > starts) & (t1 - t[np.maximum(hi - 1, 0)] < trim_s)
+        hi[down] -= 1
+    ok = hi > lo
+    mark = np.zeros(len(t) + 1, dtype=np.int32)
+    np.add.at(mark, lo[ok], 1)
+    np.add.at(mark, hi[ok], -1)
+    return np.cumsum(mark[:-1], dtype=np.int32) > 0
+
+
+def _trim_mask_any(t: np.ndarray, keep: np.ndarray, starts: np.ndarray, stops: np.ndarray,
+                   trim_s: float) -> np.ndarray:
+    """:func:`trim_mask` for times that do not increase (gathers per sample)."""
     lens = stops - starts
     t0 = np.repeat(t[starts], lens)
     t1 = np.repeat(t[stops - 1], lens)

@@ -134,3 +134,19 @@ def test_batched_piece_normal_equations_equal_one_by_one():
         keep = (tt - tt[0] >= 2.5) & (tt[-1] - tt >= 2.5)
         np.testing.assert_allclose(M[j], xf[:, keep] @ xf[:, keep].T, rtol=1e-10, atol=1e-12)
         assert n[j] == keep.sum()
+
+
+def test_trim_mask_by_search_equals_per_sample_test():
+    """The binary-search trim gives exactly ``t - t_start >= trim`` and ``t_end - t >= trim``,
+    also where rounding puts a sample right on the boundary (0.1 s steps, 2.5 s trim)."""
+    from aeromag.filters import _trim_mask_any, run_bounds
+
+    rng = np.random.default_rng(8)
+    for t in (np.arange(20_000) * 0.1, np.cumsum(rng.uniform(0.01, 0.2, 20_000))):
+        st = np.repeat(np.arange(40), 500)
+        st[rng.integers(0, 20_000, 300)] = -1
+        st = np.where(st >= 0, st + np.cumsum(st < 0), -1)  # invalid samples split stretches
+        for trim in (0.0, 0.1, 2.5, 7.3, 60.0):
+            a, b, _ = run_bounds(st)
+            want = _trim_mask_any(t, st >= 0, a, b, trim) if trim > 0 else st >= 0
+            np.testing.assert_array_equal(trim_mask(st, t, trim), want)
