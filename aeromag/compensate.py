@@ -28,6 +28,7 @@ import dataclasses
 import datetime as _dt
 import logging
 import os
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -946,10 +947,17 @@ def compensate_file(
         mpath = Path(model)
         model = TLModel.load(mpath)
         model.meta["path"] = str(mpath)
+    t0 = time.perf_counter()
     df = read_log(path, columns=columns, units=units, required=("time", *FLUX_COLUMNS), fmt=fmt)
+    t1 = time.perf_counter()
+    log.info("%s: read %d rows in %.2f s", path, len(df), t1 - t0)
     res = compensate(df, cfg, model=model, source=str(path))
+    t2 = time.perf_counter()
+    log.info("%s: %s in %.2f s", path, "model applied" if model is not None else
+             "fitted, screened and applied", t2 - t1)
     out = Path(out_path)
     write_outputs(res.data, res.report, out, passthrough=df.attrs.get("passthrough_csv"))
+    log.info("%s: wrote %s in %.2f s", path, out, time.perf_counter() - t2)
     return res
 
 

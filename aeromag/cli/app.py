@@ -57,4 +57,6 @@ def column_options(col: list[str] | None, map_file: Path | None, units: list[str
 def setup_logging(verbose: bool, quiet: bool = False) -> None:
     """Configure library logging for the command line (warnings by default)."""
     level = logging.DEBUG if verbose else (logging.ERROR if quiet else logging.WARNING)
-    logging.basicConfig(level=level, format="%(levelname)s: %(message)s", force=True)
+    fmt = "%(relativeCreated)6.0f ms %(levelname)s: %(message)s" if verbose else \
+        "%(levelname)s: %(message)s"
+    logging.basicConfig(level=level, format=fmt, force=True)
