@@ -625,6 +625,8 @@ def _read_csv_arrow(path: Path) -> pd.DataFrame | None:
     if path.stat().st_size == 0:
         raise InputError(f"{path}: the file is empty; expected a CSV log with a header row")
     table = _read_csv_streaming(path)
+    if isinstance(table, dict):  # numpy columns of a large all-numeric log
+        return pd.DataFrame(table, copy=False)
     try:
         if table is None:
             table = pacsv.read_csv(path)

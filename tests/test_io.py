@@ -282,3 +282,30 @@ def test_prefetched_table_used_only_for_the_same_unchanged_file(tmp_path):
     assert read_log(p)["mag"].tolist() == [7.5, 8.5, 9.5]
     warm.prefetch_csv(tmp_path / "missing.csv")  # nothing to prefetch: no error
     assert warm.take_prefetched(tmp_path / "missing.csv") is None
+
+
+def test_large_logs_read_into_numpy_columns_equal_pandas(tmp_path, monkeypatch):
+    """The column reader (used for large files) gives pandas' values and dtypes, and hands
+    over to the table reader for empty integer cells or text."""
+    from aeromag import warm
+
+    monkeypatch.setattr(warm, "COLUMNS_MIN_BYTES", 0)
+    monkeypatch.setattr(warm, "READ_BLOCK_BYTES", 2048)
+    n = 4000
+    rows = ["time,mag,line,flag"] + [
+        f"{i * 0.1:.1f},{'' if i % 777 == 5 else 50000 + i / 7},{i // 100},"
+        f"{'true' if i % 3 else 'false'}" for i in range(n)]
+    p = tmp_path / "big.csv"
+    p.write_text("\n".join(rows) + "\n")
+    assert isinstance(warm.read_csv_table(p), dict)
+    df, ref = read_log(p), pd.read_csv(p)
+    assert list(df.dtypes) == list(ref.dtypes)
+    for c in ref.columns:
+        np.testing.assert_array_equal(df[c].to_numpy(), ref[c].to_numpy())
+    # An empty integer cell (pandas: float NaN) or a text column: not for the column reader.
+    rows[3000] = rows[3000].replace(",29,", ",,")
+    q = tmp_path / "gap.csv"
+    q.write_text("\n".join(rows) + "\n")
+    assert not isinstance(warm.read_csv_table(q), dict)
+    got = read_log(q)["line"].to_numpy()
+    np.testing.assert_array_equal(got, pd.read_csv(q)["line"].to_numpy())
