@@ -40,6 +40,7 @@ from . import __version__
 from .errors import FitError, InputError
 from .filters import (
     butter_sos,
+    filter_stretches,
     filter_stretches_each,
     lowpass_stretches,
     min_filter_length,
@@ -308,7 +309,7 @@ def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = N
     flux = np.empty((len(t), 3), dtype=np.float64)
     for j, c in enumerate(FLUX_COLUMNS):
         flux[:, j], _ = interpolate_short_gaps(df[c].to_numpy(dtype=np.float64), t,
-                                               cfg.max_interp_s)
+                                               cfg.max_interp_s, copy=False)
     # |B|^2 is NaN where any axis is, so one pass finds the usable fluxgate samples.
     bt2 = np.einsum("ij,ij->i", flux, flux)
     flux_ok = np.isfinite(bt2) & (bt2 > 0)
@@ -721,6 +722,7 @@ def _apply(
             lab = np.cumsum(np.r_[True, (st[1:] != st[:-1]) | (dropped[1:] != dropped[:-1])]) - 1
             lab = np.where(st >= 0, lab, -1)
         comp_out = lowpass_stretches(comp, t, lab, cut, cfg.order, fs_hz=prep.fs)
+        del comp  # the unfiltered copy is not kept (mag - mag_tl, for whoever needs it)
     else:
         comp_out = comp
     # A shallow copy: pandas' copy-on-write keeps the caller's frame untouched.
@@ -774,7 +776,13 @@ def _band_metrics(
     # Re-label so a NaN inside a stretch splits it (filters never run over NaN).
     st = stretch if fin[stretch >= 0].all() else find_stretches(
         time_s, fin & (stretch >= 0), cfg.max_gap_s)
-    mag_bp, comp_bp = filter_stretches_each([mag, mag_comp], st, sos)
+    if len(mag) > 2_000_000:  # one at a time: each filter's temporaries are 3 x the series
+        mag_bp = filter_stretches(np.asarray(mag, dtype=np.float64)[None, :], st, sos,
+                                  axis=1)[0]
+        comp_bp = filter_stretches(np.asarray(mag_comp, dtype=np.float64)[None, :], st, sos,
+                                   axis=1)[0]
+    else:
+        mag_bp, comp_bp = filter_stretches_each([mag, mag_comp], st, sos)
     trim = (0.5 / cfg.band_hz[0]) if cfg.trim_s is None else cfg.trim_s
     fin = np.isfinite(mag_bp) & np.isfinite(comp_bp)
     use = trim_mask(st, time_s, trim) & fin

@@ -322,8 +322,11 @@ def grouped_std(x: np.ndarray, groups: np.ndarray) -> dict[int, float]:
     ok = np.isfinite(x) & (g >= 0)
     if not ok.any():
         return {}
-    gk = g[ok].astype(np.int64, copy=False)
-    xk = x[ok]
+    if ok.all():  # no copies of the whole log
+        gk, xk = g.astype(np.int64, copy=False), np.asarray(x)
+    else:
+        gk = g[ok].astype(np.int64, copy=False)
+        xk = x[ok]
     top = int(gk.max())
     if top <= 4 * gk.size + 1024:  # small labels: histograms, no sort
         n = np.bincount(gk, minlength=top + 1)
