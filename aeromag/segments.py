@@ -47,10 +47,16 @@ def find_stretches(
         max_gap_s = 5.0 * med
     new = np.ones(n, dtype=bool)
     # A sample continues the previous stretch when both are valid and the step is small.
-    new[1:] = ~(ok[1:] & ok[:-1] & (dt <= max_gap_s))
+    np.less_equal(dt, max_gap_s, out=new[1:])
+    del dt
+    new[1:] &= ok[1:]
+    new[1:] &= ok[:-1]
+    np.logical_not(new[1:], out=new[1:])
     new &= ok
-    lab = np.cumsum(new) - 1
-    return np.where(ok, lab, -1).astype(np.int64)
+    lab = np.cumsum(new, dtype=np.int64)
+    lab -= 1
+    lab[~ok] = -1
+    return lab
 
 
 def interpolate_short_gaps(
