@@ -443,7 +443,7 @@ def segment_normal_equations(
     ok = counts >= nmin
     too_short = {int(i): int(c) for i, c in zip(ids[~ok], counts[~ok], strict=True)}
     # Segments with no valid sample at all are too short too.
-    all_ids = np.unique(prep.segment[prep.segment >= 0])
+    all_ids = segment_counts(prep.segment)[0]
     for i in np.setdiff1d(all_ids, ids):
         too_short[int(i)] = 0
     gram = Mseg[ok, :k, :k]
