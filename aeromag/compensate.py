@@ -72,7 +72,7 @@ from .tolles_lawson import (
     parse_terms,
     solve_normal,
     terms_from_cosines,
-    time_derivative,
+    time_derivative_rows,
 )
 
 log = logging.getLogger(__name__)
@@ -395,21 +395,35 @@ def segment_normal_equations(
     st = prep.stretch[v]
     seg = prep.segment[v]
     k = len(terms)
-    # Cosines and their derivatives over whole stretches (as when the model is applied), then
-    # the terms batch by batch: the full 17 x n design matrix never exists.
-    cos, bt = direction_cosines(prep.flux[v])
-    dcos = time_derivative(cos, t, st)
-    bt /= FIELD_SCALE_NT
-    scale = bt
+    flux = prep.flux[v]
     y = prep.mag[v]
     y_level = float(np.median(y[:: _every(y)]))  # centring only (the band-pass removes it)
+    nv = len(t)
 
     def rows(idx: np.ndarray) -> np.ndarray:
-        flat = idx.ravel()
-        out = np.empty((k + 1, flat.size))
-        terms_from_cosines(cos[flat], dcos[flat], scale[flat], terms, out=out[:k].T)
-        np.subtract(y[flat], y_level, out=out[k])
-        return out.reshape(k + 1, *idx.shape)
+        # The terms of q pieces of L samples, built batch by batch from the fluxgate (the
+        # 17 x n design matrix and even the n x 3 cosines never exist).  Each piece is taken
+        # with one sample of context on either side, so its derivatives are exactly those
+        # of whole stretches, as when the model is applied.
+        q, L = idx.shape
+        ext = np.empty((q, L + 2), dtype=np.int64)
+        ext[:, 1:-1] = idx
+        ext[:, 0] = idx[:, 0] - 1
+        ext[:, -1] = idx[:, -1] + 1
+        outside = (ext < 0) | (ext >= nv)
+        np.clip(ext, 0, nv - 1, out=ext)
+        cos, bt = direction_cosines(flux[ext.ravel()])
+        cos = cos.reshape(q, L + 2, 3)
+        lab = st[ext]
+        lab[outside] = -2  # beyond the log: a stretch of its own, so never a neighbour
+        dcos = time_derivative_rows(cos, t[ext], lab)
+        bt = bt.reshape(q, L + 2)[:, 1:-1]
+        bt /= FIELD_SCALE_NT
+        out = np.empty((k + 1, q * L))
+        terms_from_cosines(cos[:, 1:-1].reshape(-1, 3), dcos[:, 1:-1].reshape(-1, 3),
+                           bt.reshape(-1), terms, out=out[:k].T)
+        np.subtract(y[idx.ravel()], y_level, out=out[k])
+        return out.reshape(k + 1, q, L)
 
     # Each segment is filtered on its own (within each stretch): a fault in one segment must
     # not leak through the filter into its neighbours' fits.

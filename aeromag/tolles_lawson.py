@@ -210,6 +210,53 @@ def time_derivative(
     return out
 
 
+def time_derivative_rows(
+    values: np.ndarray, time_s: np.ndarray, stretch: np.ndarray
+) -> np.ndarray:
+    """:func:`time_derivative` of many short series at once (one per row).
+
+    Bitwise the same arithmetic as :func:`time_derivative` applied to each row on its own.
+
+    Parameters
+    ----------
+    values : ndarray, shape (q, m, c)
+        Samples, ``c`` channels per sample.
+    time_s : ndarray, shape (q, m)
+        Strictly increasing times [s] inside each stretch of a row.
+    stretch : ndarray of int, shape (q, m)
+        Stretch label per sample; derivatives never cross a change of label.
+
+    Returns
+    -------
+    ndarray, shape (q, m, c)
+        d(values)/dt [unit of values per second].
+    """
+    f = np.asarray(values, dtype=np.float64)
+    t = np.asarray(time_s, dtype=np.float64)
+    out = np.zeros_like(f)
+    m = f.shape[1]
+    if m < 2:
+        return out
+    h = np.diff(t, axis=1)  # h[:, i] = t[:, i+1] - t[:, i]
+    change = stretch[:, 1:] != stretch[:, :-1]
+    starts = np.ones(t.shape, dtype=bool)
+    starts[:, 1:] = change
+    ends = np.ones(t.shape, dtype=bool)
+    ends[:, :-1] = change
+    with np.errstate(divide="ignore", invalid="ignore"):  # across a change: overwritten
+        if m > 2:
+            hs = h[:, :-1, None]
+            hd = h[:, 1:, None]
+            out[:, 1:-1] = (hs * hs * f[:, 2:] + (hd * hd - hs * hs) * f[:, 1:-1]
+                            - hd * hd * f[:, :-2]) / (hs * hd * (hd + hs))
+        out[starts & ends] = 0.0
+        r, c = np.nonzero(starts & ~ends)  # forward difference
+        out[r, c] = (f[r, c + 1] - f[r, c]) / h[r, c][:, None]
+        r, c = np.nonzero(ends & ~starts)  # backward difference
+        out[r, c] = (f[r, c] - f[r, c - 1]) / h[r, c - 1][:, None]
+    return out
+
+
 def _time_derivative(f: np.ndarray, t: np.ndarray, stretch: np.ndarray | None) -> np.ndarray:
     n = len(t)
     out = np.zeros_like(f)
