@@ -142,7 +142,7 @@ def assign_segments(
         ok = np.isfinite(ln) & (st >= 0)
         seg = np.full(len(st), -1, dtype=np.int64)
         vals = ln[ok]
-        if np.all(vals == np.round(vals)):
+        if np.array_equal(vals, np.rint(vals)):
             seg[ok] = vals.astype(np.int64)
         else:
             # Line numbers such as 1002.02 / 1002.20 (SGL): number them 0, 1, ... in sorted
@@ -194,7 +194,8 @@ def line_labels(line: np.ndarray | None) -> dict[int, float] | None:
     if line is None:
         return None
     ln = np.asarray(line, dtype=np.float64)
-    vals = np.unique(ln[np.isfinite(ln)])
-    if vals.size == 0 or np.all(vals == np.round(vals)):
+    fin = ln[np.isfinite(ln)]
+    if fin.size == 0 or np.array_equal(fin, np.rint(fin)):  # integers: no sort needed
         return None
+    vals = np.unique(fin)
     return {i: float(v) for i, v in enumerate(vals)}
