@@ -150,3 +150,33 @@ def test_trim_mask_by_search_equals_per_sample_test():
             a, b, _ = run_bounds(st)
             want = _trim_mask_any(t, st >= 0, a, b, trim) if trim > 0 else st >= 0
             np.testing.assert_array_equal(trim_mask(st, t, trim), want)
+
+
+@settings(max_examples=30, deadline=None)
+@given(L=st.integers(28, 400), m=st.integers(1, 5), order=st.integers(1, 6),
+       seed=st.integers(0, 2**31 - 1))
+def test_zero_phase_rows_is_bitwise_scipy_sosfiltfilt(L, m, order, seed):
+    from aeromag.filters import pad_length, zero_phase_rows
+
+    sos = butter_sos("bandpass", (0.1, 0.9), 10.0, order)
+    x = np.random.default_rng(seed).normal(0, 1, (m, L)) * 1e4
+    if L <= pad_length(sos):
+        with pytest.raises(ValueError):
+            zero_phase_rows(sos, x)
+        return
+    np.testing.assert_array_equal(zero_phase_rows(sos, x), signal.sosfiltfilt(sos, x, axis=1))
+
+
+def test_threaded_filters_equal_serial_and_never_deadlock(monkeypatch):
+    import aeromag.filters as F
+
+    sos = butter_sos("lowpass", 0.9, 10.0, 4)
+    x = np.random.default_rng(1).normal(0, 1, (8, 200_000))
+    ref = signal.sosfiltfilt(sos, x, axis=1)
+    monkeypatch.setattr(F, "FILTER_THREADS", 2)
+    np.testing.assert_array_equal(F._sosfiltfilt(sos, x, 1), ref)
+    np.testing.assert_array_equal(F._sosfiltfilt(sos, x.T, 0), ref.T)
+    # Nested use (a pool task that filters a large array) runs serially, never waits on itself.
+    out = F.parallel_map(lambda i: F._sosfiltfilt(sos, x, 1)[i], [0, 1, 2])
+    for i, row in enumerate(out):
+        np.testing.assert_array_equal(row, ref[i])
