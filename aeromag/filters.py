@@ -29,8 +29,8 @@ _THREADED_MIN_SAMPLES = 1_000_000  # values in the array, below which threads do
 def _signal() -> Any:
     """``scipy.signal``, imported on first use.
 
-    It takes most of a second to import; deferring it lets the command line start reading a
-    log while a background thread imports it (see :func:`aeromag.warm.warm_imports`).
+    It takes most of a second to import; deferring it keeps ``aeromag --help`` and the
+    reading of a log from waiting for it (see :mod:`aeromag.warm`).
     """
     from scipy import signal
 
@@ -235,6 +235,7 @@ def parallel_map(fn: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
     """
     if FILTER_THREADS < 2 or len(items) < 2 or getattr(_WORKER, "busy", False):
         return [fn(i) for i in items]
+    _kernel()  # scipy.signal imported here, never by two pool threads at once
     return list(_pool().map(fn, items))
 
 

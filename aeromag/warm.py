@@ -1,19 +1,21 @@
 """Overlap the command line's start-up with reading the log.
 
 ``pandas`` and ``scipy.signal`` take about a second to import, scikit-learn more.  The
-command line first starts reading the CSV on a thread with pyarrow alone
-(:func:`prefetch_csv`; the parser releases the GIL), then imports the pipeline while it
-parses, and :func:`warm_imports` loads what later steps need.  Library code never depends on
-this: :func:`aeromag.io.read_log` takes a prefetched table only for the very same, unchanged
-file, every module still imports what it uses, and an import already in progress on another
-thread is simply waited for (Python's per-module import locks).
+command line first starts parsing the CSV on a thread with pyarrow alone
+(:func:`prefetch_csv`; the parser releases the GIL), then imports the pipeline on the main
+thread while it parses.  Library code never depends on this: :func:`aeromag.io.read_log`
+takes a prefetched table only for the very same, unchanged file.
 
-This module imports nothing heavy itself.
+Imports themselves all happen on the calling thread: the prefetch thread only parses
+(``pyarrow`` and ``numpy`` are imported before it starts).  Two threads importing the same
+package at once can hand one of them a partially initialised module (seen with scikit-learn
+on a cold bytecode cache), so nothing here imports in the background.
+
+This module imports nothing heavy at import time.
 """
 
 from __future__ import annotations
 
-import importlib
 import logging
 import os
 import threading
@@ -21,33 +23,6 @@ from concurrent.futures import Future
 from typing import Any
 
 log = logging.getLogger(__name__)
-
-
-def warm_imports(*modules: str) -> threading.Thread:
-    """Import ``modules`` in order on a daemon thread.
-
-    Parameters
-    ----------
-    *modules : str
-        Dotted module names (e.g. ``"scipy.signal"``).
-
-    Returns
-    -------
-    threading.Thread
-        The started thread (joining it is optional).
-    """
-
-    def run() -> None:
-        for name in modules:
-            try:
-                importlib.import_module(name)
-            except Exception as exc:  # the main thread's own import reports real problems
-                log.debug("background import of %s failed: %s", name, exc)
-                return
-
-    th = threading.Thread(target=run, name="aeromag-warm-imports", daemon=True)
-    th.start()
-    return th
 
 
 #: Bytes of CSV text parsed per block by the streaming reader.
@@ -178,6 +153,11 @@ def prefetch_csv(path: str | os.PathLike[str]) -> None:
         stamp = _stamp(key)
     except OSError:
         return
+    # Everything the parsing thread uses is imported here, on the calling thread (see above).
+    import numpy  # noqa: F401
+    import pyarrow  # noqa: F401
+    import pyarrow.csv  # noqa: F401
+
     fut: Future = Future()
 
     def run() -> None:

@@ -51,16 +51,19 @@ Plot = Annotated[Path | None, typer.Option("--plot", metavar="DIR", help="Also w
 
 
 def _warm(screen: bool, log: Path | None = None, fmt: str | None = None) -> None:
-    """Start reading ``log`` (a CSV) on a thread, and import scipy.signal (and scikit-learn
-    when screening) on another, while the main thread imports the pipeline."""
-    from ..warm import prefetch_csv, warm_imports
+    """Start parsing ``log`` (a CSV) on a thread, then import what the run needs (scipy.signal,
+    and scikit-learn when screening) on this thread while it parses (see aeromag.warm)."""
+    import importlib
+
+    from ..warm import prefetch_csv
 
     if log is not None and fmt in (None, "csv"):
         prefetch_csv(log)
-    mods = ["scipy.signal", "aeromag.qc"]
+    mods = ["aeromag.compensate", "scipy.signal", "aeromag.qc"]
     if screen:
         mods += ["sklearn.decomposition", "sklearn.covariance", "scipy.stats"]
-    warm_imports(*mods)
+    for name in mods:
+        importlib.import_module(name)
 
 
 @app.command()
