@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from . import filters as _filters
 from .errors import FitError, InputError
 
 log = logging.getLogger(__name__)
@@ -430,9 +431,16 @@ def predict_interference(
         if bias:
             r += bias
 
-    # One thread: the blocks are memory-bound, and threads measured slower on 2 cores.
-    for a in range(0, n, step):
-        run(a)
+    # Contiguous runs of blocks on the filter threads (each block's arithmetic is the same
+    # whichever thread runs it, so the result does not depend on the thread count).
+    starts = list(range(0, n, step))
+    parts = max(1, min(_filters.FILTER_THREADS, len(starts) // 4))
+
+    def run_part(i: int) -> None:
+        for a in starts[len(starts) * i // parts:len(starts) * (i + 1) // parts]:
+            run(a)
+
+    _filters.parallel_map(run_part, list(range(parts)))
     return out
 
 
