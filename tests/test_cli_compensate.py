@@ -130,3 +130,32 @@ def test_chunked_model_application_equals_in_memory(logs, tmp_path):
     r3 = runner.invoke(app, ["compensate", str(logs / "flight.csv"), "-o", str(b),
                              "--chunk-rows", "1000"])
     assert r3.exit_code == 1 and "--model" in r3.output
+
+
+IMPORT_RECORDER = """
+import sys, threading
+seen = []
+class Rec:
+    def find_spec(self, name, path=None, target=None):
+        if threading.current_thread() is not threading.main_thread():
+            seen.append((threading.current_thread().name, name))
+        return None
+sys.meta_path.insert(0, Rec())
+from aeromag.cli import main
+sys.argv = ["aeromag", "compensate", sys.argv[1], "-o", sys.argv[2]]
+try:
+    main()
+except SystemExit as e:
+    assert not e.code, e.code
+print(sorted(set(seen)))
+"""
+
+
+def test_compensate_imports_only_on_the_main_thread(logs, tmp_path):
+    """Two threads importing one package at once can get a partially initialised module (it
+    crashed scikit-learn's import on a cold bytecode cache): every import of a CLI run happens
+    on the main thread, whatever runs on other threads."""
+    p = subprocess.run([sys.executable, "-c", IMPORT_RECORDER, str(logs / "flight.csv"),
+                        str(tmp_path / "c.csv")], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert p.stdout.strip().splitlines()[-1] == "[]"
