@@ -37,7 +37,7 @@ import numpy as np
 import pandas as pd
 
 from . import __version__
-from .compensate import CompensationConfig, _config_dict
+from .compensate import CompensationConfig, _config_dict, check_outputs
 from .errors import InputError
 from .filters import butter_sos, filter_stretches, min_filter_length
 from .io import (
@@ -259,6 +259,7 @@ def apply_model_chunked(
     source = str(src)
     if not src.exists():
         raise InputError(f"{source}: file not found")
+    check_outputs(src, out_path, json_path_for(Path(out_path)))
     if chunk_rows < 1:
         raise InputError(f"--chunk-rows {chunk_rows}: must be positive")
     if not isinstance(model, TLModel):
@@ -416,7 +417,7 @@ def apply_model_chunked(
             g2 = np.clip(gid, 0, len(t0s) - 1)
             inner = (st2 >= 0) & (t - t0s[g2] >= trim) & (t1s[g2] - t >= trim)
             use = inner & fin
-            kept = seg >= 0
+            kept = np.ones(len(seg), dtype=bool)  # a saved model: every sample is kept
             Xc = Xf[:, core]
             m_fin.add(Xc[:, fin[core]])
             # As compute_qc: the mag column as read (gaps not interpolated).

@@ -131,6 +131,19 @@ class CompensationConfig:
     fom : bool or None
         Detect manoeuvres and report the Figure of Merit in the ``qc`` block; None = on for
         calibration (:func:`calibrate_file`), off otherwise.
+    max_condition : float
+        Largest scaled condition number (columns of unit norm) of the final, unregularised fit;
+        above it the fit is refused as ill-conditioned.  A box calibration with manoeuvres
+        gives about 1e2; straight-and-level flight with 1 degree of attitude jitter about 3e5,
+        where coefficients come out at 1e5 nT and the unfiltered ``mag_tl`` carries that
+        error as level shifts between headings.  A ridge (``ridge > 0``) lifts the limit.
+    max_interference : float
+        Largest plausible aircraft interference, as a fraction of the Earth field's magnitude
+        (the median fluxgate magnitude): a fitted model whose ``|mag_tl|`` (99th percentile)
+        exceeds it on the log it was fitted on is refused.  A fit can be well conditioned in
+        the band and still be undetermined at low frequency (e.g. survey lines on two headings
+        only: cz against a constant, cx*cx and cy*cy), and then the unfiltered model returns
+        tens of thousands of nT.  A saved model that does so only draws a warning.
     """
 
     band_hz: tuple[float, float] = (0.1, 0.9)
@@ -153,15 +166,33 @@ class CompensationConfig:
     max_interp_s: float = 1.0
     trim_s: float | None = None
     fom: bool | None = None
+    max_condition: float = 1e5
+    max_interference: float = 0.25
 
     def __post_init__(self) -> None:
         self.band_hz = (float(self.band_hz[0]), float(self.band_hz[1]))
+        lo, hi = self.band_hz
+        if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < hi):
+            raise InputError(f"--band {lo:g} {hi:g}: need 0 < LOW < HIGH in Hz")
+        positive = {"--segment-seconds": self.segment_seconds, "--lowpass": self.lowpass_hz,
+                    "--max-gap": self.max_gap_s, "--max-condition": self.max_condition,
+                    "--min-segment-seconds": self.min_segment_seconds,
+                    "--max-interference": self.max_interference}
+        for opt, v in positive.items():
+            if v is not None and not (np.isfinite(v) and v > 0):
+                raise InputError(f"{opt} {v:g}: must be a positive number")
+        nonneg = {"--ridge": self.ridge, "--shrink": self.shrink, "--max-interp":
+                  self.max_interp_s, "--min-excess": self.min_excess, "--min-excess-nt":
+                  self.min_excess_nT, "--trim": self.trim_s}
+        for opt, v in nonneg.items():
+            if v is not None and not (np.isfinite(v) and v >= 0):
+                raise InputError(f"{opt} {v:g}: must be a number >= 0")
         if not 0 < self.pca_variance <= 1:
             raise InputError(f"--pca-variance {self.pca_variance}: must be in (0, 1]")
         if not 0 < self.screen_quantile < 1:
             raise InputError(f"--screen-quantile {self.screen_quantile}: must be in (0, 1)")
-        if self.ridge < 0 or self.shrink < 0:
-            raise InputError("--ridge and --shrink must be >= 0")
+        if int(self.order) != self.order or not 1 <= self.order <= 10:
+            raise InputError(f"filter order {self.order}: must be an integer from 1 to 10")
 
 
 @dataclass
@@ -179,6 +210,7 @@ class Prepared:
     source: str
     mag_from_flux: bool
     line_of_segment: dict[int, float] | None = None
+    field_nT: float = float("nan")  # median total field (mag, else the fluxgate's) [nT]
 
 
 @dataclass
@@ -334,9 +366,13 @@ def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = N
             " attitude changes; check the column map (--col) or the instrument"
         )
     step = _every(flux_ok)
-    _warn_units(src, np.sqrt(bt2[::step][flux_ok[::step]]),
-                None if mag_from_flux else mag[:: _every(mag)])
+    flux_field = float(np.median(np.sqrt(bt2[::step][flux_ok[::step]])))
+    mag_sub = None if mag_from_flux else mag[:: _every(mag)]
+    _warn_units(src, flux_field, mag_sub)
     del bt2
+    # The Earth field's magnitude: the scalar magnetometer's when there is one.
+    fin = mag_sub[np.isfinite(mag_sub)] if mag_sub is not None else np.zeros(0)
+    field_nT = float(np.median(fin)) if fin.size else flux_field
     valid = flux_ok & np.isfinite(mag)
     if valid.sum() < 2:
         raise InputError(f"{src}: column 'mag' holds no usable sample")
@@ -347,7 +383,7 @@ def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = N
     segment = assign_segments(t, stretch, line, cfg.segment_seconds)
     fs = sampling_rate(t)
     return Prepared(t, flux, mag, flux_ok, valid, stretch, segment, fs, src, mag_from_flux,
-                    line_labels(line))
+                    line_labels(line), field_nT)
 
 
 def _every(x: np.ndarray, most: int = 100_000) -> int:
@@ -355,15 +391,16 @@ def _every(x: np.ndarray, most: int = 100_000) -> int:
     return max(1, len(x) // most)
 
 
-def _warn_units(src: str, bt: np.ndarray, mag: np.ndarray | None) -> None:
-    """Warn (never convert) when field magnitudes do not look like nT."""
-    med = float(np.median(bt))
+def _warn_units(src: str, med: float, mag: np.ndarray | None) -> None:
+    """Warn (never convert) when field magnitudes do not look like nT (``med``: the median
+    fluxgate magnitude)."""
     if not 1_000.0 <= med <= 200_000.0:
         log.warning(
             "%s: the fluxgate magnitude is %.4g, not an Earth field in nT (20000-70000);"
             " if the fluxgate is in uT, mT or G pass --units flux=uT (or mT, G)", src, med)
     if mag is not None:
-        mm = float(np.nanmedian(mag))
+        fin = mag[np.isfinite(mag)]
+        mm = float(np.median(fin)) if fin.size else float("nan")
         if np.isfinite(mm) and not 0.1 < mm / med < 10.0:
             log.warning(
                 "%s: median mag %.4g and fluxgate magnitude %.4g differ by more than 10x;"
@@ -571,6 +608,13 @@ def fit_model(
         coef_fit, cond, cond_s = solve_normal(G, b, cfg.ridge)
     except FitError as exc:
         raise FitError(f"{prep.source}: {exc}") from None
+    if cfg.ridge <= 0 and not cond_s <= cfg.max_condition:
+        raise FitError(
+            f"{prep.source}: the fit is ill-conditioned (scaled condition number {cond_s:.3g}"
+            f" > {cfg.max_condition:.3g}): the attitude varies too little to separate the TL"
+            " terms (no manoeuvres?); calibrate on a flight with pitch/roll/yaw manoeuvres and"
+            " apply it with --model, or regularise with --ridge 1e-3, or fit fewer --terms"
+        )
     coef = np.zeros(len(terms))
     idx = [terms.index(t) for t in fit_terms]
     coef[idx] = coef_fit
@@ -734,7 +778,7 @@ def _apply(
     comp = np.subtract(prep.mag, mag_tl)
     seg = prep.segment
     if kept_segments is None:
-        kept = seg >= 0
+        kept = np.ones(len(seg), dtype=bool)  # a saved model: every sample counts as kept
     else:
         kept = np.isin(seg, kept_segments) & (seg >= 0)
     if cfg.filter_output:
@@ -866,6 +910,7 @@ def compensate(
         kept_ids = np.array([s["id"] for s in fit.report["segments"] if s["kept"]], dtype=np.int64)
         data, metrics, comp_bp = _apply(df, fit.model, cfg, prep=prep, kept_segments=kept_ids,
                                         source=source, release_flux=True)
+        _check_plausible(data, metrics, prep, cfg, fitted=True)
         report = dict(fit.report)
         report["metrics"] = metrics
         report["model_source"] = "fitted"
@@ -874,6 +919,7 @@ def compensate(
         return CompensationResult(data, fit.model, report, fit.screen, fit.segment_table)
     data, metrics, comp_bp = _apply(df, model, cfg, prep=prep, kept_segments=None,
                                     source=source, release_flux=True)
+    _check_plausible(data, metrics, prep, cfg, fitted=False)
     seg_ids, counts = segment_counts(prep.segment)
     report = {
         "aeromag_version": __version__,
@@ -898,6 +944,37 @@ def compensate(
     for e in report["segments"]:
         e["residual_std"] = by_seg.get(str(e["id"]))
     return CompensationResult(data, model, report, None, None)
+
+
+def _check_plausible(data: pd.DataFrame, metrics: dict[str, Any], prep: Prepared,
+                     cfg: CompensationConfig, *, fitted: bool) -> None:
+    """Refuse (fitted) or warn about (saved model) a non-physical compensation.
+
+    A model fitted on this very log must not make its band-passed field worse, and no
+    aircraft's interference approaches the Earth field itself (``cfg.max_interference``).
+    """
+    tl = data["mag_tl"].to_numpy()
+    sub = np.abs(tl[:: _every(tl)])
+    sub = sub[np.isfinite(sub)]
+    peak = float(np.percentile(sub, 99)) if sub.size else float("nan")
+    limit = cfg.max_interference * prep.field_nT
+    if np.isfinite(peak) and np.isfinite(limit) and peak > limit:
+        msg = (f"{prep.source}: the model gives an aircraft interference of {peak:.4g} nT"
+               f" ({peak / prep.field_nT:.0%} of the {prep.field_nT:.0f} nT field), which no"
+               " aircraft makes")
+        if fitted:
+            raise FitError(
+                msg + ": this flight does not determine the TL terms at low frequency (too few"
+                " headings or manoeuvres); calibrate on a box flight with manoeuvres and apply"
+                " it with --model, or regularise with --ridge 1e-3 (limit: --max-interference)"
+            )
+        log.warning("%s; check that the model belongs to this aircraft and sensor", msg)
+    ratio = metrics.get("improvement_ratio", float("nan"))
+    if fitted and np.isfinite(ratio) and ratio < 1.0:
+        log.warning(
+            "%s: the fitted model leaves more band-passed variation than it removes"
+            " (improvement ratio %.3g < 1): the fit is unreliable; calibrate on a flight with"
+            " manoeuvres and use --model", prep.source, ratio)
 
 
 def _resolve_gap(cfg: CompensationConfig, df: pd.DataFrame) -> CompensationConfig:
@@ -952,6 +1029,31 @@ def segment_counts(segment: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 # --------------------------------------------------------------------------- files
+def check_outputs(source: str | os.PathLike[str], *outputs: str | os.PathLike[str]) -> None:
+    """Refuse outputs that would overwrite the input log.
+
+    Parameters
+    ----------
+    source : path-like
+        The input log.
+    *outputs : path-like
+        Files about to be written (e.g. OUT.csv and OUT.json).
+
+    Raises
+    ------
+    InputError
+        When an output is the input file itself.
+    """
+    src = Path(source)
+    for out in outputs:
+        o = Path(out)
+        same = o.resolve() == src.resolve()
+        if not same and o.exists() and src.exists():
+            same = os.path.samefile(o, src)
+        if same:
+            raise InputError(f"{src}: -o {o} would overwrite the input log; choose another -o")
+
+
 def compensate_file(
     path: str | os.PathLike[str], out_path: str | os.PathLike[str],
     cfg: CompensationConfig | None = None, *, model: TLModel | str | os.PathLike[str] | None = None,
@@ -980,6 +1082,7 @@ def compensate_file(
     CompensationResult
     """
     cfg = cfg or CompensationConfig()
+    check_outputs(path, out_path, json_path_for(Path(out_path)))
     if model is not None and not isinstance(model, TLModel):
         mpath = Path(model)
         model = TLModel.load(mpath)
@@ -1049,6 +1152,7 @@ def calibrate_file(
         ``data`` is the calibration log with the model applied (not written).
     """
     cfg = cfg or CompensationConfig()
+    check_outputs(path, model_path)
     if cfg.fom is None:
         cfg = dataclasses.replace(cfg, fom=True)
     df = read_log(path, columns=columns, units=units, required=("time", *FLUX_COLUMNS), fmt=fmt)

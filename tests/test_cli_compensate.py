@@ -159,3 +159,14 @@ def test_compensate_imports_only_on_the_main_thread(logs, tmp_path):
                         str(tmp_path / "c.csv")], capture_output=True, text=True)
     assert p.returncode == 0, p.stderr[-2000:]
     assert p.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_unwritable_output_is_one_line_without_traceback(logs, tmp_path):
+    (tmp_path / "jdir" / "o.json").mkdir(parents=True)  # OUT.json is a folder
+    cases = [tmp_path, logs / "flight.csv" / "o.csv", tmp_path / "jdir" / "o.csv"]
+    for out in cases:
+        r = runner.invoke(app, ["compensate", str(logs / "flight.csv"), "-o", str(out)])
+        assert r.exit_code == 1, (out, r.output)
+        msg = r.output.strip().splitlines()
+        assert len(msg) == 1 and msg[0].startswith("error: ") and "Traceback" not in r.output
+    assert sorted(p.name for p in (tmp_path / "jdir").iterdir()) == ["o.json"]  # nothing left

@@ -178,3 +178,103 @@ def test_high_rate_quiet_sensor_loses_no_clean_segment():
     assert res.report["metrics"]["improvement_ratio"] > 1000
     d = res.data["mag_tl"].to_numpy() - h
     assert np.std(d - d.mean()) < 0.02
+
+
+def _level_flight(headings: list[float], jitter_deg: float, seed: int = 0, n: int = 8000,
+                  fs: float = 10.0) -> pd.DataFrame:
+    """Survey-style flight: straight lines on ``headings`` with band-limited attitude jitter,
+    no manoeuvres, a 16-term aircraft (explicit formula, as in conftest)."""
+    from scipy import signal
+
+    from .conftest import ned_to_body
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / fs
+    sos = signal.butter(2, 0.5, fs=fs, output="sos")
+
+    def jit() -> np.ndarray:
+        x = signal.sosfiltfilt(sos, rng.normal(size=n))
+        return np.deg2rad(jitter_deg * x / x.std())
+
+    psi = np.deg2rad(np.repeat(headings, -(-n // len(headings)))[:n]) + jit()
+    th, ph = jit() + np.deg2rad(-3.0), jit()
+    inc = np.deg2rad(65.0)
+    B = np.einsum("nij,j->ni", ned_to_body(ph, th, psi),
+                  50000.0 * np.array([np.cos(inc), 0.05, np.sin(inc)]))
+    bt = np.linalg.norm(B, axis=1)
+    cx, cy, cz = (B / bt[:, None]).T
+    dx, dy, dz = (np.gradient(c, t) for c in (cx, cy, cz))
+    s = bt / 50000.0
+    A = np.column_stack([cx, cy, cz, s * cx * cx, s * cx * cy, s * cx * cz, s * cy * cy,
+                         s * cy * cz, s * cx * dx, s * cx * dy, s * cx * dz, s * cy * dx,
+                         s * cy * dy, s * cy * dz, s * cz * dx, s * cz * dy])
+    geology = 3.0 * np.sin(2 * np.pi * t / 40.0)
+    mag = bt + A @ COEF16 + geology + rng.normal(0, 0.02, n)
+    flux = B + rng.normal(0, 0.5, (n, 3))
+    return pd.DataFrame({"time": t, "flux_x": flux[:, 0], "flux_y": flux[:, 1],
+                         "flux_z": flux[:, 2], "mag": mag, "line": (t // 50).astype(int)})
+
+
+def test_straight_and_level_flight_is_an_ill_conditioned_fit():
+    """No manoeuvres: the terms cannot be separated (interface.md: an ill-conditioned fit is a
+    bad input), and the message says what to do."""
+    df = _level_flight([90.0], jitter_deg=0.2)
+    with pytest.raises(FitError, match="ill-conditioned.*--ridge"):
+        compensate(df)
+    # A ridge is the user's explicit way through, and gives a physical interference.
+    res = compensate(df, CompensationConfig(ridge=1e-3))
+    assert np.percentile(np.abs(res.data["mag_tl"]), 99) < 2000
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_fit_that_is_undetermined_at_low_frequency_is_refused(seed):
+    """Two headings with turbulence and in-band geology can be well conditioned in the band,
+    yet cz against a constant, cx*cx and cy*cy is free at low frequency: the unfiltered model
+    then returns tens of thousands of nT.  That is refused, never written."""
+    from scipy import signal
+
+    df = _level_flight([0.0, 180.0], jitter_deg=0.5, seed=seed)
+    g = signal.sosfiltfilt(signal.butter(2, 0.5, fs=10.0, output="sos"),
+                           np.random.default_rng(100 + seed).normal(size=len(df)))
+    df["mag"] += 40.0 * g / g.std()
+    cfg = CompensationConfig(max_condition=1e9)  # past the conditioning check
+    with pytest.raises(FitError, match="no aircraft makes.*--model"):
+        compensate(df, cfg)
+    # The same flight with its aircraft calibrated elsewhere: the model applies (a warning at
+    # most, never an error, for a saved model).
+    cal, _ = hand_flight(seed=seed)
+    out = compensate(df, model=compensate(cal).model)
+    assert np.percentile(np.abs(out.data["mag_tl"]), 99) < 500
+
+
+def test_saved_model_marks_every_sample_kept_even_without_a_line(flight, tmp_path):
+    """interface.md: segment_kept is all true when a saved model is applied."""
+    df, _ = flight
+    model = compensate(df).model
+    d2 = df.copy()
+    d2["line"] = d2["line"].astype(float)
+    d2.loc[100:400, "line"] = np.nan
+    d2.loc[500:700, "line"] = -1
+    out = compensate(d2, model=model).data
+    assert out["segment_kept"].all()
+    assert out["segment"].isna().sum() == 301 + 201
+
+
+def test_output_never_overwrites_the_input(tmp_path, flight):
+    df, _ = flight
+    src = tmp_path / "log.csv"
+    df.to_csv(src, index=False)
+    before = src.read_bytes()
+    with pytest.raises(InputError, match="overwrite the input"):
+        compensate_file(src, tmp_path / "." / "log.csv")
+    with pytest.raises(InputError, match="overwrite the input"):
+        calibrate_file(src, src)
+    assert src.read_bytes() == before
+
+
+@pytest.mark.parametrize("kw", [{"segment_seconds": float("nan")}, {"segment_seconds": -5},
+                                {"band_hz": (0.5, 0.1)}, {"lowpass_hz": 0.0},
+                                {"max_gap_s": float("inf")}, {"ridge": -1.0}])
+def test_option_values_are_checked(kw):
+    with pytest.raises(InputError, match="--"):
+        CompensationConfig(**kw)

@@ -8,6 +8,7 @@ with exit status 1 (no traceback for a user's mistake).
 from __future__ import annotations
 
 import contextlib
+import errno
 import logging
 from collections.abc import Iterator
 from pathlib import Path
@@ -31,12 +32,35 @@ EXIT_USER_ERROR = 1
 
 @contextlib.contextmanager
 def user_errors() -> Iterator[None]:
-    """Turn :class:`AeromagError` into ``error: ...`` on stderr and exit status 1."""
+    """Turn :class:`AeromagError` into ``error: ...`` on stderr and exit status 1.
+
+    An operating-system error (an output folder that cannot be written, a full disk, a path
+    that is a directory) is the user's to fix too: one line naming the path, no traceback.
+    """
     try:
         yield
     except AeromagError as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(EXIT_USER_ERROR) from None
+    except OSError as exc:
+        typer.echo(f"error: {os_error_message(exc)}", err=True)
+        raise typer.Exit(EXIT_USER_ERROR) from None
+
+
+def os_error_message(exc: OSError) -> str:
+    """One line for an :class:`OSError`: the path, the system's reason and what to do."""
+    where = exc.filename if exc.filename is not None else "<file>"
+    why = exc.strerror or str(exc)
+    what = {
+        errno.EACCES: "check its permissions or choose another -o",
+        errno.EPERM: "check its permissions or choose another -o",
+        errno.EROFS: "the file system is read-only: choose another -o",
+        errno.ENOSPC: "free disk space or choose another -o",
+        errno.EISDIR: "it is a folder: give a file name",
+        errno.ENOTDIR: "a part of the path is a file, not a folder: fix the path",
+        errno.ENOENT: "check the path",
+    }.get(exc.errno or -1, "check the path")
+    return " ".join(f"{where}: {why}; {what}".split())
 
 
 def column_options(col: list[str] | None, map_file: Path | None, units: list[str] | None):

@@ -28,6 +28,12 @@ MapFile = Annotated[Path | None, typer.Option("--map", metavar="FILE",
 Units = Annotated[list[str] | None, typer.Option("--units", metavar="NAME=UNIT",
                   help="Convert a field column or group (flux, mag) from nT/uT/mT/G to nT.")]
 Ridge = Annotated[float, typer.Option("--ridge", help="Relative ridge parameter (0 = plain LS).")]
+MaxCond = Annotated[float, typer.Option("--max-condition", metavar="K", help="Refuse an "
+                    "unregularised fit whose scaled condition number exceeds K (a box "
+                    "calibration gives ~1e2; straight-and-level flight ~1e5-1e6).")]
+MaxInterf = Annotated[float, typer.Option("--max-interference", metavar="FRACTION", help="Refuse "
+                      "a fitted model whose |mag_tl| (99th percentile) exceeds this fraction "
+                      "of the Earth field (non-physical: the flight did not determine it).")]
 Shrink = Annotated[float, typer.Option("--shrink", help="Shrinkage of per-segment fits toward "
                                        "the pooled fit during screening (0 = none).")]
 Variance = Annotated[float, typer.Option("--pca-variance", help="Cumulative explained variance "
@@ -86,6 +92,8 @@ def compensate(
     map_file: MapFile = None,
     units: Units = None,
     ridge: Ridge = 0.0,
+    max_condition: MaxCond = 1e5,
+    max_interference: MaxInterf = 0.25,
     shrink: Shrink = 1.0,
     pca_variance: Variance = 0.8,
     screen_quantile: Quantile = 0.975,
@@ -119,7 +127,8 @@ def compensate(
             filter_output=not no_filter, lowpass_hz=lowpass, ridge=ridge, shrink=shrink,
             pca_variance=pca_variance, screen_quantile=screen_quantile, max_gap_s=max_gap,
             min_excess=min_excess, min_excess_nT=min_excess_nt, max_interp_s=max_interp,
-            fom=fom or None,
+            fom=fom or None, max_condition=max_condition,
+            max_interference=max_interference,
         )
         if chunk_rows is not None:
             if model is None:
@@ -159,6 +168,8 @@ def calibrate(
     map_file: MapFile = None,
     units: Units = None,
     ridge: Ridge = 0.0,
+    max_condition: MaxCond = 1e5,
+    max_interference: MaxInterf = 0.25,
     shrink: Shrink = 1.0,
     pca_variance: Variance = 0.8,
     screen_quantile: Quantile = 0.975,
@@ -183,7 +194,8 @@ def calibrate(
             band_hz=band, terms=terms, segment_seconds=segment_seconds, screen=not no_screen,
             ridge=ridge, shrink=shrink, pca_variance=pca_variance,
             screen_quantile=screen_quantile, max_gap_s=max_gap, max_interp_s=max_interp,
-            min_excess=min_excess, min_excess_nT=min_excess_nt,
+            min_excess=min_excess, min_excess_nT=min_excess_nt, max_condition=max_condition,
+            max_interference=max_interference,
         )
         res = calibrate_file(cal, output, cfg, columns=columns, units=unit_map, fmt=fmt)
         if plot is not None:
