@@ -115,7 +115,8 @@ def assign_segments(
     """Segment id per sample.
 
     With a ``line`` column the segment is the line number (a line interrupted by a gap stays
-    one segment; each continuous piece is filtered on its own); non-integer line numbers
+    one segment; each continuous piece is filtered on its own; a negative line number marks a
+    turn or transit and belongs to no segment, with a warning); non-integer line numbers
     (e.g. ``1002.02``) are numbered 0, 1, ... in sorted order (see :func:`line_labels`).
     Without it, every stretch is cut into ``round(duration / segment_seconds)`` (at least
     one) windows of equal duration, numbered consecutively over the flight.
@@ -144,6 +145,10 @@ def assign_segments(
         vals = ln[ok]
         if np.array_equal(vals, np.rint(vals)):
             seg[ok] = vals.astype(np.int64)
+            neg = int((vals < 0).sum())
+            if neg:
+                log.warning("%d sample(s) have a negative line number (turns, by convention):"
+                            " they belong to no segment and are not fitted", neg)
         else:
             # Line numbers such as 1002.02 / 1002.20 (SGL): number them 0, 1, ... in sorted
             # order so that distinct lines never merge; line_labels() gives the originals.
