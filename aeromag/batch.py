@@ -10,8 +10,15 @@ in its own task, so a bad file is reported without stopping the others::
     summary.failed               # the failures, each with its one-line reason
 
 Outputs: ``OUT/NAME_comp.csv`` + ``.json`` (and ``OUT/NAME_track.csv`` + ``.json``) per input
-``NAME.ext``, and ``OUT/batch_summary.csv`` + ``.json``.  Outputs newer than their input (and
-than the model and plan) are skipped unless ``force``.
+``NAME.ext``, and ``OUT/batch_summary.csv`` + ``.json``.  No output may be an input (a log, the
+model or the plan): such a run is refused before it starts.
+
+Skipping: a file is skipped (unless ``force``) when its outputs are newer than it **and** were
+made with the same fingerprint -- the effective pipeline options, column map, units, format,
+chunking, track options, the SHA-256 of the model and plan files' contents and the aeromag
+version (:func:`batch_fingerprint`).  The fingerprint of a file's last successful run is kept
+in ``OUT/.NAME.batch.json``; it is removed when the file is processed again and written back
+only when the file succeeds, so a failed or interrupted run is always redone.
 
 Engines: a local process pool (default, ``workers`` processes), or Dask distributed when
 ``scheduler`` is given (an address such as ``tcp://host:8786``, or a
@@ -20,7 +27,10 @@ Engines: a local process pool (default, ``workers`` processes), or Dask distribu
 
 from __future__ import annotations
 
+import dataclasses
 import glob
+import hashlib
+import json
 import logging
 import os
 import time
@@ -42,6 +52,12 @@ log = logging.getLogger(__name__)
 LOG_EXTENSIONS: tuple[str, ...] = (".csv", ".txt", ".parquet", ".pq", ".xyz", ".h5", ".hdf5")
 
 SUMMARY_NAME = "batch_summary"
+
+#: Suffix of the per-file fingerprint written beside the outputs (``.NAME.batch.json``).
+FINGERPRINT_SUFFIX = ".batch.json"
+
+#: Summary columns holding counts, written as integers (empty when unknown).
+INTEGER_COLUMNS: tuple[str, ...] = ("n_rows", "flagged_legs")
 
 
 @dataclass
@@ -107,7 +123,10 @@ class BatchSummary:
             d["outputs"] = ";".join(r.outputs)
             rows.append(d)
         cols = list(FileResult.__dataclass_fields__)
-        return pd.DataFrame(rows, columns=cols)
+        frame = pd.DataFrame(rows, columns=cols)
+        for c in INTEGER_COLUMNS:  # None makes a float column: 2010.0
+            frame[c] = frame[c].astype("Int64")
+        return frame
 
 
 # --------------------------------------------------------------------------- inputs
@@ -160,9 +179,47 @@ def expand_inputs(inputs: Iterable[str | os.PathLike[str]]) -> tuple[list[Path],
     return files, unmatched
 
 
+def unmatched_reason(item: str) -> str:
+    """One-line reason why an input matched no log file, and what to do.
+
+    Parameters
+    ----------
+    item : str
+        An input of :func:`expand_inputs` that it returned as unmatched.
+
+    Returns
+    -------
+    str
+        ``"ITEM: ..."``.
+    """
+    p = Path(item)
+    if p.is_dir():
+        exts = ", ".join(f"*{e}" for e in LOG_EXTENSIONS)
+        return (f"{item}: the folder holds no log files (looked for {exts}, not in"
+                " sub-folders); give the log files themselves or another folder")
+    if glob.has_magic(item):
+        return f"{item}: no file matches this pattern; check the folder and the pattern"
+    return f"{item}: no such file or folder; check the path"
+
+
 def output_names(inp: Path, out_dir: Path) -> dict[str, Path]:
-    """Output paths of one input: ``comp`` (NAME_comp.csv) and ``track`` (NAME_track.csv)."""
-    return {"comp": out_dir / f"{inp.stem}_comp.csv", "track": out_dir / f"{inp.stem}_track.csv"}
+    """Output paths of one input.
+
+    Parameters
+    ----------
+    inp : Path
+        Input log ``NAME.ext``.
+    out_dir : Path
+        Output folder.
+
+    Returns
+    -------
+    dict
+        ``comp`` (NAME_comp.csv), ``track`` (NAME_track.csv) and ``fingerprint``
+        (.NAME.batch.json).
+    """
+    return {"comp": out_dir / f"{inp.stem}_comp.csv", "track": out_dir / f"{inp.stem}_track.csv",
+            "fingerprint": out_dir / f".{inp.stem}{FINGERPRINT_SUFFIX}"}
 
 
 def _up_to_date(outputs: Sequence[Path], sources: Sequence[Path]) -> bool:
@@ -172,6 +229,110 @@ def _up_to_date(outputs: Sequence[Path], sources: Sequence[Path]) -> bool:
     except (FileNotFoundError, ValueError):
         return False
     return oldest_out > newest_in
+
+
+def file_sha256(path: str | os.PathLike[str]) -> str:
+    """SHA-256 of a file's contents (hex), read in 1 MiB blocks."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def batch_fingerprint(
+    *,
+    cfg: Any,
+    model: str | os.PathLike[str] | None = None,
+    plan: str | os.PathLike[str] | None = None,
+    columns: dict[str, str] | None = None,
+    units: dict[str, str] | None = None,
+    fmt: str | None = None,
+    chunk_rows: int | None = None,
+    track_options: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """What a file's outputs depend on besides the file itself, and its digest.
+
+    Parameters
+    ----------
+    cfg : CompensationConfig
+        Effective pipeline options.
+    model, plan : path-like, optional
+        Model and plan files (their contents are hashed, not their names or times).
+    columns, units : dict, optional
+        Column map and unit conversions.
+    fmt : str, optional
+        Input format.
+    chunk_rows : int, optional
+        Chunk size of the model application (counts only with a model).
+    track_options : dict, optional
+        Keyword arguments of :func:`aeromag.track.track_file` (count only with a plan).
+
+    Returns
+    -------
+    dict
+        ``fingerprint`` (SHA-256 hex of the other entries, as sorted JSON) and the entries:
+        ``aeromag`` (version), ``config``, ``model_sha256``, ``plan_sha256``, ``columns``,
+        ``units``, ``format``, ``chunk_rows``, ``track``.
+    """
+    from . import __version__
+
+    config = dataclasses.asdict(cfg) if dataclasses.is_dataclass(cfg) else repr(cfg)
+    parts: dict[str, Any] = {
+        "aeromag": __version__,
+        "config": config,
+        "model_sha256": None if model is None else file_sha256(model),
+        "plan_sha256": None if plan is None else file_sha256(plan),
+        "columns": dict(sorted(columns.items())) if columns else None,
+        "units": dict(sorted(units.items())) if units else None,
+        "format": fmt,
+        "chunk_rows": chunk_rows if model is not None else None,
+        "track": (dict(sorted((track_options or {}).items())) if plan is not None else None),
+    }
+    text = json.dumps(parts, sort_keys=True, default=str)
+    parts = json.loads(text)  # the stored form: tuples as lists, objects as text
+    return {"fingerprint": hashlib.sha256(text.encode()).hexdigest(), **parts}
+
+
+def _stored_fingerprint(path: Path) -> str | None:
+    """The fingerprint stored by a file's last successful run, or None."""
+    try:
+        return str(json.loads(path.read_text(encoding="utf-8"))["fingerprint"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def _refuse_overwriting_inputs(sources: Sequence[tuple[Path, str]],
+                               outputs: Sequence[Path]) -> None:
+    """Raise :class:`InputError` when an output of the run is one of its inputs.
+
+    Parameters
+    ----------
+    sources : sequence of (Path, str)
+        Input files and what they are (``"log"``, ``"model"``, ``"plan"``).
+    outputs : sequence of Path
+        Every file the run may write.
+    """
+    from .compensate import check_outputs
+
+    existing: dict[tuple[int, int], Path] = {}
+    for o in outputs:
+        try:
+            st = o.stat()
+        except OSError:
+            continue  # not there yet: cannot be an existing input
+        existing[(st.st_dev, st.st_ino)] = o
+    for src, kind in sources:
+        try:
+            st = src.stat()
+        except OSError:
+            continue
+        o = existing.get((st.st_dev, st.st_ino))
+        if o is None:
+            continue
+        if kind == "log":
+            check_outputs(src, o)
+        raise InputError(f"{src}: -o would overwrite the {kind} with {o.name}; choose another -o")
 
 
 # --------------------------------------------------------------------------- one file
@@ -184,7 +345,9 @@ def process_file(job: dict[str, Any]) -> dict[str, Any]:
         ``input``, ``out_dir``, ``model`` (path or None), ``plan`` (path or None), ``cfg``
         (a :class:`~aeromag.compensate.CompensationConfig`), ``columns``, ``units``, ``fmt``,
         ``chunk_rows`` (apply the model in chunks of this many rows, or None), ``track``
-        (keyword arguments of :func:`aeromag.track.track_file`).
+        (keyword arguments of :func:`aeromag.track.track_file`), ``fingerprint`` (from
+        :func:`batch_fingerprint`, written to ``.NAME.batch.json`` when the file succeeds; the
+        old one is removed first).
 
     Returns
     -------
@@ -192,13 +355,18 @@ def process_file(job: dict[str, Any]) -> dict[str, Any]:
         The fields of a :class:`FileResult`.
     """
     from .compensate import compensate_file
-    from .io import json_path_for
+    from .io import json_path_for, write_json
 
     t0 = time.perf_counter()
     inp = Path(job["input"])
     names = output_names(inp, Path(job["out_dir"]))
     res: dict[str, Any] = {"input": str(inp), "status": "ok", "outputs": []}
     errors: list[str] = []
+    # Outputs about to change: the old fingerprint no longer describes them.
+    try:
+        names["fingerprint"].unlink(missing_ok=True)
+    except OSError as exc:
+        log.debug("%s: %s", names["fingerprint"], exc)
     try:
         if job.get("chunk_rows") and job.get("model") is not None:
             from .chunked import apply_model_chunked
@@ -238,6 +406,12 @@ def process_file(job: dict[str, Any]) -> dict[str, Any]:
     if errors:
         res["status"] = "failed"
         res["error"] = " | ".join(errors)
+    elif job.get("fingerprint") is not None:
+        try:
+            write_json(job["fingerprint"], names["fingerprint"])
+        except OSError as exc:  # the outputs are good; the next run just redoes this file
+            log.warning("%s: cannot record the run's fingerprint (%s); the next batch run will"
+                        " process this file again", names["fingerprint"], exc)
     res["seconds"] = time.perf_counter() - t0
     return res
 
@@ -335,7 +509,8 @@ def run_batch(
     scheduler : str or distributed.Client, optional
         Dask scheduler address (``tcp://host:8786``) or client: run the files there instead.
     force : bool
-        Re-process files whose outputs are newer than their input.
+        Re-process every file; otherwise a file is skipped when its outputs are newer than it
+        and its stored fingerprint equals this run's (:func:`batch_fingerprint`).
     columns, units : dict, optional
         Column map and unit conversions, for every file.
     fmt : str, optional
@@ -375,26 +550,39 @@ def run_batch(
             raise InputError(f"{f} and {stems[f.stem]} would both write {f.stem}_comp.csv;"
                              " rename one or run them into different -o folders")
         stems[f.stem] = f
-    out.mkdir(parents=True, exist_ok=True)
-    results: dict[str, FileResult] = {}
-    order = [str(f) for f in files] + unmatched
-    for s in unmatched:
-        results[s] = FileResult(s, "failed", error=f"{s}: no such file, or no log matches")
-    extra = [Path(p) for p in (model, plan) if p is not None]
-    jobs: list[dict[str, Any]] = []
+    per_file: dict[Path, list[Path]] = {}
     for f in files:
         names = output_names(f, out)
         outs = [names["comp"], names["comp"].with_suffix(".json")]
         if plan is not None:
             outs += [names["track"], names["track"].with_suffix(".json")]
-        if not force and _up_to_date(outs, [f, *extra]):
+        per_file[f] = outs
+    _refuse_overwriting_inputs(
+        [(f, "log") for f in files] + [(Path(p), k) for p, k in ((model, "model"),
+                                                                 (plan, "plan")) if p is not None],
+        [p for f in files for p in (*per_file[f], output_names(f, out)["fingerprint"])]
+        + [out / f"{SUMMARY_NAME}.csv", out / f"{SUMMARY_NAME}.json"])
+    fingerprint = batch_fingerprint(cfg=cfg, model=model, plan=plan, columns=columns,
+                                    units=units, fmt=fmt, chunk_rows=chunk_rows,
+                                    track_options=track_options)
+    out.mkdir(parents=True, exist_ok=True)
+    results: dict[str, FileResult] = {}
+    order = [str(f) for f in files] + unmatched
+    for s in unmatched:
+        results[s] = FileResult(s, "failed", error=unmatched_reason(s))
+    jobs: list[dict[str, Any]] = []
+    for f in files:
+        outs = per_file[f]
+        if (not force and _up_to_date(outs, [f])
+                and _stored_fingerprint(output_names(f, out)["fingerprint"])
+                == fingerprint["fingerprint"]):
             results[str(f)] = FileResult(str(f), "skipped", [str(p) for p in outs])
             continue
         jobs.append({"input": str(f), "out_dir": str(out),
                      "model": None if model is None else str(model),
                      "plan": None if plan is None else str(plan), "cfg": cfg,
                      "columns": columns, "units": units, "fmt": fmt, "chunk_rows": chunk_rows,
-                     "track": track_options})
+                     "track": track_options, "fingerprint": fingerprint})
     log.info("%d file(s) to process, %d up to date, %d unmatched", len(jobs),
              sum(r.status == "skipped" for r in results.values()), len(unmatched))
 
@@ -423,6 +611,7 @@ def run_batch(
     summary.summary_json = write_json(
         {"out_dir": str(out), "model": None if model is None else str(model),
          "plan": None if plan is None else str(plan), "seconds": summary.seconds,
+         "fingerprint": fingerprint,
          "n_ok": sum(r.status == "ok" for r in summary.results),
          "n_skipped": sum(r.status == "skipped" for r in summary.results),
          "n_failed": len(summary.failed),

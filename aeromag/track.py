@@ -74,6 +74,11 @@ DEFAULT_WAYPOINT_RADIUS_M = 5.0
 #: Shortest leg accepted in a plan, m.
 MIN_LEG_LENGTH_M = 0.01
 
+#: What a plan file must hold (quoted in errors; ``--col`` does not apply to plans).
+PLAN_NEEDS = ("a plan is a CSV with a header row and columns lat, lon (degrees, WGS84) and alt"
+              " (m above the WGS84 ellipsoid), one row per waypoint in flight order; rename the"
+              " plan's columns to these names")
+
 #: Columns that ``track`` adds, in output order.
 ADDED_COLUMNS = ("leg", "xtrack_m", "xtrack_h_m", "xtrack_v_m", "along_m", "track_alarm",
                  "heading_diff_deg", "heading_alarm", "alarm")
@@ -217,7 +222,7 @@ def validate_plan(plan: pd.DataFrame, source: str = "<plan>") -> pd.DataFrame:
         avail = ", ".join(map(str, plan.columns[:20])) or "(none)"
         raise InputError(
             f"{source}: plan is missing column(s) {', '.join(missing)}; columns are: {avail};"
-            " a plan needs lat, lon, alt per waypoint"
+            f" {PLAN_NEEDS}"
         )
     out = plan.reset_index(drop=True).copy()
     for c in ("lat", "lon", "alt"):
@@ -269,6 +274,17 @@ def plan_ned(plan: pd.DataFrame) -> np.ndarray:
     return geodetic_to_ned(lat, lon, alt, (lat[0], lon[0], alt[0]))
 
 
+def _blank_file(path: Path, most: int = 1 << 16) -> bool:
+    """True when a file holds nothing but white space (and a UTF-8 byte-order mark)."""
+    try:
+        if path.stat().st_size > most:
+            return False
+        data = path.read_bytes()
+    except OSError:
+        return False  # read_log reports it
+    return not data.removeprefix(b"\xef\xbb\xbf").strip()
+
+
 def read_plan(path: str | os.PathLike[str]) -> pd.DataFrame:
     """Read and validate a mission plan CSV.
 
@@ -283,7 +299,12 @@ def read_plan(path: str | os.PathLike[str]) -> pd.DataFrame:
         The validated plan (see :func:`validate_plan`).
     """
     p = Path(path)
-    df = read_log(p, required=("lat", "lon", "alt"), min_rows=0)
+    if not p.is_file():
+        raise InputError(f"{p}: plan file not found (or not a file); check the --plan path")
+    if _blank_file(p):
+        raise InputError(f"{p}: the plan is empty; {PLAN_NEEDS}")
+    # No required columns here: validate_plan says what a plan needs (--col is for logs).
+    df = read_log(p, required=(), min_rows=0)
     return validate_plan(df, str(p))
 
 
@@ -686,6 +707,8 @@ def track_file(
 ) -> TrackResult:
     """Read a log and a plan, check the track, write OUT.csv and OUT.json atomically.
 
+    Outputs that would overwrite the log or the plan are refused before anything is read.
+
     Parameters
     ----------
     log_path : path-like
@@ -710,6 +733,19 @@ def track_file(
     -------
     TrackResult
     """
+    from .compensate import check_outputs
+
+    out = Path(out_path)
+    out_json = json_path_for(out)
+    if out_json == out:
+        raise InputError(f"-o {out}: the report goes to OUT.json, so OUT must not end in .json;"
+                         " give the output CSV another name, e.g. -o track.csv")
+    check_outputs(log_path, out, out_json)  # -o must never overwrite the input log
+    try:
+        check_outputs(plan_path, out, out_json)
+    except InputError:
+        raise InputError(f"{plan_path}: -o {out} would overwrite the plan; choose another -o"
+                         ) from None
     plan = read_plan(plan_path)
     plan.attrs["source"] = str(plan_path)
     df = read_log(log_path, columns=columns, units=units,
@@ -720,8 +756,6 @@ def track_file(
                       waypoint_radius_m=waypoint_radius_m, source=str(log_path))
     res.report["input"] = str(log_path)
     res.report["plan"] = str(plan_path)
-    out = Path(out_path)
-    out_json = json_path_for(out)
     write_csv(res.data, out)
     try:
         write_json(res.report, out_json)

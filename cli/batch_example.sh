@@ -4,7 +4,8 @@
 set -euo pipefail
 logs=${1:?log folder}; model=${2:?model json}; plan=${3:?plan csv}; out=${4:?output folder}
 
-# All cores of this machine; outputs newer than their log are skipped (add --force to redo).
+# All cores of this machine. A log is skipped when its outputs are newer than it and were made
+# with the same options, model and plan contents and aeromag version (add --force to redo).
 aeromag batch "$logs"/*.csv --model "$model" --plan "$plan" -o "$out" || status=$?
 
 # Very large logs (1 kHz UAV): bounded memory, identical results.

@@ -13,6 +13,7 @@ from typer.testing import CliRunner
 from aeromag.batch import expand_inputs, run_batch
 from aeromag.cli import app
 from aeromag.compensate import CompensationConfig, calibrate_file, compensate_file
+from aeromag.errors import InputError
 from aeromag.io import write_csv
 
 from .conftest import hand_flight
@@ -121,3 +122,138 @@ def test_cli_batch_exit_status_summary_and_plan(logs, tmp_path):
     assert bad.exit_code == 1
     assert "empty.csv" in bad.output and "failed" in bad.output
     assert (tmp_path / "o2" / "flight0_comp.csv").exists()
+
+
+def _cfg(**kw) -> CompensationConfig:
+    return CompensationConfig(**kw)
+
+
+def test_changed_options_or_model_reprocess_and_match_single_runs(logs, tmp_path):
+    """The skip looks at the options, the model contents and the version, not only at times."""
+    files = [logs / "flight0.csv"]
+    out = tmp_path / "out"
+    first = run_batch(files, out, cfg=_cfg(filter_output=False), workers=1, progress=False)
+    assert first.results[0].status == "ok"
+    again = run_batch(files, out, cfg=_cfg(), workers=1, progress=False)
+    assert again.results[0].status == "ok"  # not "skipped": the --no-filter output is stale
+    ref = _single(files[0], tmp_path / "single")
+    assert (out / "flight0_comp.csv").read_bytes() == ref.read_bytes()
+    assert _report(out / "flight0_comp.json") == _report(ref.with_suffix(".json"))
+    assert run_batch(files, out, cfg=_cfg(), workers=1, progress=False).results[0].status \
+        == "skipped"
+    # Other column maps, units or formats are other runs too.
+    assert run_batch(files, out, cfg=_cfg(), columns={"mag": "mag"}, workers=1,
+                     progress=False).results[0].status == "ok"
+    # A model: its contents count, not its time stamp or name.
+    m1, m2 = tmp_path / "m1.json", tmp_path / "m2.json"
+    calibrate_file(logs / "flight1.csv", m1, CompensationConfig())
+    calibrate_file(logs / "flight2.csv", m2, CompensationConfig())
+    assert run_batch(files, out, model=m1, workers=1, progress=False).results[0].status == "ok"
+    assert run_batch(files, out, model=m1, workers=1, progress=False).results[0].status \
+        == "skipped"
+    os.utime(m1)  # touched, same contents: still up to date
+    assert run_batch(files, out, model=m1, workers=1, progress=False).results[0].status \
+        == "skipped"
+    m1.write_bytes(m2.read_bytes())  # same name, other model: redo
+    assert run_batch(files, out, model=m1, workers=1, progress=False).results[0].status == "ok"
+    ref = _single(files[0], tmp_path / "single_m2", model=m2)
+    assert (out / "flight0_comp.csv").read_bytes() == ref.read_bytes()
+
+
+def test_version_change_reprocesses(logs, tmp_path, monkeypatch):
+    import aeromag
+
+    files = [logs / "flight0.csv"]
+    assert run_batch(files, tmp_path, workers=1, progress=False).results[0].status == "ok"
+    monkeypatch.setattr(aeromag, "__version__", aeromag.__version__ + ".post1")
+    assert run_batch(files, tmp_path, workers=1, progress=False).results[0].status == "ok"
+
+
+def test_failed_rerun_is_never_skipped_later(logs, tmp_path):
+    """A run that rewrote a file's outputs and then failed leaves no fingerprint behind."""
+    files = [logs / "flight0.csv"]
+    good = tmp_path / "plan.csv"
+    good.write_text("lat,lon,alt\n47.3,8.5,500\n47.31,8.5,500\n")
+    bad = tmp_path / "bad_plan.csv"
+    bad.write_text("lat,lon,alt\n47.3,8.5,500\n")  # one waypoint: the track check fails
+    out = tmp_path / "out"
+    first = run_batch(files, out, cfg=_cfg(filter_output=False), workers=1, progress=False)
+    assert first.results[0].status == "ok"
+    failed = run_batch(files, out, cfg=_cfg(), plan=bad, workers=1, progress=False)
+    assert failed.results[0].status == "failed"  # compensation ran (default cfg), track failed
+    assert not (out / ".flight0.batch.json").exists()
+    redo = run_batch(files, out, cfg=_cfg(filter_output=False), workers=1, progress=False)
+    assert redo.results[0].status == "ok"
+
+
+def test_cli_no_filter_then_default_is_not_up_to_date(logs, tmp_path):
+    """The auditor's case: 'batch f.csv -o out --no-filter' then 'batch f.csv -o out'."""
+    runner = CliRunner()
+    f = str(logs / "flight0.csv")
+    args = ["batch", f, "-o", str(tmp_path / "o"), "--workers", "1", "--no-progress"]
+    r1 = runner.invoke(app, [*args, "--no-filter"])
+    assert r1.exit_code == 0, r1.output
+    r2 = runner.invoke(app, args)
+    assert r2.exit_code == 0, r2.output
+    assert "1 ok, 0 up to date" in r2.output
+    ref = _single(logs / "flight0.csv", tmp_path / "single")
+    assert (tmp_path / "o" / "flight0_comp.csv").read_bytes() == ref.read_bytes()
+    r3 = runner.invoke(app, args)
+    assert "0 ok, 1 up to date" in r3.output
+
+
+def test_summary_counts_are_integers(logs, tmp_path):
+    summary = run_batch([logs / "flight0.csv", logs / "empty.csv"], tmp_path, workers=1,
+                        progress=False)
+    text = summary.summary_csv.read_text().splitlines()
+    header = text[0].split(",")
+    row = dict(zip(header, text[1].split(","), strict=True))
+    assert row["n_rows"] == "4000"
+    failed = dict(zip(header, text[2].rsplit(",", len(header) - 1)[-len(header):], strict=True))
+    assert failed["n_rows"] == "" and failed["flagged_legs"] == ""
+    assert json.loads(summary.summary_json.read_text())["files"][0]["n_rows"] == 4000
+
+
+def test_unmatched_inputs_say_why(tmp_path):
+    (tmp_path / "empty_dir").mkdir()
+    (tmp_path / "empty_dir" / "notes.md").write_text("no logs here")
+    summary = run_batch([tmp_path / "empty_dir", str(tmp_path / "nope*.csv"),
+                         tmp_path / "missing.csv"], tmp_path / "out", progress=False)
+    err = {Path(r.input).name: r.error for r in summary.results}
+    assert "folder holds no log files" in err["empty_dir"] and "*.csv" in err["empty_dir"]
+    assert "*.parquet" in err["empty_dir"]
+    assert "no file matches" in err["nope*.csv"]
+    assert "no such file or folder" in err["missing.csv"]
+    r = CliRunner().invoke(app, ["batch", str(tmp_path / "empty_dir"), "-o",
+                                 str(tmp_path / "o"), "--no-progress"])
+    assert r.exit_code == 1 and "folder holds no log files" in r.output
+
+
+def test_outputs_never_overwrite_inputs(logs, tmp_path):
+    out = tmp_path / "out"
+    assert run_batch([logs / "flight0.csv"], out, workers=1, progress=False).ok
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    # A folder holding earlier outputs: batch_summary.csv would be overwritten.
+    with pytest.raises(InputError, match="batch_summary.csv.*would overwrite"):
+        run_batch([out], out, workers=1, progress=False)
+    # One input's output is another input.
+    with pytest.raises(InputError, match="would overwrite"):
+        run_batch([logs / "flight0.csv", out / "flight0_comp.csv"], out, workers=1,
+                  progress=False, force=True)
+    # The plan is an output.
+    plan = out / "flight0_track.csv"
+    plan.write_text("lat,lon,alt\n47.3,8.5,500\n47.31,8.5,500\n")
+    with pytest.raises(InputError, match="would overwrite the plan"):
+        run_batch([logs / "flight0.csv"], out, plan=plan, workers=1, progress=False, force=True)
+    plan.unlink()
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    r = CliRunner().invoke(app, ["batch", str(out), "-o", str(out), "--no-progress"])
+    assert r.exit_code == 1 and r.output.startswith("error: ") and "would overwrite" in r.output
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+def test_cli_extension_list_matches_the_library():
+    from aeromag.batch import LOG_EXTENSIONS
+    from aeromag.cli import batch as cli_batch
+
+    assert cli_batch.LOG_EXTENSIONS == LOG_EXTENSIONS

@@ -170,3 +170,19 @@ def test_unwritable_output_is_one_line_without_traceback(logs, tmp_path):
         msg = r.output.strip().splitlines()
         assert len(msg) == 1 and msg[0].startswith("error: ") and "Traceback" not in r.output
     assert sorted(p.name for p in (tmp_path / "jdir").iterdir()) == ["o.json"]  # nothing left
+
+
+def test_empty_time_names_the_row(tmp_path):
+    src = tmp_path / "gap.csv"
+    src.write_text("time,mag,flux_x,flux_y,flux_z\n0,1,2,3,4\n,1,2,3,4\n0.2,1,2,3,4\n")
+    r = runner.invoke(app, ["compensate", str(src), "-o", str(tmp_path / "o.csv")])
+    assert r.exit_code == 1
+    msg = r.output.strip()
+    assert msg.startswith("error: ") and "\n" not in msg
+    assert "gap.csv" in msg and "'time'" in msg and "line 3" in msg
+
+
+def test_json_output_name_is_refused(logs, tmp_path):
+    out = tmp_path / "o.json"
+    r = runner.invoke(app, ["compensate", str(logs / "flight.csv"), "-o", str(out)])
+    assert r.exit_code == 1 and ".json" in r.output and not out.exists()

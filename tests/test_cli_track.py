@@ -108,3 +108,28 @@ def test_cli_waypoint_radius_default_matches_the_library():
     from aeromag.track import DEFAULT_WAYPOINT_RADIUS_M
 
     assert cli_track.DEFAULT_WAYPOINT_RADIUS_M == DEFAULT_WAYPOINT_RADIUS_M
+
+
+def test_plan_errors_say_what_a_plan_needs(mission, tmp_path):
+    msg = _bad(tmp_path, mission, "lat,lon\n47.3,8.5\n47.31,8.5\n")
+    assert "--col" not in msg  # --col maps the log's columns, not the plan's
+    assert "alt" in msg and "lat, lon (degrees" in msg and "one row per waypoint" in msg
+    for text in ("", "\n\n", "\ufeff"):
+        msg = _bad(tmp_path, mission, text)
+        assert "plan.csv: the plan is empty" in msg and "expected a CSV log" not in msg
+        assert "lat, lon (degrees" in msg
+
+
+def test_output_never_overwrites_the_log_or_the_plan(mission, tmp_path):
+    log = tmp_path / "log.csv"
+    plan = tmp_path / "plan.csv"
+    log.write_bytes(mission["mission"].read_bytes())
+    plan.write_bytes(mission["plan"].read_bytes())
+    before = (log.read_bytes(), plan.read_bytes())
+    for out, what in ((log, "input log"), (plan, "plan"), (tmp_path / "x.json", ".json")):
+        r = runner.invoke(app, ["track", str(log), "--plan", str(plan), "-o", str(out)])
+        assert r.exit_code == 1, r.output
+        msg = r.output.strip()
+        assert msg.startswith("error:") and "\n" not in msg and what in msg, msg
+    assert (log.read_bytes(), plan.read_bytes()) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["log.csv", "plan.csv"]

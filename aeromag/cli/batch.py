@@ -10,29 +10,38 @@ import typer
 from .app import EXIT_USER_ERROR, app, column_options, setup_logging, user_errors
 from .compensate import Band, Col, Fmt, MapFile, NoScreen, SegSec, Terms, Units, Verbose
 
+# Same as aeromag.batch.LOG_EXTENSIONS (a test checks it); literal here so that
+# 'aeromag --help' does not import pandas.
+LOG_EXTENSIONS = (".csv", ".txt", ".parquet", ".pq", ".xyz", ".h5", ".hdf5")
+
 
 @app.command()
 def batch(
-    inputs: Annotated[list[str], typer.Argument(help="Logs: files, globs or folders.",
-                                                show_default=False)],
-    output: Annotated[Path, typer.Option("-o", help="Output folder (NAME_comp.csv/.json per "
-                                         "log, batch_summary.csv/.json).")],
-    model: Annotated[Path | None, typer.Option("--model", help="Apply this saved model to "
-                     "every log (default: self-calibrate each log like 'compensate').")] = None,
-    plan: Annotated[Path | None, typer.Option("--plan", help="Mission plan: also run the "
-                    "track check per log (NAME_track.csv/.json).")] = None,
-    workers: Annotated[int | None, typer.Option("--workers", help="Local worker processes "
-                       "(default: all cores).")] = None,
+    inputs: Annotated[list[str], typer.Argument(
+        metavar="INPUTS", help="Logs: files, globs or folders (a folder's "
+        f"{', '.join('*' + e for e in LOG_EXTENSIONS)} files).", show_default=False)],
+    output: Annotated[Path, typer.Option("-o", metavar="OUTDIR", help="Output folder "
+                                         "(NAME_comp.csv/.json per log, "
+                                         "batch_summary.csv/.json).")],
+    model: Annotated[Path | None, typer.Option("--model", metavar="MODEL.json",
+                     help="Apply this saved model to every log (default: self-calibrate each "
+                     "log like 'compensate').")] = None,
+    plan: Annotated[Path | None, typer.Option("--plan", metavar="PLAN.csv", help="Mission "
+                    "plan: also run the track check per log (NAME_track.csv/.json).")] = None,
+    workers: Annotated[int | None, typer.Option("--workers", metavar="N", help="Local worker "
+                       "processes (default: all cores).")] = None,
     scheduler: Annotated[str | None, typer.Option("--scheduler", metavar="ADDRESS",
                          help="Run on a Dask cluster, e.g. tcp://host:8786 "
                          "(pip install 'aeromag[dask]').")] = None,
-    force: Annotated[bool, typer.Option("--force", help="Re-process logs whose outputs are "
-                                        "newer than the log.")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Re-process every log (by default a "
+                                        "log is skipped when its outputs are newer than it and "
+                                        "were made with the same options, model, plan and "
+                                        "aeromag version).")] = False,
     chunk_rows: Annotated[int | None, typer.Option("--chunk-rows", metavar="N",
                           help="With --model: apply it in chunks of N rows (bounded memory "
                           "for very large logs).")] = None,
-    threshold: Annotated[float, typer.Option("--threshold", help="Track alarm threshold, m "
-                                             "(with --plan).")] = 1.0,
+    threshold: Annotated[float, typer.Option("--threshold", metavar="M", help="Track alarm "
+                                             "threshold, metres (with --plan).")] = 1.0,
     band: Band = (0.1, 0.9),
     terms: Terms = "16",
     segment_seconds: SegSec = 60.0,
@@ -46,8 +55,12 @@ def batch(
     no_progress: Annotated[bool, typer.Option("--no-progress", help="No progress bar.")] = False,
     verbose: Verbose = False,
 ) -> None:
-    """Compensate many logs in parallel (and check their tracks with --plan); a bad log is
-    reported in the summary without stopping the others; exit status 1 when any failed.
+    """Compensate (and track-check) many logs in parallel.
+
+    Each log is compensated exactly as 'aeromag compensate' does it (and with --plan checked
+    as 'aeromag track' does); a bad log is reported in the summary without stopping the
+    others, and the exit status is 1 when any failed.  Logs whose outputs are up to date are
+    skipped (see --force).
     """
     setup_logging(verbose, quiet=not verbose)
     from ..batch import run_batch

@@ -15,8 +15,8 @@ Band = Annotated[
     typer.Option("--band", metavar="LOW HIGH",
                  help="Band-pass applied before fitting, Hz (zero-phase Butterworth)."),
 ]
-Terms = Annotated[str, typer.Option("--terms", help="Term set: 16 (default), 18, 9, or groups "
-                                    "like permanent,induced_5,eddy_8[,bias].")]
+Terms = Annotated[str, typer.Option("--terms", metavar="SET", help="Term set: 16 (default), "
+                                    "18, 9, or groups like permanent,induced_5,eddy_8[,bias].")]
 SegSec = Annotated[float, typer.Option("--segment-seconds", metavar="S",
                                        help="Segment length when the log has no 'line' column, s.")]
 NoScreen = Annotated[bool, typer.Option("--no-screen",
@@ -24,7 +24,8 @@ NoScreen = Annotated[bool, typer.Option("--no-screen",
 Col = Annotated[list[str] | None, typer.Option("--col", metavar="NAME=SOURCE",
                                                help="Column map, repeatable (e.g. mag=mag_1_uc).")]
 MapFile = Annotated[Path | None, typer.Option("--map", metavar="FILE",
-                                              help="TOML column map ([columns], [units]).")]
+                                              help="TOML column map: [columns] NAME = "
+                                              "\"SOURCE\", optional [units] NAME = \"UNIT\".")]
 Units = Annotated[list[str] | None, typer.Option("--units", metavar="NAME=UNIT",
                   help="Convert a field column or group (flux, mag) from nT/uT/mT/G to nT.")]
 Ridge = Annotated[float, typer.Option("--ridge", help="Relative ridge parameter (0 = plain LS).")]
@@ -49,8 +50,9 @@ MaxGap = Annotated[float | None, typer.Option("--max-gap", metavar="S", help="A 
                                               "than this starts a new stretch, s (default 5 dt).")]
 MaxInterp = Annotated[float, typer.Option("--max-interp", metavar="S", help="NaN gaps up to this "
                                           "long are interpolated, s; longer ones split stretches.")]
-Fmt = Annotated[str | None, typer.Option("--format", help="Input format (default: from the "
-                                         "extension).")]
+Fmt = Annotated[str | None, typer.Option("--format", metavar="FORMAT", help="Input format "
+                                         "(default: from the extension and contents; see "
+                                         "docs/formats.md).")]
 Verbose = Annotated[bool, typer.Option("-v", "--verbose", help="Log progress details.")]
 Plot = Annotated[Path | None, typer.Option("--plot", metavar="DIR", help="Also write the QC "
                                            "figures (PNG) and report.html into DIR.")]
@@ -74,9 +76,12 @@ def _warm(screen: bool, log: Path | None = None, fmt: str | None = None) -> None
 
 @app.command()
 def compensate(
-    survey: Annotated[Path, typer.Argument(help="Survey log (CSV).", show_default=False)],
-    output: Annotated[Path, typer.Option("-o", help="Output CSV (the report goes to OUT.json).")],
-    model: Annotated[Path | None, typer.Option("--model", help="Apply a saved model "
+    survey: Annotated[Path, typer.Argument(metavar="SURVEY.csv", help="Survey log (CSV, or "
+                                           "another --format).", show_default=False)],
+    output: Annotated[Path, typer.Option("-o", metavar="OUT.csv",
+                                         help="Output CSV (the report goes to OUT.json).")],
+    model: Annotated[Path | None, typer.Option("--model", metavar="MODEL.json",
+                                               help="Apply a saved model "
                                                "(from 'aeromag calibrate') instead of fitting.")]
     = None,
     band: Band = (0.1, 0.9),
@@ -110,8 +115,12 @@ def compensate(
                           "size (identical output; for very large logs).")] = None,
     verbose: Verbose = False,
 ) -> None:
-    """Fit the Tolles-Lawson model on the survey itself (per segment, PCA screening, refit) or
-    apply a saved --model; write OUT.csv (mag_tl, mag_comp, segment, segment_kept) and OUT.json.
+    """Compensate a log: fit on the log itself, or apply --model.
+
+    Fits the Tolles-Lawson model on the survey itself (per segment, PCA screening of the
+    segments, refit on the kept ones) or applies a saved --model, then writes OUT.csv (the log
+    plus mag_tl, mag_comp, segment, segment_kept) and OUT.json (coefficients, per-segment PCA
+    scores, screening, metrics).
     """
     setup_logging(verbose)
     _warm(screen=model is None and not no_screen, log=None if chunk_rows else survey, fmt=fmt)
@@ -121,6 +130,9 @@ def compensate(
     from ..tolles_lawson import TLModel
 
     with user_errors():
+        if json_path_for(output) == output:
+            raise InputError(f"-o {output}: the report goes to OUT.json, so OUT must not end in"
+                             " .json; give the output CSV another name, e.g. -o survey_comp.csv")
         columns, unit_map = column_options(col, map_file, units)
         cfg = CompensationConfig(
             band_hz=band, terms=terms, segment_seconds=segment_seconds, screen=not no_screen,
@@ -158,8 +170,10 @@ def compensate(
 
 @app.command()
 def calibrate(
-    cal: Annotated[Path, typer.Argument(help="Calibration flight log (CSV).", show_default=False)],
-    output: Annotated[Path, typer.Option("-o", help="Output model file (JSON).")],
+    cal: Annotated[Path, typer.Argument(metavar="CAL.csv", help="Calibration flight log (CSV, "
+                                        "or another --format).", show_default=False)],
+    output: Annotated[Path, typer.Option("-o", metavar="MODEL.json",
+                                         help="Output model file (JSON).")],
     band: Band = (0.1, 0.9),
     terms: Terms = "16",
     segment_seconds: SegSec = 60.0,
@@ -181,8 +195,11 @@ def calibrate(
     plot: Plot = None,
     verbose: Verbose = False,
 ) -> None:
-    """Fit and screen the Tolles-Lawson model on a calibration flight; write the model JSON
-    (coefficients, per-segment PCA scores, screening, metrics and the FOM).
+    """Fit and screen the model on a calibration flight.
+
+    Fits the Tolles-Lawson model per segment, screens the segments by PCA, refits on the kept
+    ones and writes the model JSON (coefficients, per-segment PCA scores, screening, metrics
+    and the FOM) for 'aeromag compensate --model'.
     """
     setup_logging(verbose)
     _warm(screen=not no_screen, log=cal, fmt=fmt)

@@ -12,11 +12,12 @@ from .app import app, setup_logging, user_errors
 
 @app.command()
 def report(
-    out_csv: Annotated[Path, typer.Argument(help="Compensated log written by 'aeromag "
-                                            "compensate' (OUT.csv; OUT.json is read too).",
+    out_csv: Annotated[Path, typer.Argument(metavar="OUT.csv", help="Compensated log written "
+                                            "by 'aeromag compensate' (OUT.csv; OUT.json is "
+                                            "read too).",
                                             show_default=False)],
-    output: Annotated[Path, typer.Option("-o", help="Output folder for the PNG figures, "
-                                         "qc.json and report.html.")],
+    output: Annotated[Path, typer.Option("-o", metavar="DIR", help="Output folder for the PNG "
+                                         "figures, qc.json and report.html.")],
     report_json: Annotated[Path | None, typer.Option("--report", metavar="JSON",
                            help="Report to use instead of OUT.json beside OUT.csv.")] = None,
     maneuver_column: Annotated[str | None, typer.Option(
@@ -26,8 +27,12 @@ def report(
     verbose: Annotated[bool, typer.Option("-v", "--verbose", help="Log progress details.")]
     = False,
 ) -> None:
-    """Quality control of a compensation: FOM (before/after), improvement ratio, residuals per
-    segment and heading, noise, VIF, cross-validation; PNG figures and report.html in -o DIR."""
+    """QC figures and an HTML page for a compensated log.
+
+    Quality control of a compensation: FOM (before/after), improvement ratio, residuals per
+    segment and heading, noise, VIF, cross-validation; PNG figures, qc.json and report.html
+    in -o DIR.
+    """
     setup_logging(verbose)
     with user_errors():
         from ..report import build_report

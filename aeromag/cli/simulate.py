@@ -23,7 +23,7 @@ def _mission_files(out_dir: Path, seed: int, small: bool) -> dict[str, Path]:
 
 
 _HELP = (
-    "Write a synthetic calibration flight, survey and plan with their ground truth.\n\n"
+    "Write synthetic flights, plans and their ground truth.\n\n"
     "Files written to the output folder: calibration.csv (boxes on the four cardinal headings "
     "with pitch/roll/yaw manoeuvres, one line per manoeuvre, turns cut out), survey.csv "
     "(parallel lines over buried dipoles, gusty attitude), plan.csv (survey waypoints: start "
@@ -31,13 +31,20 @@ _HELP = (
     "\n\n"
     "Every log carries ground-truth columns: truth_mag_tl (aircraft interference, nT), "
     "truth_mag_clean, truth_anomaly, truth_diurnal, truth_fault (kind), truth_fault_nT."
+    "\n\n"
+    "For 'aeromag track', a multirotor mission on RTK DGPS with magnetic heading disturbances "
+    "on some legs: mission.csv (the flight log: time, lat, lon, alt, heading, pitch, roll, "
+    "flux_x/y/z), mission_plan.csv (its waypoints) and mission_truth.json (per leg: "
+    "disturbance kind, onset time and rate); mission.csv carries truth_xtrack_m, truth_leg, "
+    "truth_heading, truth_dpsi_deg, truth_disturbance_nT and truth_mag_heading."
 )
 
 
 @app.command(help=_HELP)
 def simulate(
-    output: Annotated[Path, typer.Option("-o", "--output", help="Output folder (created when "
-                                         "missing).", file_okay=False, show_default=False)],
+    output: Annotated[Path, typer.Option("-o", "--output", metavar="DIR", help="Output folder "
+                                         "(created when missing).", file_okay=False,
+                                         show_default=False)],
     seed: Annotated[int, typer.Option("--seed", help="Random seed; the same seed gives the "
                                       "same files.")] = 0,
     faults: Annotated[float, typer.Option(
@@ -54,7 +61,7 @@ def simulate(
     verbose: Annotated[bool, typer.Option("-v", "--verbose", help="Log progress details.")]
     = False,
 ) -> None:
-    """Write a synthetic calibration flight, survey and plan with their ground truth."""
+    """Write synthetic flights, plans and their ground truth (help: ``_HELP``)."""
     setup_logging(verbose)
     from ..simulate import write_simulation
 

@@ -16,12 +16,12 @@ DEFAULT_WAYPOINT_RADIUS_M = 5.0
 
 @app.command()
 def track(
-    survey: Annotated[Path, typer.Argument(help="Survey log (CSV) with time, lat, lon, alt.",
-                                           show_default=False)],
+    survey: Annotated[Path, typer.Argument(metavar="SURVEY.csv", help="Survey log (CSV) with "
+                                           "time, lat, lon, alt.", show_default=False)],
     plan: Annotated[Path, typer.Option("--plan", metavar="PLAN.csv",
                                        help="Mission plan: waypoints lat, lon, alt in order.")],
-    output: Annotated[Path, typer.Option("-o", help="Output CSV (the per-leg report goes to "
-                                         "OUT.json).")],
+    output: Annotated[Path, typer.Option("-o", metavar="OUT.csv", help="Output CSV (the "
+                                         "per-leg report goes to OUT.json).")],
     threshold: Annotated[float, typer.Option("--threshold", metavar="M",
                          help="Track alarm threshold, metres.")] = 1.0,
     min_duration: Annotated[float, typer.Option("--min-duration", metavar="S",
@@ -46,14 +46,19 @@ def track(
     col: Annotated[list[str] | None, typer.Option("--col", metavar="NAME=SOURCE",
                    help="Column map, repeatable (e.g. lat=gps_lat).")] = None,
     map_file: Annotated[Path | None, typer.Option("--map", metavar="FILE",
-                        help="TOML column map ([columns], [units]).")] = None,
+                        help="TOML column map: [columns] NAME = \"SOURCE\", optional "
+                        "[units] NAME = \"UNIT\".")] = None,
     units: Annotated[list[str] | None, typer.Option("--units", metavar="NAME=UNIT",
                      help="Convert a field column or group (flux, mag) to nT.")] = None,
     verbose: Annotated[bool, typer.Option("-v", "--verbose", help="Log progress details.")]
     = False,
 ) -> None:
-    """Flag DGPS track deviations per mission leg (xtrack_m > --threshold), run the heading
-    detector when the columns allow, combine them; write OUT.csv and OUT.json ({"legs": [...]}).
+    """Flag DGPS track deviations per mission leg.
+
+    A sample alarms when its 3-D distance to the planned line of its leg (xtrack_m) is above
+    --threshold; the heading detector runs too when the columns allow, and the two are
+    combined (--combine).  Writes OUT.csv (the log plus leg, xtrack_m, track_alarm, ...,
+    alarm) and OUT.json ({"legs": [...]}, one object per leg).
     """
     setup_logging(verbose)
     from ..io import json_path_for
