@@ -1042,9 +1042,13 @@ def check_outputs(source: str | os.PathLike[str], *outputs: str | os.PathLike[st
     Raises
     ------
     InputError
-        When an output is the input file itself.
+        When an output is the input file itself, or the first of several outputs (the data,
+        when its report is the second) ends in ``.json`` so that the report would replace it.
     """
     src = Path(source)
+    if outputs and json_path_for(Path(outputs[0])) == Path(outputs[0]) and len(outputs) > 1:
+        raise InputError(f"-o {outputs[0]}: the report goes to OUT.json, so OUT must not end in"
+                         " .json; give the output another name, e.g. -o survey_comp.csv")
     for out in outputs:
         o = Path(out)
         same = o.resolve() == src.resolve()

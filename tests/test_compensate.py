@@ -278,3 +278,12 @@ def test_output_never_overwrites_the_input(tmp_path, flight):
 def test_option_values_are_checked(kw):
     with pytest.raises(InputError, match="--"):
         CompensationConfig(**kw)
+
+
+def test_output_named_like_its_report_is_refused(tmp_path, flight):
+    df, _ = flight
+    src = tmp_path / "log.csv"
+    df.to_csv(src, index=False)
+    with pytest.raises(InputError, match="must not end in .json"):
+        compensate_file(src, tmp_path / "out.json")
+    assert not (tmp_path / "out.json").exists()
