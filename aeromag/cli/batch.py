@@ -8,7 +8,20 @@ from typing import Annotated
 import typer
 
 from .app import EXIT_USER_ERROR, app, column_options, setup_logging, user_errors
-from .compensate import Band, Col, Fmt, MapFile, NoScreen, SegSec, Terms, Units, Verbose
+from .compensate import (
+    Band,
+    Col,
+    Fmt,
+    MapFile,
+    MaxCond,
+    MaxInterf,
+    NoScreen,
+    Ridge,
+    SegSec,
+    Terms,
+    Units,
+    Verbose,
+)
 
 # Same as aeromag.batch.LOG_EXTENSIONS (a test checks it); literal here so that
 # 'aeromag --help' does not import pandas.
@@ -48,6 +61,9 @@ def batch(
     no_screen: NoScreen = False,
     no_filter: Annotated[bool, typer.Option("--no-filter", help="Leave mag_comp unfiltered.")]
     = False,
+    ridge: Ridge = 0.0,
+    max_condition: MaxCond = 1e5,
+    max_interference: MaxInterf = 0.25,
     col: Col = None,
     map_file: MapFile = None,
     units: Units = None,
@@ -69,7 +85,9 @@ def batch(
     with user_errors():
         columns, unit_map = column_options(col, map_file, units)
         cfg = CompensationConfig(band_hz=band, terms=terms, segment_seconds=segment_seconds,
-                                 screen=not no_screen, filter_output=not no_filter)
+                                 screen=not no_screen, filter_output=not no_filter, ridge=ridge,
+                                 max_condition=max_condition,
+                                 max_interference=max_interference)
         summary = run_batch(inputs, output, model=model, plan=plan, cfg=cfg, workers=workers,
                             scheduler=scheduler, force=force, columns=columns, units=unit_map,
                             fmt=fmt, progress=not no_progress, chunk_rows=chunk_rows,
