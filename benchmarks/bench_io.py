@@ -81,6 +81,26 @@ CHILD = {
         T0 = time.perf_counter()
         compensate(df, model=m)
     """,
+    "batch_model": """
+        # aeromag batch --model over BATCH_FILES hard links of the log, one worker: the time
+        # per file, imports paid once (the batch path of issue 4).
+        import os, shutil
+        from aeromag.cli import main
+        d = OUT + ".in"
+        shutil.rmtree(d, ignore_errors=True)
+        os.makedirs(d)
+        for i in range(BATCH_FILES):
+            os.link(SRC, os.path.join(d, f"log{i}.csv"))
+        sys.argv = ["aeromag", "batch", d, "--model", MODEL, "-o", OUT + ".out", "--workers",
+                    "1", "--force", "--no-progress"]
+        try:
+            main()
+        except SystemExit as e:
+            assert not e.code, e.code
+        T0 += (time.perf_counter() - T0) * (1 - 1 / BATCH_FILES)  # report per file
+        shutil.rmtree(d)
+        shutil.rmtree(OUT + ".out")
+    """,
     "chunked": """
         from aeromag.chunked import apply_model_chunked
         apply_model_chunked(SRC, OUT, MODEL, chunk_rows=500_000)
@@ -92,6 +112,7 @@ def run(kind: str, src: Path, out: Path, model: Path | None) -> dict:
     code = textwrap.dedent(f"""
         import json, resource, sys, time
         SRC, OUT, MODEL = {str(src)!r}, {str(out)!r}, {str(model)!r}
+        BATCH_FILES = 4
         T0 = time.perf_counter()
     """) + textwrap.dedent(CHILD[kind]) + textwrap.dedent("""
         dt = time.perf_counter() - T0
@@ -137,14 +158,14 @@ def main() -> None:
         print(json.dumps({"n": n, **r}), flush=True)
     print(f"\nlibrary baseline (imports only): {base / 1e6:.0f} MB peak RSS")
     print("\n| rows | CSV MB | (a) I/O floor s | (a') floor, threaded writer s"
-          " | (b) compensate s | (b)/(a) | (b)/(a') | (b') --model s | (b')/(a) | (b')/(a')"
-          " | chunked --model s |")
+          " | (b) compensate s | (b)/(a) | (b') --model s | (b')/(a)"
+          " | (b'') batch --model, per file s | (b'')/(a) | chunked --model s |")
     print("|" + "---|" * 11)
     for n, mb, _, r in rows:
-        a, a2, b, bm, d = (r[k]["s"] for k in ("io", "io_threads", "compensate",
-                                              "compensate_model", "chunked"))
-        print(f"| {n:.0e} | {mb:.0f} | {a:.2f} | {a2:.2f} | {b:.2f} | {b / a:.2f} | {b / a2:.2f}"
-              f" | {bm:.2f} | {bm / a:.2f} | {bm / a2:.2f} | {d:.2f} |")
+        a, a2, b, bm, bb, d = (r[k]["s"] for k in ("io", "io_threads", "compensate",
+                                                  "compensate_model", "batch_model", "chunked"))
+        print(f"| {n:.0e} | {mb:.0f} | {a:.2f} | {a2:.2f} | {b:.2f} | {b / a:.2f}"
+              f" | {bm:.2f} | {bm / a:.2f} | {bb:.2f} | {bb / a:.2f} | {d:.2f} |")
     print("\n| rows | (c) fit + apply s | samples/s | (c') apply s | samples/s |")
     print("|" + "---|" * 5)
     for n, _, _, r in rows:
@@ -152,11 +173,12 @@ def main() -> None:
         print(f"| {n:.0e} | {c:.3f} | {n / c / 1e6:.2f} M | {cm:.3f} | {n / cm / 1e6:.2f} M |")
     print("\nPeak RSS in MB; in brackets, above the library baseline as a multiple of the data"
           " (nine float64 columns).")
-    print("\n| rows | data MB | (a) floor | (b) compensate | (b') --model | chunked --model |")
-    print("|" + "---|" * 6)
+    print("\n| rows | data MB | (a) floor | (b) compensate | (b') --model | (b'') batch"
+          " --model | chunked --model |")
+    print("|" + "---|" * 7)
     for n, _, data_mb, r in rows:
         cells = []
-        for k in ("io", "compensate", "compensate_model", "chunked"):
+        for k in ("io", "compensate", "compensate_model", "batch_model", "chunked"):
             rss = r[k]["rss"]
             cells.append(f"{rss / 1e6:.0f} ({(rss - base) / 1e6 / data_mb:.1f}x)")
         print(f"| {n:.0e} | {data_mb:.0f} | " + " | ".join(cells) + " |")
