@@ -12,13 +12,16 @@ so that a failure never leaves a half-written file behind.
 
 from __future__ import annotations
 
+import bisect
 import contextlib
 import json
 import logging
 import math
 import os
+import re
 import tempfile
 import tomllib
+import warnings
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -55,9 +58,11 @@ FLUX_COLUMNS: tuple[str, str, str] = ("flux_x", "flux_y", "flux_z")
 
 #: Factors that convert a magnetic field unit to nT.
 FIELD_UNITS_TO_NT: dict[str, float] = {
+    "pt": 1.0e-3,
     "nt": 1.0,
     "ut": 1.0e3,
-    "µt": 1.0e3,
+    "\u00b5t": 1.0e3,  # micro sign (U+00B5)
+    "\u03bct": 1.0e3,  # Greek small letter mu (U+03BC): both are written for microtesla
     "mt": 1.0e6,
     "g": 1.0e5,
     "gauss": 1.0e5,
@@ -143,8 +148,8 @@ def unit_factor(unit: str, *, what: str = "--units") -> float:
     Parameters
     ----------
     unit : str
-        One of ``nT``, ``uT`` (``µT``), ``mT``, ``G`` (``gauss``), ``mG``, ``T``
-        (case-insensitive).
+        One of ``pT``, ``nT``, ``uT`` (``µT``, with either the micro sign U+00B5 or the
+        Greek mu U+03BC), ``mT``, ``G`` (``gauss``), ``mG``, ``T`` (case-insensitive).
     what : str
         Context quoted in the error message.
 
@@ -155,7 +160,7 @@ def unit_factor(unit: str, *, what: str = "--units") -> float:
     """
     key = unit.strip().lower()
     if key not in FIELD_UNITS_TO_NT:
-        known = ", ".join(["nT", "uT", "mT", "G", "mG", "T"])
+        known = ", ".join(["pT", "nT", "uT", "mT", "G", "mG", "T"])
         raise InputError(f"{what}: unknown field unit {unit!r}; use one of {known}")
     return FIELD_UNITS_TO_NT[key]
 
@@ -351,6 +356,25 @@ def write_arrow_csv(table: Any, fh: Any, quoting: str = "none",
 PASSTHROUGH_BLOCK_BYTES = 8 << 20
 
 
+def _line_blocks(fin: Any) -> Iterator[bytes]:
+    """Blocks of whole lines (about :data:`PASSTHROUGH_BLOCK_BYTES` each) of a binary file; the
+    last line gets a ``\\n`` when the file does not end with one."""
+    carry = b""
+    while True:
+        block = fin.read(PASSTHROUGH_BLOCK_BYTES)
+        if not block:
+            if carry:
+                yield carry if carry.endswith(b"\n") else carry + b"\n"
+            return
+        data = carry + block
+        cut = data.rfind(b"\n")
+        if cut < 0:
+            carry = data
+            continue
+        yield data[: cut + 1]
+        carry = data[cut + 1:]
+
+
 def write_csv_passthrough(
     source: str | os.PathLike[str], source_columns: Sequence[str], extra: pd.DataFrame,
     dest: str | os.PathLike[str],
@@ -425,22 +449,6 @@ def write_csv_passthrough(
                             offset=4 * joined.offset)
         return memoryview(joined.buffers()[2])[off[0]:off[-1]]
 
-    def blocks(fin: Any) -> Iterator[bytes]:
-        carry = b""
-        while True:
-            block = fin.read(PASSTHROUGH_BLOCK_BYTES)
-            if not block:
-                if carry:
-                    yield carry if carry.endswith(b"\n") else carry + b"\n"
-                return
-            data = carry + block
-            cut = data.rfind(b"\n")
-            if cut < 0:
-                carry = data
-                continue
-            yield data[: cut + 1]
-            carry = data[cut + 1:]
-
     from collections import deque
     from concurrent.futures import ThreadPoolExecutor
 
@@ -459,7 +467,7 @@ def write_csv_passthrough(
         fout.write(head + b"," + _csv_header(extra.columns).encode("utf-8"))
         pending: deque = deque()
         # Blocks are joined on the pool, written here in order, at most 2 per thread ahead.
-        for lines in blocks(fin):
+        for lines in _line_blocks(fin):
             k = lines.count(b"\n")
             if b'"' in lines or row + k > n:
                 return False
@@ -563,7 +571,138 @@ def json_path_for(csv_path: str | os.PathLike[str]) -> Path:
     return Path(csv_path).with_suffix(".json")
 
 
+# --------------------------------------------------------------------------- row locations
+#: ``df.attrs`` key where a reader notes where its data rows are in the file, so that an error
+#: can name the file line (see :func:`row_location`); :func:`read_log` removes it.
+ROWS_ATTR = "_rows"
+
+
+def rows_after_header(path: str | os.PathLike[str], header_line: int) -> dict[str, Any]:
+    """Row locations of a delimited table: the data rows are the non-blank lines after the
+    header on line ``header_line`` (1-based), as the CSV readers skip blank lines."""
+    return {"kind": "lines", "path": os.fspath(path), "header_line": int(header_line)}
+
+
+def rows_in_runs(row_starts: Sequence[int], line_starts: Sequence[int]) -> dict[str, Any]:
+    """Row locations as runs of consecutive lines: data row ``row_starts[k] + j`` is on file
+    line ``line_starts[k] + j`` (both sorted, 0-based rows, 1-based lines)."""
+    return {"kind": "runs", "rows": [int(r) for r in row_starts],
+            "lines": [int(x) for x in line_starts]}
+
+
+def rows_numbered(unit: str) -> dict[str, Any]:
+    """Row locations of a format without text lines: ``"row"`` (Parquet) or ``"sample"`` (HDF5)."""
+    return {"kind": "index", "unit": unit}
+
+
+def row_location(rows: Mapping[str, Any] | None, i: int) -> str:
+    """Say where data row ``i`` (0-based) of a table is, for an error message.
+
+    Parameters
+    ----------
+    rows : mapping or None
+        A row description from :func:`rows_after_header`, :func:`rows_in_runs` or
+        :func:`rows_numbered`.
+    i : int
+        0-based data row.
+
+    Returns
+    -------
+    str
+        ``"line 17"`` (1-based line of the file), ``"sample 5 (index 4)"``, or ``"data row 5"``
+        when the file line cannot be told.
+    """
+    kind = rows.get("kind") if rows else None
+    if kind == "runs" and rows is not None:
+        k = bisect.bisect_right(rows["rows"], i) - 1
+        if k >= 0:
+            return f"line {rows['lines'][k] + i - rows['rows'][k]}"
+    elif kind == "lines" and rows is not None:
+        ln = _nth_data_line(rows["path"], rows["header_line"], i)
+        if ln is not None:
+            return f"line {ln}"
+    elif kind == "index" and rows is not None:
+        return f"{rows['unit']} {i + 1} (index {i})"
+    return f"data row {i + 1}"
+
+
+def _text_lines(path: str | os.PathLike[str]) -> Iterator[tuple[int, str]]:
+    """(1-based number, text) of the lines of a file, ending at ``\\n``, ``\\r\\n`` or a lone
+    ``\\r`` as the CSV readers count them; the bytes are kept (latin-1), decode them yourself."""
+    with open(path, encoding="latin-1", newline=None) as fh:
+        yield from enumerate(fh, start=1)
+
+
+def _nth_data_line(path: str, header_line: int, i: int) -> int | None:
+    """1-based line of the ``i``-th non-blank line after line ``header_line``, or None.
+
+    Reads the file up to that line; only called to word an error.
+    """
+    try:
+        k = -1
+        for ln, text in _text_lines(path):
+            if ln <= header_line or not text.strip():
+                continue
+            k += 1
+            if k == i:
+                return ln
+    except OSError:
+        return None
+    return None
+
+
+def plain_number(x: Any) -> str:
+    """A number as plain text for messages: ``0.1``, ``1601300273.001`` (not ``np.float64(..)``)."""
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return repr(x)
+    return str(int(v)) if v.is_integer() and abs(v) < 1e15 else repr(v)
+
+
+def numeric_values(s: pd.Series, source: str, column: str, rows: Mapping[str, Any] | None,
+                   remedy: str = "fix the value or map another column with --col") -> np.ndarray:
+    """float64 values of a column; empty cells are NaN, any other unparseable cell an error.
+
+    Parameters
+    ----------
+    s : Series
+        The column as read.
+    source : str
+        File name quoted in the error.
+    column : str
+        Column name quoted in the error (as the file spells it).
+    rows : mapping or None
+        Where the rows are in the file (see :func:`row_location`).
+    remedy : str
+        What to do, ending the message.
+
+    Returns
+    -------
+    ndarray of float64
+    """
+    if pd.api.types.is_numeric_dtype(s.dtype) and not pd.api.types.is_bool_dtype(s.dtype):
+        return s.to_numpy(dtype=np.float64, na_value=np.nan)
+    conv = pd.to_numeric(s, errors="coerce")
+    bad = (conv.isna() & s.notna()).to_numpy()
+    if bad.any():
+        bad = bad & (s.astype(str).str.strip() != "").to_numpy()
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(
+            f"{source}: column {column!r}, {row_location(rows, i)}: value {str(s.iloc[i])!r}"
+            f" is not a number; {remedy}"
+        )
+    return conv.to_numpy(dtype=np.float64, na_value=np.nan)
+
+
 # --------------------------------------------------------------------------- reading
+#: Name given to the field after the last header column while reading (a trailing delimiter).
+_EXTRA_FIELD = "\x00extra"
+#: Prefix of the names given to header cells that are empty.
+_UNNAMED_FIELD = "\x00unnamed"
+
+
 def _read_table(path: Path, fmt: str | None) -> pd.DataFrame:
     """Read a raw table from ``path`` (CSV by default; other formats via ``formats``)."""
     fmt = (fmt or "").lower() or None
@@ -572,37 +711,227 @@ def _read_table(path: Path, fmt: str | None) -> pd.DataFrame:
         # Other formats live in their own module; imported lazily so CSV needs nothing more.
         from . import formats
 
-        return formats.read_table(path, fmt)
+        return formats.read_table_rows(path, fmt)
     if fmt is None and path.is_file():
         from . import formats
 
         if formats.sniff_csv(path) is not None:  # a MagArrow / MagDrone native log
-            return formats.read_table(path, None)
+            return formats.read_table_rows(path, None)
     return _read_csv(path)
 
 
-def _read_csv(path: Path) -> pd.DataFrame:
-    """Read a CSV table (pyarrow's multi-threaded reader when available, else pandas)."""
+def _csv_header_fields(path: Path) -> tuple[list[str], int] | None:
+    """The header of a CSV as the readers split it, and its 1-based line number.
+
+    Quotes are honoured and blanks around names removed; leading blank lines are skipped (as
+    the readers skip them).  Only the first line(s) are read.
+
+    Returns
+    -------
+    (names, line) or None
+        None when the header cannot be decoded (the readers then word the error).
+    """
+    return _first_fields(path, 0)
+
+
+def _first_data_fields(path: Path, header_line: int) -> tuple[list[str], int] | None:
+    """Fields of the first non-blank line after the header, and its 1-based line number."""
+    return _first_fields(path, header_line)
+
+
+def _first_fields(path: Path, after: int) -> tuple[list[str], int] | None:
+    """CSV fields of the first non-blank line after line ``after`` (None: none or undecodable)."""
+    import csv
+
+    try:
+        for ln, text in _text_lines(path):
+            if ln > after + 1000:
+                return None
+            if ln <= after or not text.strip():
+                continue
+            line = text.encode("latin-1").decode("utf-8").removeprefix("\ufeff")
+            fields = next(csv.reader([line.rstrip("\n")], skipinitialspace=True))
+            return ([c.strip() for c in fields] if after == 0 else fields), ln
+    except (OSError, UnicodeDecodeError, csv.Error, StopIteration):
+        return None
+    return None
+
+
+def check_unique_names(names: Sequence[str], source: str, *, what: str = "header") -> None:
+    """Raise :class:`InputError` naming the first column name that appears twice.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Column names in file order (empty names are not checked).
+    source : str
+        File name quoted in the error.
+    what : str
+        Where the names come from, for the message.
+    """
+    seen: dict[str, int] = {}
+    for j, name in enumerate(names):
+        if not name:
+            continue
+        if name in seen:
+            raise InputError(
+                f"{source}: column {name!r} appears twice in the {what} (columns {seen[name] + 1}"
+                f" and {j + 1}); rename one of them (e.g. {name}_2) so that each column has its"
+                " own name, then pick one with --col if needed")
+        seen[name] = j
+
+
+def _read_csv(path: Path, spare_fields: int = 1) -> pd.DataFrame:
+    """Read a CSV table (pyarrow's multi-threaded reader when available, else pandas).
+
+    The header is checked first (a name used twice is an error).  A row may end with up to
+    ``spare_fields`` empty fields more than the header (loggers that end every row with the
+    delimiter): they are dropped; a value there is an error naming the line.  An empty header
+    cell is accepted only for an empty column.  Both readers give the same table.
+    """
     if path.is_dir():
         raise InputError(f"{path}: is a folder, not a log file")
-    df = _read_csv_arrow(path)
+    if not path.exists():
+        raise InputError(f"{path}: file not found")
+    head = _csv_header_fields(path)
+    names, header_line = head if head is not None else (None, 1)
+    if names is not None:
+        check_unique_names(names, str(path))
+    df = None
+    plain = False
+    if names is None or all(names):
+        df = _read_csv_arrow(path)
+        plain = df is not None  # pyarrow checked that every row has the header's field count
     if df is None:
-        try:
-            df = pd.read_csv(path, skipinitialspace=True, low_memory=False)
-        except FileNotFoundError:
-            raise InputError(f"{path}: file not found") from None
-        except pd.errors.EmptyDataError:
-            raise InputError(
-                f"{path}: the file is empty; expected a CSV log with a header row") from None
-        except (pd.errors.ParserError, UnicodeDecodeError) as exc:
-            msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
-            raise InputError(
-                f"{path}: cannot parse as CSV ({msg}); check the delimiter and quoting") from None
-    names = [str(c) for c in df.columns]
-    df.columns = [c.strip() for c in names]
-    if names == list(df.columns):
-        df.attrs["_plain_csv_columns"] = names
+        df, plain = _read_csv_other(path, names, header_line, spare_fields)
+    raw_names = [str(c) for c in df.columns]
+    df.columns = [c.strip() for c in raw_names]
+    if plain and raw_names == list(df.columns):
+        df.attrs["_plain_csv_columns"] = raw_names
+    df.attrs[ROWS_ATTR] = rows_after_header(path, header_line)
     return df
+
+
+def _read_csv_other(path: Path, names: list[str] | None, header_line: int,
+                    spare_fields: int = 1) -> tuple[pd.DataFrame, bool]:
+    """Read a CSV that pyarrow's plain read could not take; returns (table, plain).
+
+    Rows never shift: the table is read with ``spare_fields`` more columns than the header
+    (never with leading columns taken as the index).  A row may end with up to that many empty
+    fields more than the header (loggers that end every row with the delimiter): they are
+    dropped.  A row whose extra field holds a value, or with still more fields, is an error
+    naming its line.  An empty header cell is accepted for an empty column only.  ``plain``
+    is True when every row has exactly the header's field count (checked on the bytes,
+    vectorised), so that an output may copy the lines.
+    """
+    if names is None:
+        return _read_csv_pandas(path, None, 0, header_line), False
+    n = len(names)
+    cols = [name if name else f"{_UNNAMED_FIELD}{j}" for j, name in enumerate(names)]
+    cols += [f"{_EXTRA_FIELD}{k}" for k in range(spare_fields)]
+    first = _first_data_fields(path, header_line)
+    if first is not None and len(first[0]) > len(cols):
+        # (pandas would take this row's length as the table's and cut the fields beyond cols)
+        raise InputError(
+            f"{path}: line {first[1]}: {len(first[0])} fields but the header names {n} columns;"
+            " fix that row (or the header, or check the delimiter)")
+    df = None
+    if header_line == 1 and (not all(names) or (first is not None
+                                                 and len(first[0]) == len(cols))):
+        df = _read_csv_arrow(path, cols)  # every row as long: pyarrow can read it
+    if df is None:
+        df = _read_csv_pandas(path, cols, n, header_line)
+    rows = rows_after_header(path, header_line)
+    spare = [c for c in df.columns if str(c).startswith("\x00")]
+    for c in spare:
+        filled = _filled(df[c])
+        if not filled.any():
+            continue
+        i = int(np.flatnonzero(filled)[0])
+        where, value = row_location(rows, i), str(df[c].iloc[i]).strip()
+        if str(c).startswith(_EXTRA_FIELD):
+            raise InputError(
+                f"{path}: {where}: more fields than the {n} columns of the header (value"
+                f" {value!r} has no column); remove the extra value or add its name to the"
+                " header")
+        j = int(str(c)[len(_UNNAMED_FIELD):])
+        raise InputError(
+            f"{path}: column {j + 1} has no name in the header but holds values ({where}:"
+            f" {value!r}); give it a name in the header")
+    df = df.drop(columns=spare)
+    plain = header_line == 1 and all(names) and _rows_have_fields(path, n)
+    return df, plain
+
+
+def _filled(s: pd.Series) -> np.ndarray:
+    """Cells that hold something (not missing, not only blanks)."""
+    filled = s.notna().to_numpy()
+    if filled.any() and not pd.api.types.is_numeric_dtype(s.dtype):
+        filled = filled & (s.astype(str).str.strip() != "").to_numpy()
+    return filled
+
+
+def _read_csv_pandas(path: Path, cols: list[str] | None, n_header: int = 0,
+                     header_line: int = 1) -> pd.DataFrame:
+    """pandas' reader (text columns, quoting, ragged rows); errors worded for the user.
+
+    With ``cols`` the header line is skipped and the rows are read into exactly these columns
+    (shorter rows padded with missing values, longer ones an error naming the line).
+    """
+    # index_col=False: pandas never turns leading columns into the index (which would shift
+    # every column when the rows have more fields than the header).
+    kw: dict[str, Any] = {"index_col": False}
+    if cols is not None:
+        kw.update(header=None, skiprows=header_line, names=cols)
+    try:
+        with warnings.catch_warnings():
+            # "Length of header or names does not match length of data": fields were cut.
+            warnings.simplefilter("error", pd.errors.ParserWarning)
+            return pd.read_csv(path, skipinitialspace=True, low_memory=False, **kw)
+    except pd.errors.ParserWarning:
+        raise InputError(f"{path}: the rows have more fields than the header names columns;"
+                         " fix the header or the rows (or check the delimiter)") from None
+    except FileNotFoundError:
+        raise InputError(f"{path}: file not found") from None
+    except pd.errors.EmptyDataError:
+        if cols is not None:  # a header and no data row
+            return pd.DataFrame({c: pd.Series(dtype=np.float64) for c in cols})
+        raise InputError(
+            f"{path}: the file is empty; expected a CSV log with a header row") from None
+    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
+        msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+        m = re.search(r"Expected \d+ fields in line (\d+), saw (\d+)", msg)
+        if m and n_header:
+            raise InputError(
+                f"{path}: line {m.group(1)}: {m.group(2)} fields but the header names"
+                f" {n_header} columns; fix that row (or check the delimiter)") from None
+        raise InputError(
+            f"{path}: cannot parse as CSV ({msg}); check the delimiter and quoting") from None
+
+
+def _rows_have_fields(path: Path, n_fields: int) -> bool:
+    """True when every line after the header has exactly ``n_fields`` comma-separated fields,
+    with no quote and no blank line (block by block, vectorised)."""
+    want = n_fields - 1
+    try:
+        with open(path, "rb") as fh:
+            fh.readline()
+            for lines in _line_blocks(fh):
+                raw = np.frombuffer(lines, dtype=np.uint8)
+                if (raw == 34).any():
+                    return False
+                nl = np.flatnonzero(raw == 10)
+                starts = np.r_[0, nl[:-1] + 1]
+                cr = raw[np.maximum(nl - 1, 0)] == 13
+                if np.any(nl - starts <= cr):  # a blank line
+                    return False
+                commas = np.flatnonzero(raw == 44)
+                per_line = np.diff(np.r_[0, np.searchsorted(commas, nl)])
+                if np.any(per_line != want):
+                    return False
+    except OSError:
+        return False
+    return True
 
 
 def _read_csv_streaming(path: Path) -> Any:
@@ -613,8 +942,11 @@ def _read_csv_streaming(path: Path) -> Any:
     return table if table is not None else warm.read_csv_table(path)
 
 
-def _read_csv_arrow(path: Path) -> pd.DataFrame | None:
-    """Read with pyarrow; None when pyarrow is missing or the table needs pandas' rules."""
+def _read_csv_arrow(path: Path, names: list[str] | None = None) -> pd.DataFrame | None:
+    """Read with pyarrow; None when pyarrow is missing or the table needs pandas' rules.
+
+    ``names`` replaces the header row (read with exactly these columns, header skipped).
+    """
     try:
         import pyarrow as pa
         import pyarrow.csv as pacsv
@@ -624,6 +956,13 @@ def _read_csv_arrow(path: Path) -> pd.DataFrame | None:
         raise InputError(f"{path}: file not found")
     if path.stat().st_size == 0:
         raise InputError(f"{path}: the file is empty; expected a CSV log with a header row")
+    if names is not None:
+        try:
+            table = pacsv.read_csv(path, read_options=pacsv.ReadOptions(column_names=names,
+                                                                        skip_rows=1))
+        except (pa.ArrowInvalid, OSError):
+            return None
+        return _arrow_numeric_frame(table)
     table = _read_csv_streaming(path)
     if isinstance(table, dict):  # numpy columns of a large all-numeric log
         return pd.DataFrame(table, copy=False)
@@ -637,6 +976,13 @@ def _read_csv_arrow(path: Path) -> pd.DataFrame | None:
                 f"{path}: the file is empty; expected a CSV log with a header row") from None
         # Ragged rows, bad quoting, invalid UTF-8: let pandas decide and word the error.
         return None
+    return _arrow_numeric_frame(table)
+
+
+def _arrow_numeric_frame(table: Any) -> pd.DataFrame | None:
+    """An all-numeric Arrow table as a DataFrame; None when a column holds text or dates."""
+    import pyarrow as pa
+
     if any(not (pa.types.is_floating(f.type) or pa.types.is_integer(f.type)
                 or pa.types.is_boolean(f.type) or pa.types.is_null(f.type))
            for f in table.schema):
@@ -690,24 +1036,103 @@ def apply_column_map(
     return out.rename(columns=rename)
 
 
-def _to_numeric(df: pd.DataFrame, cols: Sequence[str], source: str) -> pd.DataFrame:
-    """Convert ``cols`` to float, naming the first unparseable cell in the error."""
+def _to_numeric(df: pd.DataFrame, cols: Sequence[str], source: str,
+                rows: Mapping[str, Any] | None = None) -> pd.DataFrame:
+    """Convert ``cols`` to float, naming the first unparseable cell (and its line) in the error.
+
+    A ``time`` column of date-times (ISO 8601 text, or datetime / duration values from Parquet)
+    becomes float seconds since 1970-01-01 UTC (see :func:`datetime_seconds`).
+    """
     for c in cols:
         s = df[c]
+        if isinstance(s, pd.DataFrame):  # a name used twice
+            raise InputError(f"{source}: column {c!r} appears more than once; rename the copies"
+                             " so that each column has its own name")
+        if c == "time" and _is_datetime_like(s):
+            df[c] = datetime_seconds(s, source, rows)
+            df.attrs["_time_converted"] = True
+            continue
         if pd.api.types.is_numeric_dtype(s.dtype) and not pd.api.types.is_bool_dtype(s.dtype):
             if s.dtype != np.float64 and c not in ("line", "leg"):
                 df[c] = s.astype(np.float64)
             continue
-        conv = pd.to_numeric(s, errors="coerce")
-        bad = conv.isna() & s.notna() & (s.astype(str).str.strip() != "")
-        if bad.any():
-            i = int(np.flatnonzero(bad.to_numpy())[0])
-            raise InputError(
-                f"{source}: column {c!r}, line {i + 2}: value {str(s.iloc[i])!r} is not a number;"
-                " fix the value or map another column with --col"
-            )
-        df[c] = conv.astype(np.float64)
+        df[c] = numeric_values(s, source, c, rows)
     return df
+
+
+#: ISO 8601 date and time at the start of a text value (``2024-01-01T00:00:00``, with a space too).
+_ISO_DATETIME = re.compile(r"^\s*[+-]?\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}")
+
+
+def _is_datetime_like(s: pd.Series) -> bool:
+    """A datetime / duration column, or text whose first value is an ISO 8601 date-time."""
+    if pd.api.types.is_datetime64_any_dtype(s.dtype) or pd.api.types.is_timedelta64_dtype(
+            s.dtype):
+        return True
+    if pd.api.types.is_numeric_dtype(s.dtype) or pd.api.types.is_bool_dtype(s.dtype):
+        return False
+    first = s.first_valid_index()
+    return first is not None and isinstance(s.loc[first], str) and bool(
+        _ISO_DATETIME.match(s.loc[first]))
+
+
+#: Ticks per second of the datetime64 / timedelta64 units.
+_TICKS_PER_S = {"s": 1, "ms": 10**3, "us": 10**6, "ns": 10**9}
+
+
+def datetime_seconds(s: pd.Series, source: str = "<log>",
+                     rows: Mapping[str, Any] | None = None) -> np.ndarray:
+    """Date-times as float seconds since 1970-01-01 UTC; durations as float seconds.
+
+    Accepts datetime64 of any resolution (s, ms, us, ns), time-zone aware (converted to UTC)
+    or naive (taken as UTC), timedelta64, and ISO 8601 text (``2024-01-01T00:00:00.1``, with
+    an optional ``Z`` or ``+02:00`` offset; naive text is taken as UTC).  The whole seconds and
+    the fraction are converted separately, so nothing below the stored resolution is lost
+    before the float cast (float64 keeps about 0.2 us at today's epoch seconds).  Missing
+    values become NaN; a text value that is not a date-time is an error naming its line.
+
+    Parameters
+    ----------
+    s : Series
+        The column.
+    source : str
+        File name quoted in errors.
+    rows : mapping, optional
+        Where the rows are in the file (see :func:`row_location`).
+
+    Returns
+    -------
+    ndarray of float64
+        Seconds.
+    """
+    if pd.api.types.is_timedelta64_dtype(s.dtype):
+        arr = s.to_numpy()
+    else:
+        if not pd.api.types.is_datetime64_any_dtype(s.dtype):
+            parsed = pd.to_datetime(s, format="ISO8601", utc=True, errors="coerce")
+            bad = parsed.isna().to_numpy() & _filled(s)
+            if bad.any():
+                i = int(np.flatnonzero(bad)[0])
+                raise InputError(
+                    f"{source}: column 'time', {row_location(rows, i)}: value"
+                    f" {str(s.iloc[i])!r} is not an ISO 8601 date-time like the rows before it;"
+                    " fix the value")
+            s = parsed
+        if isinstance(s.dtype, pd.DatetimeTZDtype):
+            s = s.dt.tz_convert("UTC").dt.tz_localize(None)
+        arr = s.to_numpy()
+    unit, count = np.datetime_data(arr.dtype)
+    if unit not in _TICKS_PER_S or count != 1:
+        kind = "m8" if arr.dtype.kind == "m" else "M8"
+        arr, unit = arr.astype(f"{kind}[ns]"), "ns"
+    per = _TICKS_PER_S[unit]
+    ticks = arr.view(np.int64)
+    out = (ticks // per).astype(np.float64) + (ticks % per) / per
+    out[np.isnat(arr)] = np.nan
+    log.info("%s: column 'time' holds %s: converted to seconds%s", source,
+             "durations" if arr.dtype.kind == "m" else "date-times",
+             "" if arr.dtype.kind == "m" else " since 1970-01-01 UTC")
+    return out
 
 
 def convert_units(
@@ -755,9 +1180,11 @@ def read_log(
 ) -> pd.DataFrame:
     """Read a survey log into canonical columns and validate it.
 
-    Steps: read the table (CSV by default), rename through ``columns``, check that the
-    ``required`` columns exist, convert canonical columns to numbers (an unparseable cell is an
-    error naming its column and line), convert units when asked, drop exact duplicate rows and
+    Steps: read the table (CSV by default; a column name used twice is an error), rename
+    through ``columns``, check that the ``required`` columns exist, convert canonical columns
+    to numbers (an unparseable cell is an error naming its column and its line in the file, or
+    its row / sample for Parquet / HDF5; a ``time`` of ISO 8601 or datetime values becomes
+    seconds since 1970-01-01 UTC), convert units when asked, drop exact duplicate rows and
     check that ``time`` is strictly increasing.  All other rows and columns are kept.
 
     Parameters
@@ -785,6 +1212,8 @@ def read_log(
     if not p.exists():
         raise InputError(f"{source}: file not found")
     df = _read_table(p, fmt)
+    rows = df.attrs.pop(ROWS_ATTR, None)
+    check_unique_names([str(c) for c in df.columns], source, what="table")
     df = apply_column_map(df, columns, source=source)
     missing = [c for c in required if c not in df.columns]
     if missing:
@@ -796,12 +1225,14 @@ def read_log(
     if len(df) < min_rows:
         raise InputError(f"{source}: only {len(df)} data row(s); need at least {min_rows}")
     present = [c for c in NUMERIC_COLUMNS if c in df.columns]
-    df = _to_numeric(df, present, source)
+    df = _to_numeric(df, present, source, rows)
     df = convert_units(df, units, source=source)
     n_read = len(df)
     plain = df.attrs.pop("_plain_csv_columns", None)
+    if df.attrs.pop("_time_converted", False):
+        plain = None  # the time column is no longer the file's text
     if "time" in df.columns:
-        df = _clean_time(df, source)
+        df = _clean_time(df, source, rows)
     if len(df) < min_rows:
         raise InputError(f"{source}: only {len(df)} usable row(s); need at least {min_rows}")
     df.attrs.pop("_plain_csv_columns", None)
@@ -812,13 +1243,15 @@ def read_log(
     return df
 
 
-def _clean_time(df: pd.DataFrame, source: str) -> pd.DataFrame:
+def _clean_time(df: pd.DataFrame, source: str,
+                rows: Mapping[str, Any] | None = None) -> pd.DataFrame:
     """Drop exact duplicate rows; require a finite, strictly increasing ``time``."""
     t = df["time"].to_numpy(dtype=np.float64)
     bad = ~np.isfinite(t)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise InputError(f"{source}: column 'time', line {i + 2}: empty or non-finite time")
+        raise InputError(f"{source}: column 'time', {row_location(rows, i)}: empty or"
+                         " non-finite time; fix or remove the row")
     dup = np.zeros(len(df), dtype=bool)
     same_t = np.r_[False, t[1:] == t[:-1]]
     if same_t.any():
@@ -834,9 +1267,10 @@ def _clean_time(df: pd.DataFrame, source: str) -> pd.DataFrame:
     if (dt <= 0).any():
         i = int(np.flatnonzero(dt <= 0)[0]) + 1
         # Report the line in the original file.
-        orig = np.flatnonzero(~dup)[i] if dup.any() else i
+        orig = int(np.flatnonzero(~dup)[i]) if dup.any() else i
         raise InputError(
-            f"{source}: column 'time', line {orig + 2}: time {t[i]!r} is not after {t[i - 1]!r};"
-            " time must be strictly increasing (sort the log or fix the row)"
+            f"{source}: column 'time', {row_location(rows, orig)}: time {plain_number(t[i])} is"
+            f" not after {plain_number(t[i - 1])}; time must be strictly increasing (sort the log"
+            " or fix the row)"
         )
     return df
