@@ -47,8 +47,10 @@ from .io import (
     _floats_as_pandas_text,
     apply_column_map,
     atomic_path,
+    check_unique_names,
     convert_units,
     json_path_for,
+    numeric_values,
     write_arrow_csv,
     write_json,
 )
@@ -84,14 +86,29 @@ def iter_batches(path: Path, fmt: str | None, columns: list[str] | None = None,
         import pyarrow.csv as pacsv
 
         header = _csv_header_names(path)
+        check_unique_names([c.strip() for c in header], str(path))
         types = {c: pa.float64() for c in header if c.strip() in NUMERIC_COLUMNS}
         avg = max(16, path.stat().st_size // max(1, _count_lines_estimate(path)))
-        ro = pacsv.ReadOptions(block_size=int(min(max(avg * batch_rows, 1 << 20), 1 << 30)))
-        co = pacsv.ConvertOptions(column_types=types, include_columns=columns)
+        block = int(min(max(avg * batch_rows, 1 << 20), 1 << 30))
+        # A logger that ends every row with the delimiter: read the empty extra field under a
+        # name of its own, check it stays empty, drop it (as read_log does).
+        extra = _trailing_field(path, len(header))
+        names = header + ([_EXTRA] if extra else [])
+        ro = pacsv.ReadOptions(block_size=block, column_names=names, skip_rows=1)
+        keep = None if columns is None else list(columns) + ([_EXTRA] if extra else [])
+        co = pacsv.ConvertOptions(column_types=types, include_columns=keep)
         try:
             reader = pacsv.open_csv(path, read_options=ro, convert_options=co)
             for rb in reader:
                 df = rb.to_pandas()
+                if extra:
+                    bad = df[_EXTRA].notna().to_numpy()
+                    if bad.any():
+                        raise InputError(
+                            f"{path}: a row has a value after the last column of the header"
+                            f" (data row {int(np.flatnonzero(bad)[0]) + 1} of a chunk); fix"
+                            " the row, or run without --chunk-rows for the exact line")
+                    df = df.drop(columns=_EXTRA)
                 df.columns = [str(c).strip() for c in df.columns]
                 yield df
         except pa.ArrowInvalid as exc:
@@ -112,6 +129,19 @@ def iter_batches(path: Path, fmt: str | None, columns: list[str] | None = None,
             df = df[[c for c in columns if c in df.columns]]
         for a in range(0, len(df), batch_rows):
             yield df.iloc[a:a + batch_rows].reset_index(drop=True)
+
+
+_EXTRA = "\x00extra"
+
+
+def _trailing_field(path: Path, n_header: int) -> bool:
+    """Whether the first data row has one field more than the header, and it is empty."""
+    import csv
+
+    with open(path, encoding="utf-8", errors="replace", newline="") as fh:
+        fh.readline()
+        row = next(csv.reader([fh.readline()]), [])
+    return len(row) == n_header + 1 and not row[-1].strip()
 
 
 def _csv_header_names(path: Path) -> list[str]:
@@ -272,7 +302,9 @@ def apply_model_chunked(
         df = apply_column_map(df, colmap, source=source) if colmap else df
         for c in (c for c in NUMERIC_COLUMNS if c in df.columns):
             if df[c].dtype != np.float64 and c not in ("line", "leg"):
-                df[c] = pd.to_numeric(df[c], errors="coerce").astype(np.float64)
+                df[c] = numeric_values(df[c], source, colmap.get(c, c), None,
+                                       remedy="fix the value (run without --chunk-rows for"
+                                       " the exact line)")
         return convert_units(df, units, source=source) if units else df
 
     def src_cols(names: list[str]) -> list[str]:

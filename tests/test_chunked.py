@@ -87,3 +87,27 @@ def test_median_and_overlap():
     n10 = overlap_rows(10.0, CompensationConfig())
     n1k = overlap_rows(1000.0, CompensationConfig())
     assert 100 < n10 < n1k  # the context grows with the samples per filter time constant
+
+
+def test_chunked_reads_trailing_delimiters_and_refuses_duplicate_names(tmp_path):
+    from aeromag.compensate import calibrate_file
+    from aeromag.errors import InputError
+
+    df, _ = hand_flight(n=6000)
+    df = df.drop(columns=["truth_mag_tl", "truth_clean"])
+    src = tmp_path / "log.csv"
+    df.to_csv(src, index=False)
+    lines = src.read_text().splitlines()
+    trail = tmp_path / "trail.csv"
+    trail.write_text("\n".join([lines[0]] + [ln + "," for ln in lines[1:]]) + "\n")
+    dup = tmp_path / "dup.csv"
+    dup.write_text("\n".join([lines[0].replace("flux_z", "mag")] + lines[1:]) + "\n")
+    calibrate_file(src, tmp_path / "m.json")
+    apply_model_chunked(src, tmp_path / "a.csv", tmp_path / "m.json", chunk_rows=1000)
+    apply_model_chunked(trail, tmp_path / "b.csv", tmp_path / "m.json", chunk_rows=1000)
+    a = pd.read_csv(tmp_path / "a.csv")
+    b = pd.read_csv(tmp_path / "b.csv")
+    pd.testing.assert_frame_equal(a, b)
+    with pytest.raises(InputError, match="appears twice"):
+        apply_model_chunked(dup, tmp_path / "c.csv", tmp_path / "m.json", chunk_rows=1000)
+    assert not (tmp_path / "c.csv").exists()
