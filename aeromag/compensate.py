@@ -632,11 +632,16 @@ def fit_model(
     cv_resid = cv_segs["cv_residual_std_nT"].to_numpy()
     n_fit = int(stats.n[kept].sum())
     sse = float(stats.yy[kept].sum() - 2 * coef_fit @ b + coef_fit @ G @ coef_fit)
+    # "n" counts the segment's samples in the log (as when a saved model is applied);
+    # "n_fit" those its fit used (valid, filterable, filter edges trimmed).
+    all_ids, all_n = segment_counts(prep.segment)
+    n_of = dict(zip(all_ids.tolist(), all_n.tolist(), strict=True))
     segments = []
     for j, sid in enumerate(stats.ids):
         entry: dict[str, Any] = {
             "id": int(sid),
-            "n": int(stats.n[j]),
+            "n": int(n_of.get(int(sid), 0)),
+            "n_fit": int(stats.n[j]),
             "kept": bool(kept[j]),
             "scores": screen.scores[j].tolist() if screen is not None else None,
             "residual_std": float(resid[j]),
@@ -650,7 +655,8 @@ def fit_model(
             entry["residual_excess"] = float(excess[j])
         segments.append(entry)
     for sid, cnt in sorted(stats.too_short.items()):
-        segments.append({"id": sid, "n": cnt, "kept": False, "scores": None,
+        segments.append({"id": sid, "n": int(n_of.get(int(sid), 0)), "n_fit": cnt,
+                         "kept": False, "scores": None,
                          "residual_std": None, "condition_number": None,
                          "reason": "too short to fit"})
     segments.sort(key=lambda e: e["id"])
