@@ -129,3 +129,23 @@ def test_pca_screen_flags_an_obvious_outlier_and_reports_80_percent():
     r = pca_screen(X)
     assert not r.kept[5] and r.kept.sum() >= 26
     assert np.cumsum(r.explained_variance_ratio)[r.n_components - 1] >= 0.8 or r.notes
+
+
+def test_a_clean_segment_dropped_beside_a_fault_is_readmitted():
+    """The loop judges a dropped segment by a pool without it, so a clean segment sharing a
+    heading with a fault could never come back; re-admission judges it in-sample, like the
+    kept ones (here segment 16 was dropped with the on-board source of segment 4)."""
+    df, truth = simulate_calibration(seed=7, rate_hz=10, faults={4: "onboard_source"})
+    rep = compensate(df).report
+    assert rep["screening"]["dropped"] == [4] == [f["segment"] for f in truth["faults"]]
+    assert rep["screening"]["readmitted"] == [16]
+    seg = {s["id"]: s for s in rep["segments"]}
+    assert seg[16]["kept"] and seg[16]["readmitted"] and seg[16]["pca_outlier"]
+
+
+def test_readmission_never_brings_back_a_fault():
+    """Every faulty segment of every kind on several seeds: none is re-admitted."""
+    for seed in (1, 6, 11, 13):
+        df, truth = simulate_calibration(seed=seed, rate_hz=10, faults=0.2)
+        rep = compensate(df).report["screening"]
+        assert not set(rep["readmitted"]) & {f["segment"] for f in truth["faults"]}, seed
