@@ -1,6 +1,10 @@
 """Zero-phase Butterworth filters that never run across a time gap.
 
-Filters come from :mod:`scipy.signal` (``butter`` in second-order sections, ``sosfiltfilt``).
+Filters come from :mod:`scipy.signal`: ``butter`` in second-order sections, and
+``sosfiltfilt``'s method (odd extension, steady-state initial conditions, forward and backward
+passes) run on scipy's own section kernel without the wrapper's copies
+(:func:`zero_phase_rows`, bitwise equal to ``sosfiltfilt``).  Many rows are filtered on a
+thread pool (:func:`parallel_map`; the kernel releases the GIL).
 Every function takes stretch labels (see :func:`aeromag.segments.find_stretches`): each
 continuous stretch is filtered on its own, and a stretch too short for the filter is left NaN.
 """
