@@ -353,7 +353,7 @@ def write_arrow_csv(table: Any, fh: Any, quoting: str = "none",
 
 
 #: Bytes of the input read per block when its lines are copied into the output.
-PASSTHROUGH_BLOCK_BYTES = 8 << 20
+PASSTHROUGH_BLOCK_BYTES = 2 << 20
 
 
 def _line_blocks(fin: Any) -> Iterator[bytes]:

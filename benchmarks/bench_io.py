@@ -1,7 +1,7 @@
 """In ONE run, at each size: (a) the CSV I/O floor, (b) ``aeromag compensate`` end to end,
 (b') ``aeromag compensate --model`` end to end, (c) the numerics in memory (self-calibration:
 fit + screening + apply); plus the chunked ``--model`` path.  Reports samples/s, (b)/(a)
-and peak memory (each measurement in a fresh process; peak RSS from ``getrusage``).
+and peak memory (each measurement in a fresh process; peak RSS from ``VmHWM``).
 
 Run: ``python benchmarks/bench_io.py --sizes 1e5 1e6 1e7 --dir /tmp/aeromag-bench``.
 """
@@ -116,7 +116,10 @@ def run(kind: str, src: Path, out: Path, model: Path | None) -> dict:
         T0 = time.perf_counter()
     """) + textwrap.dedent(CHILD[kind]) + textwrap.dedent("""
         dt = time.perf_counter() - T0
-        rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+        # Peak RSS of this address space (VmHWM): getrusage's ru_maxrss survives execve on
+        # Linux, so it would report the parent's peak whenever that was larger.
+        with open("/proc/self/status") as fh:
+            rss = next(int(ln.split()[1]) for ln in fh if ln.startswith("VmHWM:")) * 1024
         print(json.dumps({"s": dt, "rss": rss}))
     """)
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
