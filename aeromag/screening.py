@@ -15,11 +15,18 @@ aeromag's rule for "outside the main cluster" is robust and documented:
   toward the outliers it must find;
 * a segment is dropped when its **robust squared Mahalanobis distance** exceeds the
   chi-square quantile ``chi2.ppf(quantile, n_components)`` (default quantile 0.975);
-* an outlier is dropped only when it also *matters*: the pooled fit leaves it a band-passed
-  residual std above ``min_excess`` (default 1.5) times the median segment's.  With low
-  noise, clean segments differ in ways that are statistically significant yet harmless;
+* an outlier is dropped only when it also *matters* (:func:`material`): the pooled fit leaves
+  it a band-passed residual std above ``min_excess`` (default 1.5) times the median segment's
+  (and 0.01 nT above it), and so does the part of that residual its own TL fit removes
+  (:func:`own_fit_excess`; geology is removed by no TL fit, so a clean line over strong
+  anomalies is not material), unless the residual is 10 times the median.  With low noise,
+  clean segments differ in ways that are statistically significant yet harmless;
+* with few segments a fault can mask itself in the score plot: the worst PCA inlier whose
+  pooled residual is 2.5 times the median and own-fit excess 4 times its median is dropped
+  too (:func:`masked_outlier`, one per round);
 * the pipeline repeats pool -> shrunk fits -> PCA -> MCD on the kept set's pool until the kept
-  set no longer changes.
+  set no longer changes, then re-admits dropped segments that the pool including them finds
+  not material.
 """
 
 from __future__ import annotations
@@ -36,7 +43,12 @@ log = logging.getLogger(__name__)
 RULE = (
     "robust squared Mahalanobis distance (MinCovDet) of the segment's PCA scores, components up"
     " to the cumulative explained-variance threshold, above the chi-square quantile, and"
-    " pooled-fit residual std above min_excess times the median segment's"
+    " material: pooled-fit residual std above min_excess times the median segment's (and"
+    " min_excess_nT above it), and so its own-fit excess sqrt(r_pool^2 - r_own^2) unless the"
+    " residual is gross_excess times the median; a PCA inlier is dropped when its residual"
+    " exceeds inlier_excess and its own-fit excess inlier_own_excess times their medians (the"
+    " worst, one per round); iterated, then dropped segments that the pool including them"
+    " finds not material are re-admitted"
 )
 
 
@@ -113,9 +125,9 @@ def shrunk_segment_fits(
         Per-segment ``A_s' y_s``.
     n : ndarray, shape (m,)
         Samples per segment.
-    pooled : ndarray, shape (k,)
-        Pooled coefficients ``c0``.
-    column_ms : ndarray, shape (k,)
+    pooled : ndarray, shape (k,) or (m, k)
+        Pooled coefficients ``c0`` (one pool for all, or one per segment).
+    column_ms : ndarray, shape (k,) or (m, k)
         Mean square of each band-passed term over the pooled data.
     alpha : float
         Shrinkage strength (0 = plain per-segment least squares).
@@ -126,13 +138,110 @@ def shrunk_segment_fits(
         Coefficients per segment.
     """
     k = gram.shape[-1]
-    pen = alpha * n[:, None, None] * (np.eye(k) * column_ms)[None]
-    resid_rhs = rhs - np.einsum("mij,j->mi", gram, pooled)
+    c0 = np.broadcast_to(pooled, rhs.shape)
+    ms = np.broadcast_to(column_ms, rhs.shape)
+    pen = alpha * n[:, None, None] * (np.eye(k)[None] * ms[:, None, :])
+    resid_rhs = rhs - np.einsum("mij,mj->mi", gram, c0)
     lhs = gram + pen
     if alpha <= 0:
         lhs = lhs + 1e-12 * np.trace(gram, axis1=1, axis2=2)[:, None, None] * np.eye(k)
     delta = np.linalg.solve(lhs, resid_rhs[..., None])[..., 0]
-    return pooled[None, :] + delta
+    return c0 + delta
+
+
+def own_fit_excess(r_pool: np.ndarray, r_own: np.ndarray) -> np.ndarray:
+    """The part of a segment's pooled-fit residual that its own TL coefficients remove [nT].
+
+    ``E = sqrt(max(r_pool^2 - r_own^2, 0))`` with ``r_own`` the band-passed residual under
+    the segment's own (shrunk) fit.  Geology and diurnal in the band are uncorrelated with the
+    TL terms, so no TL fit removes them: a line over strong anomalies has a large pooled
+    residual but a small ``E``.  A fault that looks like aircraft interference (an on-board
+    source, a fluxgate bias) or that the segment's fit partly absorbs has a large ``E``.
+
+    Parameters
+    ----------
+    r_pool, r_own : ndarray, shape (m,)
+        Band-passed residual std per segment under the pooled fit and under its own fit [nT].
+
+    Returns
+    -------
+    ndarray, shape (m,)
+        ``E`` [nT].
+    """
+    return np.sqrt(np.maximum(r_pool**2 - r_own**2, 0.0))
+
+
+def _excess(x: np.ndarray, ref: np.ndarray, ratio: float, floor_nT: float) -> np.ndarray:
+    """``x`` above ``ratio`` times the median of ``x[ref]`` and above it by ``floor_nT``."""
+    med = float(np.median(x[ref]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = x / med if med > 0 else np.where(x > 0, np.inf, 0.0)
+    return (rel > ratio) & (x - med > floor_nT)
+
+
+def material(r_pool: np.ndarray, excess: np.ndarray, ref: np.ndarray, *, min_excess: float,
+             min_excess_nT: float, gross_excess: float) -> np.ndarray:
+    """The materiality guard: segments whose fault would matter to the compensation.
+
+    Material means the pooled fit leaves the segment a residual above ``min_excess`` times
+    the median of the reference (kept) segments and above it by ``min_excess_nT``, **and**
+    the same holds for its own-fit excess :func:`own_fit_excess` (so a line that is merely
+    over strong geology is not material), unless the residual is ``gross_excess`` times the
+    median (a noise burst so large that its own fit absorbs little of it).
+
+    Parameters
+    ----------
+    r_pool : ndarray, shape (m,)
+        Band-passed residual std under the pooled fit [nT].
+    excess : ndarray, shape (m,)
+        Own-fit excess ``E`` [nT].
+    ref : ndarray of bool, shape (m,)
+        Segments whose medians are the reference (the kept set).
+    min_excess, min_excess_nT, gross_excess : float
+        Ratio to the median, floor above it [nT], ratio that is material by itself.
+
+    Returns
+    -------
+    ndarray of bool, shape (m,)
+    """
+    by_pool = _excess(r_pool, ref, min_excess, min_excess_nT)
+    by_own = _excess(excess, ref, min_excess, min_excess_nT)
+    gross = r_pool / max(float(np.median(r_pool[ref])), 1e-300) > gross_excess
+    return by_pool & (by_own | gross)
+
+
+def masked_outlier(r_pool: np.ndarray, excess: np.ndarray, inlier: np.ndarray, ref: np.ndarray,
+                   *, residual_ratio: float, own_ratio: float, min_excess_nT: float
+                   ) -> int | None:
+    """The one PCA inlier that the residuals show to be faulty, if any (index or None).
+
+    With few segments (8 survey lines give one or two components) one fault can mask itself in
+    the score plot.  Among the segments inside the main cluster, those whose pooled residual is
+    ``residual_ratio`` times the median **and** whose own-fit excess is ``own_ratio`` times
+    its median (both by ``min_excess_nT`` at least) are candidates; the worst by own-fit excess
+    is returned (one per screening round).
+
+    Parameters
+    ----------
+    r_pool, excess : ndarray, shape (m,)
+        Pooled-fit residual and own-fit excess per segment [nT].
+    inlier : ndarray of bool, shape (m,)
+        Inside the PCA main cluster.
+    ref : ndarray of bool, shape (m,)
+        Reference (kept) segments for the medians.
+    residual_ratio, own_ratio, min_excess_nT : float
+        Thresholds.
+
+    Returns
+    -------
+    int or None
+    """
+    cand = inlier & _excess(r_pool, ref, residual_ratio, min_excess_nT) & _excess(
+        excess, ref, own_ratio, min_excess_nT)
+    if not cand.any():
+        return None
+    idx = np.flatnonzero(cand)
+    return int(idx[np.argmax(excess[idx])])
 
 
 def pca_screen(
