@@ -46,6 +46,7 @@ from .filters import (
     min_filter_length,
     piece_normal_equations,
     sampling_rate,
+    submit,
     trim_mask,
 )
 from .io import (
@@ -885,6 +886,18 @@ def _apply(
     if release_flux:
         prep.flux = None  # type: ignore[assignment]
     comp = np.subtract(prep.mag, mag_tl)
+    # The metrics band-pass mag over the stretches where mag_comp is finite, which are known
+    # now (the low-pass keeps finiteness inside stretches): mag is filtered on a pool thread
+    # while mag_comp is low-passed here.
+    valid_st = prep.stretch >= 0
+    fin = np.isfinite(comp)
+    st_m = prep.stretch if fin[valid_st].all() else find_stretches(t, fin & valid_st,
+                                                                    cfg.max_gap_s)
+    del fin, valid_st
+    sos_band = butter_sos("bandpass", cfg.band_hz, prep.fs, cfg.order)
+    mag_bp_future = submit(
+        lambda: filter_stretches(np.asarray(prep.mag, dtype=np.float64)[None, :], st_m,
+                                 sos_band, axis=1)[0])
     seg = prep.segment
     if kept_segments is None:
         kept = np.ones(len(seg), dtype=bool)  # a saved model: every sample counts as kept
@@ -914,7 +927,8 @@ def _apply(
                                             missing)
     out["segment_kept"] = kept
     metrics, comp_bp = _band_metrics(prep.mag, comp_out, t, prep.stretch, cfg, kept=kept,
-                                     fs_hz=prep.fs)
+                                     fs_hz=prep.fs, stretch_bp=st_m,
+                                     mag_bp=mag_bp_future.result())
     return out, metrics, comp_bp
 
 
@@ -950,15 +964,25 @@ def compensation_metrics(
 def _band_metrics(
     mag: np.ndarray, mag_comp: np.ndarray, time_s: np.ndarray, stretch: np.ndarray,
     cfg: CompensationConfig, kept: np.ndarray | None = None, fs_hz: float | None = None,
+    stretch_bp: np.ndarray | None = None, mag_bp: np.ndarray | None = None,
 ) -> tuple[dict[str, Any], np.ndarray]:
-    """:func:`compensation_metrics` and the band-passed ``mag_comp`` it used (NaN outside)."""
+    """:func:`compensation_metrics` and the band-passed ``mag_comp`` it used (NaN outside).
+
+    ``stretch_bp`` and ``mag_bp``, when given, are the stretches of finite ``mag_comp`` and
+    ``mag`` already band-passed over them (computed here otherwise)."""
     fs = sampling_rate(time_s) if fs_hz is None else fs_hz
     sos = butter_sos("bandpass", cfg.band_hz, fs, cfg.order)
-    fin = np.isfinite(mag_comp)
-    # Re-label so a NaN inside a stretch splits it (filters never run over NaN).
-    st = stretch if fin[stretch >= 0].all() else find_stretches(
-        time_s, fin & (stretch >= 0), cfg.max_gap_s)
-    if len(mag) > 2_000_000:  # one at a time: each filter's temporaries are 3 x the series
+    if stretch_bp is not None:
+        st = stretch_bp
+    else:
+        fin = np.isfinite(mag_comp)
+        # Re-label so a NaN inside a stretch splits it (filters never run over NaN).
+        st = stretch if fin[stretch >= 0].all() else find_stretches(
+            time_s, fin & (stretch >= 0), cfg.max_gap_s)
+    if mag_bp is not None:
+        comp_bp = filter_stretches(np.asarray(mag_comp, dtype=np.float64)[None, :], st, sos,
+                                   axis=1)[0]
+    elif len(mag) > 2_000_000:  # one at a time: each filter's temporaries are 3 x the series
         mag_bp = filter_stretches(np.asarray(mag, dtype=np.float64)[None, :], st, sos,
                                   axis=1)[0]
         comp_bp = filter_stretches(np.asarray(mag_comp, dtype=np.float64)[None, :], st, sos,
@@ -971,22 +995,65 @@ def _band_metrics(
     if use.sum() < 10:
         use = fin
     out: dict[str, Any] = {"n_samples": int(use.sum())}
-    before = float(np.std(mag_bp[use])) if use.any() else float("nan")
-    after = float(np.std(comp_bp[use])) if use.any() else float("nan")
+    before = masked_std(mag_bp, use)
+    after = masked_std(comp_bp, use)
     out["std_before_nT"] = before
     out["residual_std_nT"] = after
     out["improvement_ratio"] = before / after if after > 0 else float("nan")
     if kept is not None:
-        uk = use & kept
+        uk = use if kept.all() else use & kept
         if uk.any():
-            b2 = float(np.std(mag_bp[uk]))
-            a2 = float(np.std(comp_bp[uk]))
+            b2 = before if uk is use else masked_std(mag_bp, uk)
+            a2 = after if uk is use else masked_std(comp_bp, uk)
             out["kept_std_before_nT"] = b2
             out["kept_residual_std_nT"] = a2
             out["kept_improvement_ratio"] = b2 / a2 if a2 > 0 else float("nan")
     out["band_hz"] = list(cfg.band_hz)
     comp_bp[~use] = np.nan
     return out, comp_bp
+
+
+def masked_std(x: np.ndarray, mask: np.ndarray) -> float:
+    """``np.std(x[mask])`` without the copy: moments over the mask's runs of True.
+
+    A trimmed band-pass mask is a few long runs (the stretches minus their edges), so the
+    runs are summed as slices (sums and dot products, no temporaries); equal to ``np.std`` to
+    rounding.  A mask of many short runs is indexed as usual.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+        Samples.
+    mask : ndarray of bool, shape (n,)
+        Samples to use.
+
+    Returns
+    -------
+    float
+        Population standard deviation (NaN when the mask is empty).
+    """
+    m = np.asarray(mask, dtype=bool)
+    if m.size == 0:
+        return float("nan")
+    step = np.diff(m.view(np.int8))
+    starts = np.flatnonzero(step == 1) + 1
+    stops = np.flatnonzero(step == -1) + 1
+    if m[0]:
+        starts = np.r_[0, starts]
+    if m[-1]:
+        stops = np.r_[stops, len(m)]
+    cnt = int((stops - starts).sum())
+    if cnt == 0:
+        return float("nan")
+    if len(starts) > 1000:
+        return float(np.std(x[m]))
+    runs = list(zip(starts.tolist(), stops.tolist(), strict=True))
+    mean = sum(float(x[a:b].sum()) for a, b in runs) / cnt
+    s2 = sum(float(x[a:b] @ x[a:b]) for a, b in runs)
+    if mean * mean > 1e-6 * s2 / cnt:  # far from zero mean: deviations, not raw squares
+        return float(np.sqrt(sum(float(((x[a:b] - mean) ** 2).sum()) for a, b in runs) / cnt))
+    # Band-passed data are centred: the raw second moment loses nothing to cancellation.
+    return float(np.sqrt(max(s2 / cnt - mean * mean, 0.0)))
 
 
 def compensate(

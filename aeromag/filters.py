@@ -15,7 +15,7 @@ import logging
 import os
 import threading
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
@@ -241,6 +241,23 @@ def parallel_map(fn: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
         return [fn(i) for i in items]
     _kernel()  # scipy.signal imported here, never by two pool threads at once
     return list(_pool().map(fn, items))
+
+
+def submit(fn: Callable[..., Any], *args: Any) -> Future:
+    """Run ``fn(*args)`` on the filter thread pool and return its future.
+
+    Runs it at once on the calling thread (and returns a finished future) when threads are
+    off or when called from a pool thread, so a pool thread never waits on its own pool.
+    """
+    if FILTER_THREADS < 2 or getattr(_WORKER, "busy", False):
+        fut: Future = Future()
+        try:
+            fut.set_result(fn(*args))
+        except BaseException as exc:  # noqa: BLE001 - handed to whoever takes the result
+            fut.set_exception(exc)
+        return fut
+    _kernel()
+    return _pool().submit(fn, *args)
 
 
 def pad_length(sos: np.ndarray) -> int:

@@ -287,3 +287,24 @@ def test_output_named_like_its_report_is_refused(tmp_path, flight):
     with pytest.raises(InputError, match="must not end in .json"):
         compensate_file(src, tmp_path / "out.json")
     assert not (tmp_path / "out.json").exists()
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_masked_std_equals_numpy_on_any_mask(seed):
+    from aeromag.compensate import masked_std
+
+    rng = np.random.default_rng(seed)
+    for _ in range(60):
+        n = int(rng.integers(1, 400))
+        x = rng.normal(rng.choice([0.0, 5e4]), rng.uniform(0.001, 10), n)
+        if rng.random() < 0.5:
+            m = rng.random(n) < rng.uniform(0, 1)
+        else:
+            m = np.zeros(n, bool)
+            a, b = sorted(rng.integers(0, n + 1, 2))
+            m[a:b] = True
+        got = masked_std(x, m)
+        if not m.any():
+            assert np.isnan(got)
+        else:
+            assert got == pytest.approx(np.std(x[m]), rel=1e-9, abs=1e-12)
