@@ -189,8 +189,8 @@ def _kernel() -> Any:
     """scipy's in-place second-order-section kernel (``scipy.signal._sosfilt._sosfilt``).
 
     :func:`zero_phase_rows` calls it directly: scipy's public ``sosfiltfilt`` wraps the same
-    kernel in copies and axis moves that cost as much again as the filtering itself.  None when
-    this scipy does not have it (the public function is then used).
+    kernel in copies and axis moves (about a quarter of its time on rows of 600-6000 samples).
+    None when this scipy does not have it (the public function is then used).
     """
     global _KERNEL
     if _KERNEL is False:
@@ -270,7 +270,8 @@ def zero_phase_rows(sos: np.ndarray, x: np.ndarray) -> np.ndarray:
 
     The same steps as scipy's function (odd extension of ``3 * ntaps`` samples, initial
     conditions ``sosfilt_zi * first sample``, a forward and a backward pass with scipy's own
-    kernel), with two copies fewer: about twice as fast on short rows.
+    kernel), with two copies fewer: 15 against 20 ns per sample and row on rows of 600
+    samples, 13.5 against 18.5 on rows of 6000 (this machine).
 
     Parameters
     ----------
