@@ -41,9 +41,11 @@ from .compensate import CompensationConfig, _config_dict, check_outputs
 from .errors import InputError
 from .filters import butter_sos, filter_stretches, min_filter_length
 from .io import (
+    _EXTRA_FIELD,
     FLUX_COLUMNS,
     NUMERIC_COLUMNS,
     _csv_header,
+    _first_data_fields,
     _floats_as_pandas_text,
     apply_column_map,
     atomic_path,
@@ -93,22 +95,22 @@ def iter_batches(path: Path, fmt: str | None, columns: list[str] | None = None,
         # A logger that ends every row with the delimiter: read the empty extra field under a
         # name of its own, check it stays empty, drop it (as read_log does).
         extra = _trailing_field(path, len(header))
-        names = header + ([_EXTRA] if extra else [])
+        names = header + ([_EXTRA_FIELD] if extra else [])
         ro = pacsv.ReadOptions(block_size=block, column_names=names, skip_rows=1)
-        keep = None if columns is None else list(columns) + ([_EXTRA] if extra else [])
+        keep = None if columns is None else list(columns) + ([_EXTRA_FIELD] if extra else [])
         co = pacsv.ConvertOptions(column_types=types, include_columns=keep)
         try:
             reader = pacsv.open_csv(path, read_options=ro, convert_options=co)
             for rb in reader:
                 df = rb.to_pandas()
                 if extra:
-                    bad = df[_EXTRA].notna().to_numpy()
+                    bad = df[_EXTRA_FIELD].notna().to_numpy()
                     if bad.any():
                         raise InputError(
                             f"{path}: a row has a value after the last column of the header"
                             f" (data row {int(np.flatnonzero(bad)[0]) + 1} of a chunk); fix"
                             " the row, or run without --chunk-rows for the exact line")
-                    df = df.drop(columns=_EXTRA)
+                    df = df.drop(columns=_EXTRA_FIELD)
                 df.columns = [str(c).strip() for c in df.columns]
                 yield df
         except pa.ArrowInvalid as exc:
@@ -131,17 +133,10 @@ def iter_batches(path: Path, fmt: str | None, columns: list[str] | None = None,
             yield df.iloc[a:a + batch_rows].reset_index(drop=True)
 
 
-_EXTRA = "\x00extra"
-
-
 def _trailing_field(path: Path, n_header: int) -> bool:
     """Whether the first data row has one field more than the header, and it is empty."""
-    import csv
-
-    with open(path, encoding="utf-8", errors="replace", newline="") as fh:
-        fh.readline()
-        row = next(csv.reader([fh.readline()]), [])
-    return len(row) == n_header + 1 and not row[-1].strip()
+    first = _first_data_fields(path, 1)
+    return first is not None and len(first[0]) == n_header + 1 and not first[0][-1].strip()
 
 
 def _csv_header_names(path: Path) -> list[str]:
