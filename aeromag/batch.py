@@ -330,9 +330,7 @@ def _refuse_overwriting_inputs(sources: Sequence[tuple[Path, str]],
         o = existing.get((st.st_dev, st.st_ino))
         if o is None:
             continue
-        if kind == "log":
-            check_outputs(src, o)
-        raise InputError(f"{src}: -o would overwrite the {kind} with {o.name}; choose another -o")
+        check_outputs(src, o, kind=kind)
 
 
 # --------------------------------------------------------------------------- one file

@@ -1205,15 +1205,18 @@ def segment_counts(segment: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 # --------------------------------------------------------------------------- files
-def check_outputs(source: str | os.PathLike[str], *outputs: str | os.PathLike[str]) -> None:
-    """Refuse outputs that would overwrite the input log.
+def check_outputs(source: str | os.PathLike[str], *outputs: str | os.PathLike[str],
+                  kind: str = "input log") -> None:
+    """Refuse outputs that would overwrite an input (the log, a plan, a model).
 
     Parameters
     ----------
     source : path-like
-        The input log.
+        The input file.
     *outputs : path-like
         Files about to be written (e.g. OUT.csv and OUT.json).
+    kind : str
+        What ``source`` is, for the message.
 
     Raises
     ------
@@ -1231,7 +1234,7 @@ def check_outputs(source: str | os.PathLike[str], *outputs: str | os.PathLike[st
         if not same and o.exists() and src.exists():
             same = os.path.samefile(o, src)
         if same:
-            raise InputError(f"{src}: -o {o} would overwrite the input log; choose another -o")
+            raise InputError(f"{src}: -o {o} would overwrite the {kind}; choose another -o")
 
 
 def compensate_file(

@@ -737,15 +737,8 @@ def track_file(
 
     out = Path(out_path)
     out_json = json_path_for(out)
-    if out_json == out:
-        raise InputError(f"-o {out}: the report goes to OUT.json, so OUT must not end in .json;"
-                         " give the output CSV another name, e.g. -o track.csv")
-    check_outputs(log_path, out, out_json)  # -o must never overwrite the input log
-    try:
-        check_outputs(plan_path, out, out_json)
-    except InputError:
-        raise InputError(f"{plan_path}: -o {out} would overwrite the plan; choose another -o"
-                         ) from None
+    check_outputs(log_path, out, out_json)  # not OUT.json, never over the log or the plan
+    check_outputs(plan_path, out, out_json, kind="plan")
     plan = read_plan(plan_path)
     plan.attrs["source"] = str(plan_path)
     df = read_log(log_path, columns=columns, units=units,
