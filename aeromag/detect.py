@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from ._core.angles import wrap_deg
 from .errors import InputError
 
 log = logging.getLogger(__name__)
@@ -38,23 +39,6 @@ SIGMA_FLOOR_DEG = 1e-3
 MIN_CALM_SAMPLES = 5
 
 CalmWindow = float | tuple[float, float] | str | None
-
-
-def wrap_deg(angle: np.ndarray | float) -> np.ndarray:
-    """Wrap angles to [-180, 180) degrees.
-
-    Parameters
-    ----------
-    angle : array_like
-        Angles, degrees.
-
-    Returns
-    -------
-    ndarray
-        The same angles, degrees, in [-180, 180).
-    """
-    a = np.asarray(angle, dtype=np.float64)
-    return np.mod(a + 180.0, 360.0) - 180.0
 
 
 def mag_heading_from_flux(

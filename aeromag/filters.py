@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from ._core.runs import run_bounds
 from .errors import InputError
 
 log = logging.getLogger(__name__)
@@ -111,31 +112,6 @@ def min_filter_length(sos: np.ndarray) -> int:
     ntaps = 2 * len(sos) + 1
     ntaps -= min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
     return 3 * ntaps + 1
-
-
-def run_bounds(labels: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Runs of equal, non-negative labels.
-
-    Parameters
-    ----------
-    labels : ndarray of int, shape (n,)
-        Label per sample; negative labels (invalid samples) belong to no run.
-
-    Returns
-    -------
-    starts, stops, values : ndarray
-        Half-open ``[start, stop)`` sample ranges of each run and its label.
-    """
-    lab = np.asarray(labels)
-    n = len(lab)
-    if n == 0:
-        e = np.zeros(0, dtype=np.int64)
-        return e, e, e
-    change = np.flatnonzero(np.r_[True, lab[1:] != lab[:-1]])
-    stops = np.r_[change[1:], n]
-    vals = lab[change]
-    keep = vals >= 0
-    return change[keep], stops[keep], vals[keep]
 
 
 def filter_stretches(

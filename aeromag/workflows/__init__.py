@@ -1,0 +1,1 @@
+"""File in, files out: what each command runs.  The only layer (with ``cli``) that uses ``io``."""

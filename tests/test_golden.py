@@ -1,0 +1,127 @@
+"""Golden tests: every README command on ``data_samples/`` gives the same bytes as recorded.
+
+They froze behaviour before the package was restructured (issue 10): the move must not change
+one byte of any output.  A deliberate change of an output regenerates the records with
+``AEROMAG_UPDATE_GOLDEN=1 python -m pytest tests/test_golden.py`` and says why in its commit.
+
+JSON is compared after masking what changes from run to run (creation time, version, timings).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+GOLDEN = Path(__file__).resolve().parent / "golden"
+UPDATE = os.environ.get("AEROMAG_UPDATE_GOLDEN") == "1"
+
+#: Keys whose values change between runs of the same command (masked before comparing).
+VOLATILE = {"created", "aeromag_version", "aeromag", "version", "elapsed_s", "seconds", "wall_s"}
+
+#: (name, argv, outputs to compare); paths are relative to a scratch folder holding a copy of
+#: data_samples/, so recorded JSON holds no machine-specific path.
+COMMANDS: list[tuple[str, list[str], list[str]]] = [
+    ("compensate_self", ["compensate", "data_samples/survey.csv", "-o", "out/survey_comp.csv"],
+     ["out/survey_comp.csv", "out/survey_comp.json"]),
+    ("calibrate", ["calibrate", "data_samples/calibration.csv", "-o", "out/aircraft.json"],
+     ["out/aircraft.json"]),
+    ("compensate_model", ["compensate", "data_samples/survey.csv", "--model", "out/aircraft.json",
+                          "-o", "out/survey_model.csv"],
+     ["out/survey_model.csv", "out/survey_model.json"]),
+    ("compensate_chunked", ["compensate", "data_samples/survey.csv", "--model",
+                            "out/aircraft.json", "--chunk-rows", "700", "-o",
+                            "out/survey_chunk.csv"],
+     ["out/survey_chunk.csv", "out/survey_chunk.json"]),
+    ("track", ["track", "data_samples/mission.csv", "--plan", "data_samples/mission_plan.csv",
+               "-o", "out/mission_track.csv"],
+     ["out/mission_track.csv", "out/mission_track.json"]),
+    ("batch_model", ["batch", "data_samples/survey.csv", "--model", "out/aircraft.json", "-o",
+                     "out/batch", "--workers", "1"],
+     ["out/batch/survey_comp.csv", "out/batch/survey_comp.json"]),
+    ("batch_plan", ["batch", "data_samples/survey.csv", "--plan", "data_samples/plan.csv",
+                    "-o", "out/batch_plan", "--workers", "1"],
+     ["out/batch_plan/survey_comp.csv", "out/batch_plan/survey_track.csv",
+      "out/batch_plan/survey_track.json", "out/batch_plan/batch_summary.json"]),
+    ("simulate", ["simulate", "-o", "out/sim", "--small", "--seed", "3"],
+     ["out/sim/calibration.csv", "out/sim/survey.csv", "out/sim/plan.csv",
+      "out/sim/truth.json", "out/sim/mission.csv", "out/sim/mission_plan.csv"]),
+]
+
+#: (name, argv, the start of the one-line message on stderr)
+ERRORS: list[tuple[str, list[str]]] = [
+    ("missing_file", ["compensate", "data_samples/nope.csv", "-o", "out/x.csv"]),
+    ("missing_column", ["compensate", "data_samples/plan.csv", "-o", "out/x.csv"]),
+    ("bad_model", ["compensate", "data_samples/survey.csv", "--model", "data_samples/plan.csv",
+                   "-o", "out/x.csv"]),
+    ("track_no_plan_file", ["track", "data_samples/mission.csv", "--plan", "data_samples/no.csv",
+                            "-o", "out/x.csv"]),
+]
+
+
+def _mask(obj):
+    if isinstance(obj, dict):
+        return {k: ("<masked>" if k in VOLATILE else _mask(v)) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_mask(v) for v in obj]
+    return obj
+
+
+def _run(argv: list[str], cwd: Path) -> subprocess.CompletedProcess:
+    env = dict(os.environ, COLUMNS="100", NO_COLOR="1")
+    return subprocess.run([sys.executable, "-m", "aeromag", *argv], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=600)
+
+
+@pytest.fixture(scope="module")
+def scratch(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    d = tmp_path_factory.mktemp("golden")
+    shutil.copytree(ROOT / "data_samples", d / "data_samples")
+    return d
+
+
+def _compare(path: Path, rec: Path) -> None:
+    if path.suffix == ".json":
+        got = _mask(json.loads(path.read_text()))
+        if UPDATE:
+            rec.write_text(json.dumps(got, indent=1, sort_keys=True) + "\n")
+        want = json.loads(rec.read_text())
+        assert got == want, f"{path.name} differs from {rec.name}"
+    else:
+        if UPDATE:
+            shutil.copyfile(path, rec)
+        assert path.read_bytes() == rec.read_bytes(), f"{path.name} differs from {rec.name}"
+
+
+@pytest.mark.parametrize(("name", "argv", "outputs"), COMMANDS, ids=[c[0] for c in COMMANDS])
+def test_command_outputs_unchanged(scratch: Path, name: str, argv: list[str],
+                                   outputs: list[str]) -> None:
+    if name in ("compensate_model", "compensate_chunked", "batch_model") and not (
+            scratch / "out/aircraft.json").exists():
+        assert _run(COMMANDS[1][1], scratch).returncode == 0
+    res = _run(argv, scratch)
+    assert res.returncode == 0, res.stderr
+    for rel in outputs:
+        rec = GOLDEN / f"{name}__{Path(rel).name}"
+        _compare(scratch / rel, rec)
+
+
+@pytest.mark.parametrize(("name", "argv"), ERRORS, ids=[e[0] for e in ERRORS])
+def test_errors_one_line_no_files(scratch: Path, name: str, argv: list[str]) -> None:
+    out = scratch / "out" / "x.csv"
+    res = _run(argv, scratch)
+    assert res.returncode == 1
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: "), res.stderr
+    assert "Traceback" not in res.stderr
+    assert not out.exists() and not out.with_suffix(".json").exists()
+    rec = GOLDEN / f"error__{name}.txt"
+    if UPDATE:
+        rec.write_text(lines[0] + "\n")
+    assert lines[0] + "\n" == rec.read_text()
