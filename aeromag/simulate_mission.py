@@ -34,9 +34,9 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from pyproj import Transformer
 from scipy.signal import lfilter
 
+from ._core.geodesy import ned_to_geodetic
 from .io import write_csv, write_json
 
 log = logging.getLogger(__name__)
@@ -77,35 +77,6 @@ def plan_waypoints_ned(n_lines: int = 6, line_m: float = 450.0, spacing_m: float
         ends = (0.0, line_m) if i % 2 == 0 else (line_m, 0.0)
         pts += [(ends[0], e, 0.0), (ends[1], e, 0.0)]
     return np.asarray(pts, dtype=np.float64)
-
-
-def ned_to_geodetic(ned: np.ndarray, origin: tuple[float, float, float]) -> np.ndarray:
-    """Convert local NED coordinates back to WGS84 geodetic (exact, via ECEF).
-
-    Parameters
-    ----------
-    ned : ndarray, shape (n, 3)
-        North, east, down, m.
-    origin : (float, float, float)
-        Latitude [deg], longitude [deg], ellipsoidal height [m] of the NED origin.
-
-    Returns
-    -------
-    ndarray, shape (n, 3)
-        Latitude [deg], longitude [deg], height [m].
-    """
-    fwd = Transformer.from_crs("EPSG:4979", "EPSG:4978", always_xy=True)
-    lat0, lon0, h0 = origin
-    o = np.array(fwd.transform(lon0, lat0, h0))
-    ph, la = math.radians(lat0), math.radians(lon0)
-    rot = np.array([
-        [-math.sin(ph) * math.cos(la), -math.sin(ph) * math.sin(la), math.cos(ph)],
-        [-math.sin(la), math.cos(la), 0.0],
-        [-math.cos(ph) * math.cos(la), -math.cos(ph) * math.sin(la), -math.sin(ph)],
-    ])
-    ecef = np.asarray(ned, dtype=np.float64) @ rot + o
-    lon, lat, h = fwd.transform(ecef[:, 0], ecef[:, 1], ecef[:, 2], direction="INVERSE")
-    return np.column_stack([lat, lon, h])
 
 
 def simulate_mission(

@@ -51,7 +51,6 @@ when none), ``first_track_alarm_time``, ``first_heading_alarm_time``, ``time_abo
 
 from __future__ import annotations
 
-import functools
 import logging
 import os
 from dataclasses import dataclass, field
@@ -60,8 +59,8 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from pyproj import Transformer
 
+from ._core.geodesy import ecef_to_ned_matrix, geodetic_to_ecef, geodetic_to_ned  # noqa: F401
 from .detect import CalmWindow, combine_alarms, heading_columns_available, heading_detector
 from .errors import InputError
 from .io import json_path_for, read_log, write_csv, write_json
@@ -85,79 +84,6 @@ ADDED_COLUMNS = ("leg", "xtrack_m", "xtrack_h_m", "xtrack_v_m", "along_m", "trac
 
 
 # --------------------------------------------------------------------------- geometry
-@functools.lru_cache(maxsize=1)
-def _ecef_transformer() -> Transformer:
-    """WGS84 geographic 3-D (EPSG:4979) -> WGS84 ECEF (EPSG:4978), built once."""
-    return Transformer.from_crs("EPSG:4979", "EPSG:4978", always_xy=True)
-
-
-def geodetic_to_ecef(lat: np.ndarray, lon: np.ndarray, alt: np.ndarray) -> np.ndarray:
-    """Convert WGS84 geodetic coordinates to ECEF.
-
-    Parameters
-    ----------
-    lat, lon : array_like
-        Latitude and longitude, degrees (WGS84).
-    alt : array_like
-        Height above the WGS84 ellipsoid, m.
-
-    Returns
-    -------
-    ndarray, shape (n, 3)
-        ECEF X, Y, Z, m.
-    """
-    lat_a, lon_a, alt_a = np.broadcast_arrays(
-        *(np.atleast_1d(np.asarray(v, dtype=np.float64)) for v in (lat, lon, alt)))
-    x, y, z = _ecef_transformer().transform(lon_a, lat_a, alt_a)
-    return np.column_stack([np.asarray(x), np.asarray(y), np.asarray(z)])
-
-
-def ecef_to_ned_matrix(lat0: float, lon0: float) -> np.ndarray:
-    """Rotation from ECEF to local north-east-down axes at a geodetic origin.
-
-    Parameters
-    ----------
-    lat0, lon0 : float
-        Geodetic latitude and longitude of the origin, degrees.
-
-    Returns
-    -------
-    ndarray, shape (3, 3)
-        Rows are the north, east and down unit vectors in ECEF.
-    """
-    ph, la = np.deg2rad(lat0), np.deg2rad(lon0)
-    sp, cp, sl, cl = np.sin(ph), np.cos(ph), np.sin(la), np.cos(la)
-    return np.array([
-        [-sp * cl, -sp * sl, cp],
-        [-sl, cl, 0.0],
-        [-cp * cl, -cp * sl, -sp],
-    ])
-
-
-def geodetic_to_ned(
-    lat: np.ndarray, lon: np.ndarray, alt: np.ndarray, origin: tuple[float, float, float]
-) -> np.ndarray:
-    """Convert geodetic coordinates to a local NED frame (exact, via ECEF).
-
-    Parameters
-    ----------
-    lat, lon : array_like
-        Latitude and longitude, degrees (WGS84).
-    alt : array_like
-        Ellipsoidal height, m.
-    origin : (float, float, float)
-        Origin latitude [deg], longitude [deg] and height [m].
-
-    Returns
-    -------
-    ndarray, shape (n, 3)
-        North, east, down, m.
-    """
-    ecef = geodetic_to_ecef(lat, lon, alt)
-    o = geodetic_to_ecef(*origin)[0]
-    return (ecef - o) @ ecef_to_ned_matrix(origin[0], origin[1]).T
-
-
 def cross_track(
     x: np.ndarray, a: np.ndarray, b: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

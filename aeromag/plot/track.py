@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
+from .._core.geodesy import geodetic_to_ned
 from ..io import atomic_path
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -42,12 +43,7 @@ def plot_track(result: TrackResult, plan: pd.DataFrame, out_dir: str | os.PathLi
     list of Path
         The written files.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from ..track import geodetic_to_ned
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
