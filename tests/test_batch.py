@@ -10,11 +10,11 @@ import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
-from aeromag.batch import expand_inputs, run_batch
 from aeromag.cli import app
 from aeromag.compensate import CompensationConfig, calibrate_file, compensate_file
 from aeromag.errors import InputError
 from aeromag.io import write_csv
+from aeromag.workflows.batch import expand_inputs, run_batch
 
 from .conftest import hand_flight
 
@@ -253,7 +253,7 @@ def test_outputs_never_overwrite_inputs(logs, tmp_path):
 
 
 def test_cli_extension_list_matches_the_library():
-    from aeromag.batch import LOG_EXTENSIONS
     from aeromag.cli import batch as cli_batch
+    from aeromag.workflows.batch import LOG_EXTENSIONS
 
     assert cli_batch.LOG_EXTENSIONS == LOG_EXTENSIONS

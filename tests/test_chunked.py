@@ -10,8 +10,8 @@ import pytest
 
 from aeromag.chunked import _median_from_counts, apply_model_chunked, overlap_rows
 from aeromag.compensate import CompensationConfig, calibrate_file, compensate_file
-from aeromag.formats import write_table
 from aeromag.io import write_csv
+from aeromag.io.formats import write_table
 
 from .conftest import hand_flight
 

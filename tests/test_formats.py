@@ -10,8 +10,8 @@ import pandas as pd
 import pytest
 
 from aeromag.errors import InputError
-from aeromag.formats import detect_format, read_table, read_xyz, write_table, write_xyz
 from aeromag.io import read_log, write_csv
+from aeromag.io.formats import detect_format, read_table, read_xyz, write_table, write_xyz
 
 SAMPLES = Path("/work/shared/data/formats")
 if not SAMPLES.exists():  # the repository copy, when the shared folder is not mounted

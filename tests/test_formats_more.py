@@ -13,10 +13,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from aeromag import io as aio
 from aeromag.errors import InputError
-from aeromag.formats import read_table, read_xyz, write_table, write_xyz
+from aeromag.io import csv as aio
 from aeromag.io import read_log, unit_factor
+from aeromag.io.formats import read_table, read_xyz, write_table, write_xyz
 
 SAMPLES = Path("/work/shared/data/formats")
 if not SAMPLES.exists():  # the repository copy, when the shared folder is not mounted
@@ -210,7 +210,7 @@ def test_duplicate_header_name_is_a_one_line_error(tmp_path, body):
 
 def test_duplicate_name_in_a_large_log_read_as_columns(tmp_path, monkeypatch):
     """The numpy-column reader keys columns by name: a duplicate must not collapse silently."""
-    from aeromag import warm
+    from aeromag.io import warm
 
     monkeypatch.setattr(warm, "COLUMNS_MIN_BYTES", 0)
     p = _write(tmp_path, "big.csv", "time,mag,mag\n" + "".join(f"{i},1,2\n" for i in range(50)))

@@ -174,7 +174,7 @@ def test_parallel_writer_is_byte_identical_to_one_thread(tmp_path, monkeypatch):
 def test_streaming_reader_falls_back_when_later_blocks_change_type(tmp_path, monkeypatch):
     """Types frozen on the first block must not break a log whose integer column turns
     decimal further down, or whose text column starts empty: the file is read whole."""
-    from aeromag import warm
+    from aeromag.io import warm
 
     monkeypatch.setattr(warm, "READ_BLOCK_BYTES", 1024)
     n = 3000
@@ -269,7 +269,7 @@ def test_prefetched_table_used_only_for_the_same_unchanged_file(tmp_path):
     """The command line prefetches the log; read_log takes it only if the file is unchanged."""
     import time
 
-    from aeromag import warm
+    from aeromag.io import warm
 
     p = tmp_path / "log.csv"
     p.write_text("time,mag\n0,1.5\n1,2.5\n")
@@ -287,7 +287,7 @@ def test_prefetched_table_used_only_for_the_same_unchanged_file(tmp_path):
 def test_large_logs_read_into_numpy_columns_equal_pandas(tmp_path, monkeypatch):
     """The column reader (used for large files) gives pandas' values and dtypes, and hands
     over to the table reader for empty integer cells or text."""
-    from aeromag import warm
+    from aeromag.io import warm
 
     monkeypatch.setattr(warm, "COLUMNS_MIN_BYTES", 0)
     monkeypatch.setattr(warm, "READ_BLOCK_BYTES", 2048)

@@ -1,0 +1,74 @@
+"""Everything that touches a file: reading and writing survey logs, column maps, units,
+atomic outputs and reports.
+
+Used by :mod:`aeromag.workflows` and :mod:`aeromag.cli` only, never by the numerics.
+
+=================  ===============================================================
+module             what it holds
+=================  ===============================================================
+``columns``        canonical columns, column maps and map files, unit conversion,
+                   numbers from text (with the file line of a bad value)
+``rows``           where the data rows of a table are in its file (for messages)
+``csv``            the one CSV reader and the one CSV writer
+``formats``        the one registry of formats: extension, sniffing, read, write
+                   (CSV, Parquet, Geosoft XYZ, MagNav/SGL HDF5, MagArrow, MagDrone)
+``log``            :func:`read_log`: any format into validated canonical columns
+``stream``         row batches for the chunked mode
+``outputs``        atomic writes
+``json``           JSON reports and models
+``warm``           prefetching a CSV while the command line starts
+``plans``          mission plans (``.csv``, QGroundControl ``.plan``, ``.waypoints``)
+=================  ===============================================================
+"""
+
+from .columns import (
+    CANONICAL_COLUMNS,
+    FIELD_UNITS_TO_NT,
+    FLUX_COLUMNS,
+    NUMERIC_COLUMNS,
+    UNIT_GROUPS,
+    apply_column_map,
+    check_unique_names,
+    convert_units,
+    datetime_seconds,
+    filled_cells,
+    numeric_values,
+    parse_column_map,
+    plain_number,
+    read_map_file,
+    unit_factor,
+)
+from .csv import (
+    _EXTRA_FIELD,  # noqa: F401 - kept for callers of the old aeromag.io
+    _UNNAMED_FIELD,  # noqa: F401 - kept for callers of the old aeromag.io
+    PASSTHROUGH_BLOCK_BYTES,
+    WRITE_SLICE_ROWS,
+    _csv_header,  # noqa: F401 - kept for callers of the old aeromag.io
+    _first_data_fields,  # noqa: F401 - kept for callers of the old aeromag.io
+    _floats_as_pandas_text,  # noqa: F401 - kept for callers of the old aeromag.io
+    _read_csv_arrow,  # noqa: F401 - kept for callers of the old aeromag.io
+    read_csv,
+    write_arrow_csv,
+    write_csv,
+    write_csv_passthrough,
+)
+from .json import write_json
+from .log import read_log
+from .outputs import atomic_path, json_path_for
+from .rows import (
+    ROWS_ATTR,
+    row_location,
+    rows_after_header,
+    rows_in_runs,
+    rows_numbered,
+)
+
+__all__ = [
+    "CANONICAL_COLUMNS", "FIELD_UNITS_TO_NT", "FLUX_COLUMNS", "NUMERIC_COLUMNS",
+    "PASSTHROUGH_BLOCK_BYTES", "ROWS_ATTR", "UNIT_GROUPS", "WRITE_SLICE_ROWS",
+    "apply_column_map", "atomic_path", "check_unique_names", "convert_units",
+    "datetime_seconds", "filled_cells", "json_path_for", "numeric_values",
+    "parse_column_map", "plain_number", "read_csv", "read_log", "read_map_file",
+    "row_location", "rows_after_header", "rows_in_runs", "rows_numbered", "unit_factor",
+    "write_arrow_csv", "write_csv", "write_csv_passthrough", "write_json",
+]

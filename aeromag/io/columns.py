@@ -1,0 +1,401 @@
+"""Canonical columns, column maps, map files, units and numeric conversion of a raw table.
+
+A survey log is a :class:`pandas.DataFrame` with the canonical columns of
+``shared/interface.md``.  Logs named otherwise are read through a column map
+(``{"mag": "mag_1_uc"}``); units other than nT are converted only when asked
+(``{"flux": "uT"}``), never guessed.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import re
+import tomllib
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ..errors import InputError
+from .rows import row_location
+
+log = logging.getLogger(__name__)
+
+#: Canonical column names and their units.
+CANONICAL_COLUMNS: dict[str, str] = {
+    "time": "s",
+    "lat": "deg",
+    "lon": "deg",
+    "alt": "m",
+    "flux_x": "nT",
+    "flux_y": "nT",
+    "flux_z": "nT",
+    "mag": "nT",
+    "line": "integer",
+    "heading": "deg",
+    "pitch": "deg",
+    "roll": "deg",
+    "mag_heading": "deg",
+    "leg": "integer",
+}
+
+#: Columns whose values must be numeric when present.
+NUMERIC_COLUMNS: tuple[str, ...] = tuple(CANONICAL_COLUMNS)
+
+FLUX_COLUMNS: tuple[str, str, str] = ("flux_x", "flux_y", "flux_z")
+
+#: Factors that convert a magnetic field unit to nT.
+FIELD_UNITS_TO_NT: dict[str, float] = {
+    "pt": 1.0e-3,
+    "nt": 1.0,
+    "ut": 1.0e3,
+    "\u00b5t": 1.0e3,  # micro sign (U+00B5)
+    "\u03bct": 1.0e3,  # Greek small letter mu (U+03BC): both are written for microtesla
+    "mt": 1.0e6,
+    "g": 1.0e5,
+    "gauss": 1.0e5,
+    "mg": 1.0e2,
+    "t": 1.0e9,
+}
+
+#: Unit groups: a key of ``units`` may name a group or a single column.
+UNIT_GROUPS: dict[str, tuple[str, ...]] = {
+    "flux": FLUX_COLUMNS,
+    "mag": ("mag",),
+}
+
+
+# --------------------------------------------------------------------------- column maps
+def parse_column_map(items: Iterable[str], *, option: str = "--col") -> dict[str, str]:
+    """Parse ``NAME=SOURCE`` strings into a column map.
+
+    Parameters
+    ----------
+    items : iterable of str
+        Strings such as ``"mag=mag_1_uc"``; ``NAME`` is the canonical column, ``SOURCE`` the
+        column name in the file.
+    option : str
+        Option name quoted in error messages.
+
+    Returns
+    -------
+    dict
+        ``{canonical_name: source_name}``.
+    """
+    out: dict[str, str] = {}
+    for item in items:
+        if "=" not in item:
+            raise InputError(f"{option} {item!r}: expected NAME=VALUE, e.g. {option} mag=mag_1_uc")
+        name, _, source = item.partition("=")
+        name, source = name.strip(), source.strip()
+        if not name or not source:
+            raise InputError(f"{option} {item!r}: expected NAME=VALUE with both parts non-empty")
+        out[name] = source
+    return out
+
+
+def read_map_file(path: str | os.PathLike[str]) -> tuple[dict[str, str], dict[str, str]]:
+    """Read a TOML column-map file.
+
+    The file holds a ``[columns]`` table (canonical name = source column) and an optional
+    ``[units]`` table (column or group = unit), for example::
+
+        [columns]
+        mag = "mag_1_uc"
+        flux_x = "flux_b_x"
+
+        [units]
+        flux = "uT"
+
+    Parameters
+    ----------
+    path : path-like
+        The TOML file.
+
+    Returns
+    -------
+    columns, units : dict, dict
+    """
+    p = Path(path)
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{p}: column-map file not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{p}: not a valid TOML column map ({exc})") from None
+    cols = data.get("columns", {})
+    units = data.get("units", {})
+    if not isinstance(cols, dict) or not isinstance(units, dict):
+        raise InputError(f"{p}: [columns] and [units] must be tables of NAME = \"VALUE\"")
+    return {str(k): str(v) for k, v in cols.items()}, {str(k): str(v) for k, v in units.items()}
+
+
+def unit_factor(unit: str, *, what: str = "--units") -> float:
+    """Return the factor that converts a field unit to nT.
+
+    Parameters
+    ----------
+    unit : str
+        One of ``pT``, ``nT``, ``uT`` (``µT``, with either the micro sign U+00B5 or the
+        Greek mu U+03BC), ``mT``, ``G`` (``gauss``), ``mG``, ``T`` (case-insensitive).
+    what : str
+        Context quoted in the error message.
+
+    Returns
+    -------
+    float
+        Multiply values in ``unit`` by this to get nT.
+    """
+    key = unit.strip().lower()
+    if key not in FIELD_UNITS_TO_NT:
+        known = ", ".join(["pT", "nT", "uT", "mT", "G", "mG", "T"])
+        raise InputError(f"{what}: unknown field unit {unit!r}; use one of {known}")
+    return FIELD_UNITS_TO_NT[key]
+
+
+def plain_number(x: Any) -> str:
+    """A number as plain text for messages: ``0.1``, ``1601300273.001`` (not ``np.float64(..)``)."""
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return repr(x)
+    return str(int(v)) if v.is_integer() and abs(v) < 1e15 else repr(v)
+
+
+def numeric_values(s: pd.Series, source: str, column: str, rows: Mapping[str, Any] | None,
+                   remedy: str = "fix the value or map another column with --col") -> np.ndarray:
+    """float64 values of a column; empty cells are NaN, any other unparseable cell an error.
+
+    Parameters
+    ----------
+    s : Series
+        The column as read.
+    source : str
+        File name quoted in the error.
+    column : str
+        Column name quoted in the error (as the file spells it).
+    rows : mapping or None
+        Where the rows are in the file (see :func:`row_location`).
+    remedy : str
+        What to do, ending the message.
+
+    Returns
+    -------
+    ndarray of float64
+    """
+    if pd.api.types.is_numeric_dtype(s.dtype) and not pd.api.types.is_bool_dtype(s.dtype):
+        return s.to_numpy(dtype=np.float64, na_value=np.nan)
+    conv = pd.to_numeric(s, errors="coerce")
+    bad = (conv.isna() & s.notna()).to_numpy()
+    if bad.any():
+        bad = bad & (s.astype(str).str.strip() != "").to_numpy()
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(
+            f"{source}: column {column!r}, {row_location(rows, i)}: value {str(s.iloc[i])!r}"
+            f" is not a number; {remedy}"
+        )
+    return conv.to_numpy(dtype=np.float64, na_value=np.nan)
+
+
+def check_unique_names(names: Sequence[str], source: str, *, what: str = "header") -> None:
+    """Raise :class:`InputError` naming the first column name that appears twice.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Column names in file order (empty names are not checked).
+    source : str
+        File name quoted in the error.
+    what : str
+        Where the names come from, for the message.
+    """
+    seen: dict[str, int] = {}
+    for j, name in enumerate(names):
+        if not name:
+            continue
+        if name in seen:
+            raise InputError(
+                f"{source}: column {name!r} appears twice in the {what} (columns {seen[name] + 1}"
+                f" and {j + 1}); rename one of them (e.g. {name}_2) so that each column has its"
+                " own name, then pick one with --col if needed")
+        seen[name] = j
+
+
+def filled_cells(s: pd.Series) -> np.ndarray:
+    """Cells that hold something (not missing, not only blanks)."""
+    filled = s.notna().to_numpy()
+    if filled.any() and not pd.api.types.is_numeric_dtype(s.dtype):
+        filled = filled & (s.astype(str).str.strip() != "").to_numpy()
+    return filled
+
+
+def apply_column_map(
+    df: pd.DataFrame, columns: Mapping[str, str] | None, *, source: str = "<log>"
+) -> pd.DataFrame:
+    """Rename source columns to canonical names.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Raw table.
+    columns : mapping or None
+        ``{canonical_name: source_name}``.
+    source : str
+        File name quoted in errors.
+
+    Returns
+    -------
+    DataFrame
+        The table with mapped columns renamed (unmapped columns kept as they are).
+    """
+    if not columns:
+        return df
+    rename: dict[str, str] = {}
+    for name, src in columns.items():
+        if src not in df.columns:
+            avail = ", ".join(map(str, df.columns[:20]))
+            raise InputError(
+                f"{source}: column {src!r} (mapped to {name!r}) not found; columns are: {avail}"
+            )
+        rename[src] = name
+    # A canonical name that is also an existing, unmapped column would collide: drop the old one.
+    clash = [name for src, name in rename.items() if name in df.columns and name != src]
+    out = df.drop(columns=[c for c in clash if c not in rename])
+    return out.rename(columns=rename)
+
+
+def to_numeric(df: pd.DataFrame, cols: Sequence[str], source: str,
+                rows: Mapping[str, Any] | None = None) -> pd.DataFrame:
+    """Convert ``cols`` to float, naming the first unparseable cell (and its line) in the error.
+
+    A ``time`` column of date-times (ISO 8601 text, or datetime / duration values from Parquet)
+    becomes float seconds since 1970-01-01 UTC (see :func:`datetime_seconds`).
+    """
+    for c in cols:
+        s = df[c]
+        if isinstance(s, pd.DataFrame):  # a name used twice
+            raise InputError(f"{source}: column {c!r} appears more than once; rename the copies"
+                             " so that each column has its own name")
+        if c == "time" and _is_datetime_like(s):
+            df[c] = datetime_seconds(s, source, rows)
+            df.attrs["_time_converted"] = True
+            continue
+        if pd.api.types.is_numeric_dtype(s.dtype) and not pd.api.types.is_bool_dtype(s.dtype):
+            if s.dtype != np.float64 and c not in ("line", "leg"):
+                df[c] = s.astype(np.float64)
+            continue
+        df[c] = numeric_values(s, source, c, rows)
+    return df
+
+
+#: ISO 8601 date and time at the start of a text value (``2024-01-01T00:00:00``, with a space too).
+_ISO_DATETIME = re.compile(r"^\s*[+-]?\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}")
+
+
+def _is_datetime_like(s: pd.Series) -> bool:
+    """A datetime / duration column, or text whose first value is an ISO 8601 date-time."""
+    if pd.api.types.is_datetime64_any_dtype(s.dtype) or pd.api.types.is_timedelta64_dtype(
+            s.dtype):
+        return True
+    if pd.api.types.is_numeric_dtype(s.dtype) or pd.api.types.is_bool_dtype(s.dtype):
+        return False
+    first = s.first_valid_index()
+    return first is not None and isinstance(s.loc[first], str) and bool(
+        _ISO_DATETIME.match(s.loc[first]))
+
+
+#: Ticks per second of the datetime64 / timedelta64 units.
+_TICKS_PER_S = {"s": 1, "ms": 10**3, "us": 10**6, "ns": 10**9}
+
+
+def datetime_seconds(s: pd.Series, source: str = "<log>",
+                     rows: Mapping[str, Any] | None = None) -> np.ndarray:
+    """Date-times as float seconds since 1970-01-01 UTC; durations as float seconds.
+
+    Accepts datetime64 of any resolution (s, ms, us, ns), time-zone aware (converted to UTC)
+    or naive (taken as UTC), timedelta64, and ISO 8601 text (``2024-01-01T00:00:00.1``, with
+    an optional ``Z`` or ``+02:00`` offset; naive text is taken as UTC).  The whole seconds and
+    the fraction are converted separately, so nothing below the stored resolution is lost
+    before the float cast (float64 keeps about 0.2 us at today's epoch seconds).  Missing
+    values become NaN; a text value that is not a date-time is an error naming its line.
+
+    Parameters
+    ----------
+    s : Series
+        The column.
+    source : str
+        File name quoted in errors.
+    rows : mapping, optional
+        Where the rows are in the file (see :func:`row_location`).
+
+    Returns
+    -------
+    ndarray of float64
+        Seconds.
+    """
+    if pd.api.types.is_timedelta64_dtype(s.dtype):
+        arr = s.to_numpy()
+    else:
+        if not pd.api.types.is_datetime64_any_dtype(s.dtype):
+            parsed = pd.to_datetime(s, format="ISO8601", utc=True, errors="coerce")
+            bad = parsed.isna().to_numpy() & filled_cells(s)
+            if bad.any():
+                i = int(np.flatnonzero(bad)[0])
+                raise InputError(
+                    f"{source}: column 'time', {row_location(rows, i)}: value"
+                    f" {str(s.iloc[i])!r} is not an ISO 8601 date-time like the rows before it;"
+                    " fix the value")
+            s = parsed
+        if isinstance(s.dtype, pd.DatetimeTZDtype):
+            s = s.dt.tz_convert("UTC").dt.tz_localize(None)
+        arr = s.to_numpy()
+    unit, count = np.datetime_data(arr.dtype)
+    if unit not in _TICKS_PER_S or count != 1:
+        kind = "m8" if arr.dtype.kind == "m" else "M8"
+        arr, unit = arr.astype(f"{kind}[ns]"), "ns"
+    per = _TICKS_PER_S[unit]
+    ticks = arr.view(np.int64)
+    out = (ticks // per).astype(np.float64) + (ticks % per) / per
+    out[np.isnat(arr)] = np.nan
+    log.info("%s: column 'time' holds %s: converted to seconds%s", source,
+             "durations" if arr.dtype.kind == "m" else "date-times",
+             "" if arr.dtype.kind == "m" else " since 1970-01-01 UTC")
+    return out
+
+
+def convert_units(
+    df: pd.DataFrame, units: Mapping[str, str] | None, *, source: str = "<log>"
+) -> pd.DataFrame:
+    """Convert field columns to nT as requested (never guessed).
+
+    Parameters
+    ----------
+    df : DataFrame
+        Log with canonical names.
+    units : mapping or None
+        ``{column_or_group: unit}``; groups are ``flux`` (the three fluxgate axes) and ``mag``.
+    source : str
+        File name quoted in errors.
+
+    Returns
+    -------
+    DataFrame
+        The same frame, converted in place.
+    """
+    if not units:
+        return df
+    for key, unit in units.items():
+        factor = unit_factor(unit, what=f"{source}: --units {key}={unit}")
+        cols = UNIT_GROUPS.get(key, (key,))
+        present = [c for c in cols if c in df.columns]
+        if not present:
+            raise InputError(f"{source}: --units {key}={unit}: no column {key!r} in the log")
+        for c in present:
+            if CANONICAL_COLUMNS.get(c, "nT") != "nT":
+                raise InputError(f"{source}: --units {key}: column {c!r} is not a field in nT")
+            df[c] = df[c].astype(np.float64) * factor
+    return df

@@ -1,0 +1,589 @@
+"""The one CSV reader and the one CSV writer of aeromag.
+
+The reader (:func:`read_csv_table`) checks the header, takes pyarrow's multi-threaded parser
+when the table is all-numeric and falls back to pandas for text, quoting and ragged rows; both
+give the same table.  The writer (:func:`write_csv`) formats numbers in their shortest
+round-trip form, booleans ``true``/``false``, atomically.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import re
+import warnings
+from collections.abc import Iterable, Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ..errors import InputError
+from .columns import check_unique_names, filled_cells
+from .outputs import atomic_path
+from .rows import ROWS_ATTR, row_location, rows_after_header, text_lines
+
+log = logging.getLogger(__name__)
+
+# --------------------------------------------------------------------------- reading
+#: Name given to the field after the last header column while reading (a trailing delimiter).
+_EXTRA_FIELD = "\x00extra"
+#: Prefix of the names given to header cells that are empty.
+_UNNAMED_FIELD = "\x00unnamed"
+
+
+def _csv_header_fields(path: Path) -> tuple[list[str], int] | None:
+    """The header of a CSV as the readers split it, and its 1-based line number.
+
+    Quotes are honoured and blanks around names removed; leading blank lines are skipped (as
+    the readers skip them).  Only the first line(s) are read.
+
+    Returns
+    -------
+    (names, line) or None
+        None when the header cannot be decoded (the readers then word the error).
+    """
+    return _first_fields(path, 0)
+
+
+def _first_data_fields(path: Path, header_line: int) -> tuple[list[str], int] | None:
+    """Fields of the first non-blank line after the header, and its 1-based line number."""
+    return _first_fields(path, header_line)
+
+
+def _first_fields(path: Path, after: int) -> tuple[list[str], int] | None:
+    """CSV fields of the first non-blank line after line ``after`` (None: none or undecodable)."""
+    import csv
+
+    try:
+        for ln, text in text_lines(path):
+            if ln > after + 1000:
+                return None
+            if ln <= after or not text.strip():
+                continue
+            line = text.encode("latin-1").decode("utf-8").removeprefix("\ufeff")
+            fields = next(csv.reader([line.rstrip("\n")], skipinitialspace=True))
+            return ([c.strip() for c in fields] if after == 0 else fields), ln
+    except (OSError, UnicodeDecodeError, csv.Error, StopIteration):
+        return None
+    return None
+
+
+def read_csv(path: Path, spare_fields: int = 1) -> pd.DataFrame:
+    """Read a CSV table (pyarrow's multi-threaded reader when available, else pandas).
+
+    The header is checked first (a name used twice is an error).  A row may end with up to
+    ``spare_fields`` empty fields more than the header (loggers that end every row with the
+    delimiter): they are dropped; a value there is an error naming the line.  An empty header
+    cell is accepted only for an empty column.  Both readers give the same table.
+    """
+    if path.is_dir():
+        raise InputError(f"{path}: is a folder, not a log file")
+    if not path.exists():
+        raise InputError(f"{path}: file not found")
+    head = _csv_header_fields(path)
+    names, header_line = head if head is not None else (None, 1)
+    if names is not None:
+        check_unique_names(names, str(path))
+    df = None
+    plain = False
+    if names is None or all(names):
+        df = _read_csv_arrow(path)
+        plain = df is not None  # pyarrow checked that every row has the header's field count
+    if df is None:
+        df, plain = _read_csv_other(path, names, header_line, spare_fields)
+    raw_names = [str(c) for c in df.columns]
+    df.columns = [c.strip() for c in raw_names]
+    if plain and raw_names == list(df.columns):
+        df.attrs["_plain_csv_columns"] = raw_names
+    df.attrs[ROWS_ATTR] = rows_after_header(path, header_line)
+    return df
+
+
+def _read_csv_other(path: Path, names: list[str] | None, header_line: int,
+                    spare_fields: int = 1) -> tuple[pd.DataFrame, bool]:
+    """Read a CSV that pyarrow's plain read could not take; returns (table, plain).
+
+    Rows never shift: the table is read with ``spare_fields`` more columns than the header
+    (never with leading columns taken as the index).  A row may end with up to that many empty
+    fields more than the header (loggers that end every row with the delimiter): they are
+    dropped.  A row whose extra field holds a value, or with still more fields, is an error
+    naming its line.  An empty header cell is accepted for an empty column only.  ``plain``
+    is True when every row has exactly the header's field count (checked on the bytes,
+    vectorised), so that an output may copy the lines.
+    """
+    if names is None:
+        return _read_csv_pandas(path, None, 0, header_line), False
+    n = len(names)
+    cols = [name if name else f"{_UNNAMED_FIELD}{j}" for j, name in enumerate(names)]
+    cols += [f"{_EXTRA_FIELD}{k}" for k in range(spare_fields)]
+    first = _first_data_fields(path, header_line)
+    if first is not None and len(first[0]) > len(cols):
+        # (pandas would take this row's length as the table's and cut the fields beyond cols)
+        raise InputError(
+            f"{path}: line {first[1]}: {len(first[0])} fields but the header names {n} columns;"
+            " fix that row (or the header, or check the delimiter)")
+    df = None
+    if header_line == 1 and (not all(names) or (first is not None
+                                                 and len(first[0]) == len(cols))):
+        df = _read_csv_arrow(path, cols)  # every row as long: pyarrow can read it
+    if df is None:
+        df = _read_csv_pandas(path, cols, n, header_line)
+    rows = rows_after_header(path, header_line)
+    spare = [c for c in df.columns if str(c).startswith("\x00")]
+    for c in spare:
+        filled = filled_cells(df[c])
+        if not filled.any():
+            continue
+        i = int(np.flatnonzero(filled)[0])
+        where, value = row_location(rows, i), str(df[c].iloc[i]).strip()
+        if str(c).startswith(_EXTRA_FIELD):
+            raise InputError(
+                f"{path}: {where}: more fields than the {n} columns of the header (value"
+                f" {value!r} has no column); remove the extra value or add its name to the"
+                " header")
+        j = int(str(c)[len(_UNNAMED_FIELD):])
+        raise InputError(
+            f"{path}: column {j + 1} has no name in the header but holds values ({where}:"
+            f" {value!r}); give it a name in the header")
+    df = df.drop(columns=spare)
+    plain = header_line == 1 and all(names) and _rows_have_fields(path, n)
+    return df, plain
+
+
+def _read_csv_pandas(path: Path, cols: list[str] | None, n_header: int = 0,
+                     header_line: int = 1) -> pd.DataFrame:
+    """pandas' reader (text columns, quoting, ragged rows); errors worded for the user.
+
+    With ``cols`` the header line is skipped and the rows are read into exactly these columns
+    (shorter rows padded with missing values, longer ones an error naming the line).
+    """
+    # index_col=False: pandas never turns leading columns into the index (which would shift
+    # every column when the rows have more fields than the header).
+    kw: dict[str, Any] = {"index_col": False}
+    if cols is not None:
+        kw.update(header=None, skiprows=header_line, names=cols)
+    try:
+        with warnings.catch_warnings():
+            # "Length of header or names does not match length of data": fields were cut.
+            warnings.simplefilter("error", pd.errors.ParserWarning)
+            return pd.read_csv(path, skipinitialspace=True, low_memory=False, **kw)
+    except pd.errors.ParserWarning:
+        raise InputError(f"{path}: the rows have more fields than the header names columns;"
+                         " fix the header or the rows (or check the delimiter)") from None
+    except FileNotFoundError:
+        raise InputError(f"{path}: file not found") from None
+    except pd.errors.EmptyDataError:
+        if cols is not None:  # a header and no data row
+            return pd.DataFrame({c: pd.Series(dtype=np.float64) for c in cols})
+        raise InputError(
+            f"{path}: the file is empty; expected a CSV log with a header row") from None
+    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
+        msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+        m = re.search(r"Expected \d+ fields in line (\d+), saw (\d+)", msg)
+        if m and n_header:
+            raise InputError(
+                f"{path}: line {m.group(1)}: {m.group(2)} fields but the header names"
+                f" {n_header} columns; fix that row (or check the delimiter)") from None
+        raise InputError(
+            f"{path}: cannot parse as CSV ({msg}); check the delimiter and quoting") from None
+
+
+def _rows_have_fields(path: Path, n_fields: int) -> bool:
+    """True when every line after the header has exactly ``n_fields`` comma-separated fields,
+    with no quote and no blank line (block by block, vectorised)."""
+    want = n_fields - 1
+    try:
+        with open(path, "rb") as fh:
+            fh.readline()
+            for lines in _line_blocks(fh):
+                raw = np.frombuffer(lines, dtype=np.uint8)
+                if (raw == 34).any():
+                    return False
+                nl = np.flatnonzero(raw == 10)
+                starts = np.r_[0, nl[:-1] + 1]
+                cr = raw[np.maximum(nl - 1, 0)] == 13
+                if np.any(nl - starts <= cr):  # a blank line
+                    return False
+                commas = np.flatnonzero(raw == 44)
+                per_line = np.diff(np.r_[0, np.searchsorted(commas, nl)])
+                if np.any(per_line != want):
+                    return False
+    except OSError:
+        return False
+    return True
+
+
+def _read_csv_streaming(path: Path) -> Any:
+    """The prefetched table of this file (see :mod:`aeromag.warm`), else a streamed read."""
+    from . import warm
+
+    table = warm.take_prefetched(path)
+    return table if table is not None else warm.read_csv_table(path)
+
+
+def _read_csv_arrow(path: Path, names: list[str] | None = None) -> pd.DataFrame | None:
+    """Read with pyarrow; None when pyarrow is missing or the table needs pandas' rules.
+
+    ``names`` replaces the header row (read with exactly these columns, header skipped).
+    """
+    try:
+        import pyarrow as pa
+        import pyarrow.csv as pacsv
+    except ImportError:  # pragma: no cover - pyarrow is optional
+        return None
+    if not path.exists():
+        raise InputError(f"{path}: file not found")
+    if path.stat().st_size == 0:
+        raise InputError(f"{path}: the file is empty; expected a CSV log with a header row")
+    if names is not None:
+        try:
+            table = pacsv.read_csv(path, read_options=pacsv.ReadOptions(column_names=names,
+                                                                        skip_rows=1))
+        except (pa.ArrowInvalid, OSError):
+            return None
+        return _arrow_numeric_frame(table)
+    table = _read_csv_streaming(path)
+    if isinstance(table, dict):  # numpy columns of a large all-numeric log
+        return pd.DataFrame(table, copy=False)
+    try:
+        if table is None:
+            table = pacsv.read_csv(path)
+    except pa.ArrowInvalid as exc:
+        text = str(exc).strip()
+        if "Empty CSV file" in text:
+            raise InputError(
+                f"{path}: the file is empty; expected a CSV log with a header row") from None
+        # Ragged rows, bad quoting, invalid UTF-8: let pandas decide and word the error.
+        return None
+    return _arrow_numeric_frame(table)
+
+
+def _arrow_numeric_frame(table: Any) -> pd.DataFrame | None:
+    """An all-numeric Arrow table as a DataFrame; None when a column holds text or dates."""
+    import pyarrow as pa
+
+    if any(not (pa.types.is_floating(f.type) or pa.types.is_integer(f.type)
+                or pa.types.is_boolean(f.type) or pa.types.is_null(f.type))
+           for f in table.schema):
+        # Text or dates somewhere: pandas' type inference (skipinitialspace, no date parsing)
+        # keeps the exact behaviour for those columns.
+        return None
+    nulls = [i for i, f in enumerate(table.schema) if pa.types.is_null(f.type)]
+    for i in nulls:  # an all-empty column is float NaN, as pandas reads it
+        table = table.set_column(i, table.schema[i].name,
+                                 table.column(i).cast(pa.float64()))
+    # Column by column, freeing each Arrow column once converted; then hand the parser's
+    # buffers back to the system (at 1e6 rows the process keeps ~100 MB, not ~360 MB).
+    df = table.to_pandas(split_blocks=True, self_destruct=True)
+    del table
+    pa.default_memory_pool().release_unused()
+    return df
+
+
+def _csv_ready(df: pd.DataFrame) -> pd.DataFrame:
+    """Return a frame whose boolean columns are spelled ``true``/``false``."""
+    bool_cols = [c for c in df.columns if pd.api.types.is_bool_dtype(df[c].dtype)]
+    if not bool_cols:
+        return df
+    out = df.copy(deep=False)
+    for c in bool_cols:
+        vals = df[c].to_numpy()
+        out[c] = np.where(vals, "true", "false")
+    return out
+
+
+def write_csv(df: pd.DataFrame, path: str | os.PathLike[str]) -> Path:
+    """Write a log to CSV atomically; booleans are written ``true``/``false``.
+
+    Uses pyarrow's CSV writer when available, formatting slices of rows on several threads
+    (numbers in their shortest round-trip form, missing values empty), pandas otherwise.
+    The output is byte-identical whatever the number of threads.
+
+    Parameters
+    ----------
+    df : DataFrame
+        The table to write (index not written).
+    path : path-like
+        Destination CSV.
+
+    Returns
+    -------
+    Path
+        The written path.
+    """
+    target = Path(path)
+    with atomic_path(target) as tmp:
+        if not _write_csv_arrow(df, tmp):
+            _csv_ready(df).to_csv(tmp, index=False, lineterminator="\n")
+    return target
+
+
+def _csv_header(columns: Iterable[Any]) -> str:
+    """The header row, quoted only where a name needs it (as pandas writes it)."""
+    import csv
+    import io as _io
+
+    buf = _io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow([str(c) for c in columns])
+    return buf.getvalue()
+
+
+def _floats_as_pandas_text(table: Any) -> Any:
+    """Format float columns as pandas does: shortest round trip, integral values with ``.0``.
+
+    Arrow writes ``1.0`` as ``1``; read back, a float column whose values are all integral
+    would turn into integers.  Only such columns are rewritten (a column with any fractional
+    value reads back as float anyway), which keeps the writer fast on measurement data: a
+    column is ruled out by its first fractional value, usually within the first few rows.
+    """
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    for i, f in enumerate(table.schema):
+        if not pa.types.is_floating(f.type):
+            continue
+        if not _all_integral(table.column(i)):
+            continue
+        txt = pc.cast(table.column(i), pa.string())
+        has_point = pc.match_substring_regex(txt, "[.eEnN]")
+        txt = pc.if_else(has_point, txt, pc.binary_join_element_wise(txt, ".0", ""))
+        table = table.set_column(i, f.name, txt)
+    return table
+
+
+def _all_integral(column: Any) -> bool:
+    """True when every finite value of an Arrow float column is a whole number."""
+    for chunk in column.chunks:
+        vals = chunk.to_numpy(zero_copy_only=False)
+        # Look at a small head first: measurement columns are ruled out at once.
+        for part in (vals[:256], vals[256:]):
+            fin = part[np.isfinite(part)]
+            if fin.size and not np.all(fin == np.floor(fin)):
+                return False
+    return True
+
+
+#: Rows formatted per task by the CSV writer (small slices keep each text buffer in cache).
+WRITE_SLICE_ROWS = 8192
+
+
+def _writer_threads() -> int:
+    """Threads used to format CSV text (pyarrow's CPU count, so ``pa.set_cpu_count`` rules)."""
+    import pyarrow as pa
+
+    env = os.environ.get("AEROMAG_WRITE_THREADS")
+    n = int(env) if env else pa.cpu_count()
+    return max(1, min(n, 16))
+
+
+def write_arrow_csv(table: Any, fh: Any, quoting: str = "none",
+                    slice_rows: int = WRITE_SLICE_ROWS) -> None:
+    """Write an Arrow table as CSV rows (no header) to a binary file, formatting in parallel.
+
+    pyarrow's CSV writer formats on one thread.  The table is cut into slices of
+    ``slice_rows`` rows (zero-copy), each formatted to text on a thread pool (pyarrow releases
+    the GIL) and written in order, with at most two slices per thread in flight: the output is
+    byte-identical to one ``pyarrow.csv.write_csv`` call and memory stays bounded.
+
+    Parameters
+    ----------
+    table : pyarrow.Table
+        The rows to write.
+    fh : binary file
+        Open destination.
+    quoting : str
+        pyarrow quoting style (``"none"`` raises ``ArrowInvalid`` on a value needing quotes).
+    slice_rows : int
+        Rows per formatting task.
+    """
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    opts = pacsv.WriteOptions(include_header=False, quoting_style=quoting)
+    n = table.num_rows
+    threads = _writer_threads()
+    if threads == 1 or n <= 2 * slice_rows:
+        pacsv.write_csv(table, fh, opts)
+        return
+
+    def fmt(offset: int) -> Any:
+        sink = pa.BufferOutputStream()
+        pacsv.write_csv(table.slice(offset, slice_rows), sink, opts)
+        return sink.getvalue()
+
+    from collections import deque
+    from concurrent.futures import ThreadPoolExecutor
+
+    offsets = iter(range(0, n, slice_rows))
+    with ThreadPoolExecutor(threads, thread_name_prefix="aeromag-csv") as pool:
+        pending: deque = deque()
+        for off in offsets:
+            pending.append(pool.submit(fmt, off))
+            if len(pending) >= 2 * threads:
+                break
+        while pending:
+            fh.write(pending.popleft().result())
+            nxt = next(offsets, None)
+            if nxt is not None:
+                pending.append(pool.submit(fmt, nxt))
+
+
+#: Bytes of the input read per block when its lines are copied into the output.
+PASSTHROUGH_BLOCK_BYTES = 2 << 20
+
+
+def _line_blocks(fin: Any) -> Iterator[bytes]:
+    """Blocks of whole lines (about :data:`PASSTHROUGH_BLOCK_BYTES` each) of a binary file; the
+    last line gets a ``\\n`` when the file does not end with one."""
+    carry = b""
+    while True:
+        block = fin.read(PASSTHROUGH_BLOCK_BYTES)
+        if not block:
+            if carry:
+                yield carry if carry.endswith(b"\n") else carry + b"\n"
+            return
+        data = carry + block
+        cut = data.rfind(b"\n")
+        if cut < 0:
+            carry = data
+            continue
+        yield data[: cut + 1]
+        carry = data[cut + 1:]
+
+
+def write_csv_passthrough(
+    source: str | os.PathLike[str], source_columns: Sequence[str], extra: pd.DataFrame,
+    dest: str | os.PathLike[str],
+) -> bool:
+    """Write ``source``'s lines verbatim with ``extra``'s columns appended to each.
+
+    The columns a log came with are copied as the text they were read from (no reformatting,
+    no precision lost), and only the added columns are formatted, in parallel: 4 columns
+    formatted instead of 13 on a typical log, so about 3x less writing work.  The source is
+    streamed block by block (memory bounded).  Used by the pipeline only for a plain CSV read
+    without column map, unit conversion or dropped rows.
+
+    Parameters
+    ----------
+    source : path-like
+        The CSV the log was read from.
+    source_columns : sequence of str
+        Its column names as read (the header must be exactly these, comma-separated).
+    extra : DataFrame
+        Columns to append, one row per data line of ``source``.
+    dest : path-like
+        Output file (written from scratch; on False its content is undefined and the caller
+        writes it another way).
+
+    Returns
+    -------
+    bool
+        False (and nothing promised) when the source is not plain enough: quotes, blank lines,
+        mixed line endings, a different header or row count.
+    """
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    import pyarrow.csv as pacsv
+
+    try:
+        table = _floats_as_pandas_text(pa.Table.from_pandas(extra, preserve_index=False))
+    except (pa.ArrowException, TypeError, ValueError):
+        return False
+    if any(pa.types.is_temporal(f.type) or pa.types.is_nested(f.type) for f in table.schema):
+        return False
+    n = table.num_rows
+    opts = pacsv.WriteOptions(include_header=False, quoting_style="none")
+
+    def join(lines: bytes, row: int, k: int) -> Any:
+        """One block: its k source lines, each followed by its row of ``table``."""
+        raw = np.frombuffer(lines, dtype=np.uint8)
+        nl = np.flatnonzero(raw == 10)
+        starts = np.r_[0, nl[:-1] + 1]
+        cr = raw[np.maximum(nl - 1, 0)] == 13
+        if cr.any() and not cr.all():
+            return None
+        drop = 2 if cr.all() else 1
+        if np.any(nl - starts < drop + 1):  # a blank line: the readers skip those
+            return None
+        src_lines = pa.Array.from_buffers(
+            pa.binary(), k, [None, pa.py_buffer(np.r_[0, nl + 1].astype(np.int32)),
+                             pa.py_buffer(lines)])
+        sink = pa.BufferOutputStream()
+        try:
+            pacsv.write_csv(table.slice(row, k), sink, opts)
+        except pa.ArrowInvalid:  # text that needs quoting
+            return None
+        ext = sink.getvalue()
+        enl = np.flatnonzero(np.frombuffer(ext, dtype=np.uint8) == 10)
+        if len(enl) != k:
+            return None
+        ext_lines = pa.Array.from_buffers(
+            pa.binary(), k, [None, pa.py_buffer(np.r_[0, enl + 1].astype(np.int32)), ext])
+        joined = pc.binary_join_element_wise(pc.binary_slice(src_lines, 0, -drop), ext_lines,
+                                             b",")
+        off = np.frombuffer(joined.buffers()[1], dtype=np.int32, count=k + 1,
+                            offset=4 * joined.offset)
+        return memoryview(joined.buffers()[2])[off[0]:off[-1]]
+
+    from collections import deque
+    from concurrent.futures import ThreadPoolExecutor
+
+    threads = _writer_threads()
+    row = 0
+    with open(source, "rb") as fin, open(dest, "wb") as fout, \
+            ThreadPoolExecutor(threads, thread_name_prefix="aeromag-csv") as pool:
+        header = fin.readline()
+        head = header.rstrip(b"\r\n")
+        try:
+            names = head.decode("utf-8").split(",")
+        except UnicodeDecodeError:
+            return False
+        if names != list(source_columns) or b'"' in head:
+            return False
+        fout.write(head + b"," + _csv_header(extra.columns).encode("utf-8"))
+        pending: deque = deque()
+        # Blocks are joined on the pool, written here in order, at most 2 per thread ahead.
+        for lines in _line_blocks(fin):
+            k = lines.count(b"\n")
+            if b'"' in lines or row + k > n:
+                return False
+            pending.append(pool.submit(join, lines, row, k))
+            row += k
+            while len(pending) > 2 * threads:
+                out = pending.popleft().result()
+                if out is None:
+                    return False
+                fout.write(out)
+        while pending:
+            out = pending.popleft().result()
+            if out is None:
+                return False
+            fout.write(out)
+    return row == n
+
+
+def _write_csv_arrow(df: pd.DataFrame, dest: Path) -> bool:
+    """Write ``df`` with pyarrow; return False (nothing written) when pyarrow cannot."""
+    try:
+        import pyarrow as pa
+    except ImportError:  # pragma: no cover - pyarrow is optional
+        return False
+    try:
+        table = pa.Table.from_pandas(df, preserve_index=False)
+    except (pa.ArrowException, TypeError, ValueError):
+        return False
+    if any(pa.types.is_temporal(f.type) or pa.types.is_nested(f.type) for f in table.schema):
+        return False
+    table = _floats_as_pandas_text(table)
+    header = _csv_header(df.columns).encode("utf-8")
+    with open(dest, "wb") as fh:
+        fh.write(header)
+        try:
+            write_arrow_csv(table, fh, "none")
+        except pa.ArrowInvalid:  # a string needs quoting
+            fh.seek(len(header))
+            fh.truncate()
+            write_arrow_csv(table, fh, "needed")
+    return True

@@ -1,0 +1,263 @@
+"""The one registry of log formats: extension, sniffing, reader and writer of each.
+
+:func:`read_table` returns the raw table of a file as a :class:`pandas.DataFrame`, with the
+canonical column names of ``shared/interface.md`` wherever the format defines them;
+:func:`aeromag.io.read_log` then validates it exactly as it validates a CSV log.
+:func:`write_table` writes CSV, Parquet or Geosoft XYZ atomically.
+
+Formats (chosen by ``fmt`` or by the file's extension; ``.csv`` files are sniffed for the
+native UAV layouts):
+
+=============  ==================  ==========================================================
+name           extensions          notes
+=============  ==================  ==========================================================
+``csv``        .csv .txt           the default (:mod:`aeromag.io.csv`)
+``parquet``    .parquet .pq        needs pyarrow (``aeromag[parquet]``)
+``xyz``        .xyz                Geosoft XYZ: ``/`` comment lines (the one before the data
+                                   with one name per value names the channels), line headers
+                                   (``Line 10``, ``Tie 100``, ``L1010.1``, ``Line 10:16``,
+                                   ``Trend``/``Base``/``Test``/``Random``/``Special N``), ``*``
+                                   for a missing value; SGL/MagNav channel names are mapped by
+                                   the ``magnav`` preset
+``hdf5``       .h5 .hdf5           MagNav.jl / SGL HDF5: one 1-D dataset per channel (``tt``,
+                                   ``mag_1_uc``, ``flux_a_x`` ...), ``magnav`` preset; h5py
+``magarrow``   (sniffed .csv)      Geometrics MagArrow native CSV
+``magdrone``   (sniffed .csv)      SENSYS MagDrone R3 native CSV (fluxgate B1; ``magdrone_b2``
+                                   takes B2)
+=============  ==================  ==========================================================
+
+Another module adds a format with :func:`register` (for example a UAV flight-log reader):
+``register(Format("ulog", (".ulg",), read=read_ulog))``.  Presets map native channel names
+and units onto canonical columns; see ``docs/formats.md``.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from ...errors import InputError
+from ..csv import read_csv, write_csv
+from ..rows import ROWS_ATTR
+from .hdf5 import read_hdf5
+from .magarrow import read_magarrow
+from .magdrone import read_magdrone
+from .parquet import read_parquet, write_parquet
+from .presets import MAGNAV_FLUXGATES, MAGNAV_PRESET, apply_preset
+from .xyz import GEOSOFT_DUMMY, XYZ_LINE_HEADER, XYZ_LINE_TYPES, read_xyz, write_xyz
+
+
+@dataclass(frozen=True)
+class Format:
+    """One log format of the registry.
+
+    Attributes
+    ----------
+    name : str
+        Format name (``fmt=`` of the readers, ``--format`` of the command line).
+    extensions : tuple of str
+        File extensions (lower case, with the dot) that select this format.
+    read : callable or None
+        ``read(path) -> DataFrame``: the raw table (canonical names where the format defines
+        them), with ``df.attrs[ROWS_ATTR]`` telling where each row is in the file.
+    write : callable or None
+        ``write(df, path) -> Path``, atomic; None for a format aeromag does not write.
+    sniff : callable or None
+        ``sniff(head) -> bool`` on the first 4 kB (text) of a ``.csv`` file: True when the
+        file is in this native layout.
+    """
+
+    name: str
+    extensions: tuple[str, ...] = ()
+    read: Callable[[Path], pd.DataFrame] | None = None
+    write: Callable[[pd.DataFrame, Path], Path] | None = None
+    sniff: Callable[[str], bool] | None = None
+
+
+#: The registry, in sniffing order.
+REGISTRY: dict[str, Format] = {}
+
+
+def register(fmt: Format) -> Format:
+    """Add (or replace) a format in the registry.
+
+    Parameters
+    ----------
+    fmt : Format
+        The format.
+
+    Returns
+    -------
+    Format
+        ``fmt``.
+    """
+    REGISTRY[fmt.name] = fmt
+    return fmt
+
+
+def _sniff_magarrow(head: str) -> bool:
+    first = head.lstrip("\ufeff").split("\n", 1)[0]
+    cells = [c.strip() for c in first.split(",")]
+    return {"Counter", "Date", "Time", "Mag"} <= set(cells)
+
+
+def _sniff_magdrone(head: str) -> bool:
+    return bool(re.search(r"^MagDrone", head, re.MULTILINE)
+                or re.search(r"^Timestamp \[ms\];", head, re.MULTILINE))
+
+
+def _read_xyz(path: Path) -> pd.DataFrame:
+    return apply_preset(read_xyz(path), MAGNAV_PRESET, MAGNAV_FLUXGATES)
+
+
+def _read_hdf5(path: Path) -> pd.DataFrame:
+    return apply_preset(read_hdf5(path), MAGNAV_PRESET, MAGNAV_FLUXGATES)
+
+
+register(Format("csv", (".csv", ".txt"), read=read_csv, write=write_csv))
+register(Format("parquet", (".parquet", ".pq"), read=read_parquet, write=write_parquet))
+register(Format("xyz", (".xyz",), read=_read_xyz, write=write_xyz))
+register(Format("hdf5", (".h5", ".hdf5"), read=_read_hdf5))
+register(Format("magarrow", read=read_magarrow, sniff=_sniff_magarrow))
+register(Format("magdrone", read=read_magdrone, sniff=_sniff_magdrone))
+register(Format("magdrone_b2", read=lambda p: read_magdrone(p, sensor=2)))
+
+
+def formats() -> tuple[str, ...]:
+    """Names of the registered formats."""
+    return tuple(REGISTRY)
+
+
+def extensions() -> dict[str, str]:
+    """``{extension: format name}`` of the registered formats."""
+    return {ext: f.name for f in REGISTRY.values() for ext in f.extensions}
+
+
+#: Formats by file extension (as registered at import; see :func:`extensions`).
+EXTENSIONS: dict[str, str] = extensions()
+
+#: Names of the built-in formats (see :func:`formats`).
+FORMATS: tuple[str, ...] = formats()
+
+
+# --------------------------------------------------------------------------- detection
+def detect_format(path: str | os.PathLike[str], fmt: str | None = None) -> str:
+    """Return the format name of ``path``: ``fmt`` when given, else from extension and content.
+
+    Parameters
+    ----------
+    path : path-like
+        The file.
+    fmt : str, optional
+        Explicit format (one of :func:`formats`).
+
+    Returns
+    -------
+    str
+        A registered format name.
+    """
+    p = Path(path)
+    if fmt:
+        f = fmt.strip().lower().replace("-", "_")
+        if f not in REGISTRY:
+            raise InputError(f"{p}: unknown format {fmt!r}; use one of {', '.join(REGISTRY)}")
+        return f
+    f = extensions().get(p.suffix.lower(), "csv")
+    if f == "csv":
+        f = sniff_csv(p) or "csv"
+    return f
+
+
+def sniff_csv(path: Path) -> str | None:
+    """Recognise a native CSV layout (MagArrow, MagDrone ...) from the first 4 kB, else None."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4096).decode("utf-8", errors="replace")
+    except OSError:
+        return None
+    for f in REGISTRY.values():
+        if f.sniff is not None and f.sniff(head):
+            return f.name
+    return None
+
+
+# --------------------------------------------------------------------------- reading
+def read_table(path: str | os.PathLike[str], fmt: str | None = None) -> pd.DataFrame:
+    """Read the raw table of a log file in any supported format.
+
+    Parameters
+    ----------
+    path : path-like
+        The file.
+    fmt : str, optional
+        Format name (default from the extension; ``.csv`` files are sniffed for native UAV
+        layouts).
+
+    Returns
+    -------
+    DataFrame
+        One row per sample; canonical column names where the format or its preset defines
+        them (``time`` [s], ``mag``/``flux_*`` [nT], ``lat``/``lon`` [deg], ``alt`` [m]), other
+        channels under their own names.  ``df.attrs["format"]`` holds the format name.
+    """
+    df = read_table_rows(path, fmt)
+    df.attrs.pop(ROWS_ATTR, None)
+    return df
+
+
+def read_table_rows(path: str | os.PathLike[str], fmt: str | None = None) -> pd.DataFrame:
+    """:func:`read_table`, with ``df.attrs[ROWS_ATTR]`` telling where each row is in the file.
+
+    Used by :func:`aeromag.io.read_log` to name the file line (or the sample) of a bad value.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise InputError(f"{p}: file not found")
+    if p.is_dir():
+        raise InputError(f"{p}: is a folder, not a log file")
+    f = detect_format(p, fmt)
+    reader = REGISTRY[f].read
+    if reader is None:
+        raise InputError(f"{p}: aeromag cannot read the {f} format")
+    df = reader(p)
+    df.attrs["format"] = f
+    return df
+
+
+# --------------------------------------------------------------------------- writing
+def write_table(df: pd.DataFrame, path: str | os.PathLike[str], fmt: str | None = None) -> Path:
+    """Write a table atomically as CSV, Parquet or Geosoft XYZ.
+
+    Parameters
+    ----------
+    df : DataFrame
+        The table (index not written).
+    path : path-like
+        Destination.
+    fmt : {"csv", "parquet", "xyz"}, optional
+        Default from the extension.
+
+    Returns
+    -------
+    Path
+        The written path.
+    """
+    p = Path(path)
+    f = (fmt or extensions().get(p.suffix.lower(), "csv")).lower()
+    writer = REGISTRY[f].write if f in REGISTRY else None
+    if writer is None:
+        raise InputError(f"{p}: cannot write format {f!r}; use csv, parquet or xyz")
+    return writer(df, p)
+
+
+__all__ = [
+    "EXTENSIONS", "FORMATS", "GEOSOFT_DUMMY", "MAGNAV_FLUXGATES", "MAGNAV_PRESET", "REGISTRY",
+    "XYZ_LINE_HEADER", "XYZ_LINE_TYPES", "Format", "apply_preset", "detect_format",
+    "extensions", "formats", "read_magarrow", "read_magdrone", "read_table",
+    "read_table_rows", "read_xyz", "register", "sniff_csv", "write_table", "write_xyz",
+]

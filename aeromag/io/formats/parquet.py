@@ -1,0 +1,65 @@
+"""Parquet logs (pyarrow)."""
+
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+
+import pandas as pd
+
+from ...errors import InputError
+from ..outputs import atomic_path
+from ..rows import ROWS_ATTR, rows_numbered
+
+log = logging.getLogger(__name__)
+
+def read_parquet(path: Path) -> pd.DataFrame:
+    """Read a Parquet file; a named pandas index (``df.set_index("time")``) becomes a column.
+
+    Types are kept; a datetime ``time`` is turned into seconds by :func:`aeromag.io.read_log`.
+    """
+    try:
+        import pyarrow.parquet as pq
+    except ImportError:  # pragma: no cover - pyarrow is a test dependency
+        raise InputError(
+            f"{path}: reading Parquet needs pyarrow: pip install 'aeromag[parquet]'") from None
+    try:
+        df = pq.read_table(path).to_pandas()
+    except Exception as exc:  # noqa: BLE001 - any pyarrow failure is a bad file
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"{path}: cannot read as Parquet ({msg}); is it a Parquet file?") from None
+    named = [n for n in df.index.names if n is not None]
+    if named:
+        # Saved with e.g. df.set_index("time"): the index is a column of the log.
+        clash = [n for n in named if n in df.columns]
+        if clash:
+            raise InputError(f"{path}: {clash[0]!r} is both the index and a column; save the"
+                             " table with a plain index (df.reset_index(drop=True))")
+        df = df.reset_index()
+    df.attrs[ROWS_ATTR] = rows_numbered("row")
+    return df
+
+
+def write_parquet(df: pd.DataFrame, path: str | os.PathLike[str]) -> Path:
+    """Write a table as Parquet atomically (index not written).
+
+    Parameters
+    ----------
+    df : DataFrame
+        The table.
+    path : path-like
+        Destination.
+
+    Returns
+    -------
+    Path
+    """
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    p = Path(path)
+    table = pa.Table.from_pandas(df, preserve_index=False)
+    with atomic_path(p) as tmp:
+        pq.write_table(table, tmp)
+    return p

@@ -1,0 +1,68 @@
+"""JSON documents (reports, models) written atomically, NaN and inf as ``null``."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .outputs import atomic_path
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.floating):
+        return _clean_float(float(obj))
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def _clean_float(x: float) -> float | None:
+    return None if (math.isnan(x) or math.isinf(x)) else x
+
+
+def _jsonable(obj: Any) -> Any:
+    """Replace NaN/inf by None recursively (JSON has no NaN)."""
+    if isinstance(obj, float):
+        return _clean_float(obj)
+    if isinstance(obj, np.floating):
+        return _clean_float(float(obj))
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    return obj
+
+
+def write_json(obj: Any, path: str | os.PathLike[str]) -> Path:
+    """Write a JSON document atomically (NaN and inf written as ``null``).
+
+    Parameters
+    ----------
+    obj : object
+        JSON-serialisable data (numpy scalars and arrays are converted).
+    path : path-like
+        Destination file.
+
+    Returns
+    -------
+    Path
+        The written path.
+    """
+    target = Path(path)
+    text = json.dumps(_jsonable(obj), indent=2, default=_json_default, allow_nan=False)
+    with atomic_path(target) as tmp:
+        tmp.write_text(text + "\n", encoding="utf-8")
+    return target

@@ -1,0 +1,632 @@
+"""Batch processing: many logs, on all local cores or on a Dask cluster.
+
+Every input log is compensated exactly as ``aeromag compensate`` does it (self-calibrated, or
+with the saved ``model``), and with a ``plan`` also checked by ``aeromag track``; each file runs
+in its own task, so a bad file is reported without stopping the others::
+
+    from aeromag.workflows.batch import run_batch
+    summary = run_batch(["logs/"], "out/", model="aircraft.json", workers=8)
+    summary.to_frame()           # one row per input: status, seconds, metrics, error
+    summary.failed               # the failures, each with its one-line reason
+
+Outputs: ``OUT/NAME_comp.csv`` + ``.json`` (and ``OUT/NAME_track.csv`` + ``.json``) per input
+``NAME.ext``, and ``OUT/batch_summary.csv`` + ``.json``.  No output may be an input (a log, the
+model or the plan): such a run is refused before it starts.
+
+Skipping: a file is skipped (unless ``force``) when its outputs are newer than it **and** were
+made with the same fingerprint -- the effective pipeline options, column map, units, format,
+chunking, track options, the SHA-256 of the model and plan files' contents and the aeromag
+version (:func:`batch_fingerprint`).  The fingerprint of a file's last successful run is kept
+in ``OUT/.NAME.batch.json``; it is removed when the file is processed again and written back
+only when the file succeeds, so a failed or interrupted run is always redone.
+
+Engines: a local process pool (default, ``workers`` processes), or Dask distributed when
+``scheduler`` is given (an address such as ``tcp://host:8786``, or a
+:class:`distributed.Client`); Dask is imported only then (``pip install 'aeromag[dask]'``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import glob
+import hashlib
+import json
+import logging
+import os
+import time
+import traceback
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass, field
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from ..errors import AeromagError, InputError
+
+log = logging.getLogger(__name__)
+
+#: Extensions picked up when an input is a folder.
+LOG_EXTENSIONS: tuple[str, ...] = (".csv", ".txt", ".parquet", ".pq", ".xyz", ".h5", ".hdf5")
+
+SUMMARY_NAME = "batch_summary"
+
+#: Suffix of the per-file fingerprint written beside the outputs (``.NAME.batch.json``).
+FINGERPRINT_SUFFIX = ".batch.json"
+
+#: Summary columns holding counts, written as integers (empty when unknown).
+INTEGER_COLUMNS: tuple[str, ...] = ("n_rows", "flagged_legs")
+
+
+@dataclass
+class FileResult:
+    """Outcome of one input log.
+
+    Attributes
+    ----------
+    input : str
+        The input path.
+    status : {"ok", "skipped", "failed"}
+        What happened.
+    outputs : list of str
+        Files written (or found up to date when skipped).
+    error : str or None
+        One-line reason of the failure.
+    seconds : float
+        Wall time of this file [s].
+    n_rows : int or None
+        Rows of the output log.
+    improvement_ratio, residual_std_nT : float or None
+        Compensation metrics of the report (interface.md).
+    flagged_legs : int or None
+        Legs with an alarm (with a plan).
+    """
+
+    input: str
+    status: str
+    outputs: list[str] = field(default_factory=list)
+    error: str | None = None
+    seconds: float = 0.0
+    n_rows: int | None = None
+    improvement_ratio: float | None = None
+    residual_std_nT: float | None = None
+    flagged_legs: int | None = None
+
+
+@dataclass
+class BatchSummary:
+    """Results of :func:`run_batch`, one :class:`FileResult` per input, in input order."""
+
+    results: list[FileResult]
+    out_dir: Path
+    summary_csv: Path | None = None
+    summary_json: Path | None = None
+    seconds: float = 0.0
+
+    @property
+    def failed(self) -> list[FileResult]:
+        """The inputs that failed."""
+        return [r for r in self.results if r.status == "failed"]
+
+    @property
+    def ok(self) -> bool:
+        """True when no input failed."""
+        return not self.failed
+
+    def to_frame(self) -> pd.DataFrame:
+        """One row per input: ``input, status, seconds, n_rows, improvement_ratio, ...``."""
+        rows = []
+        for r in self.results:
+            d = asdict(r)
+            d["outputs"] = ";".join(r.outputs)
+            rows.append(d)
+        cols = list(FileResult.__dataclass_fields__)
+        frame = pd.DataFrame(rows, columns=cols)
+        for c in INTEGER_COLUMNS:  # None makes a float column: 2010.0
+            frame[c] = frame[c].astype("Int64")
+        return frame
+
+
+# --------------------------------------------------------------------------- inputs
+def expand_inputs(inputs: Iterable[str | os.PathLike[str]]) -> tuple[list[Path], list[str]]:
+    """Expand files, globs and folders into a sorted list of log files.
+
+    Parameters
+    ----------
+    inputs : iterable of path-like
+        Files, glob patterns (``logs/*.csv``) or folders (their log files, not recursive).
+
+    Returns
+    -------
+    files : list of Path
+        Distinct files, in the order given (folders and globs sorted).
+    unmatched : list of str
+        Inputs that matched nothing.
+    """
+    files: list[Path] = []
+    unmatched: list[str] = []
+    seen: set[Path] = set()
+
+    def add(p: Path) -> None:
+        key = p.resolve()
+        if key not in seen:
+            seen.add(key)
+            files.append(p)
+
+    for item in inputs:
+        s = str(item)
+        p = Path(s)
+        if p.is_dir():
+            found = sorted(q for q in p.iterdir()
+                           if q.is_file() and q.suffix.lower() in LOG_EXTENSIONS
+                           and not q.name.startswith("."))
+            if not found:
+                unmatched.append(s)
+            for q in found:
+                add(q)
+        elif p.exists():
+            add(p)
+        elif glob.has_magic(s):
+            found = sorted(Path(g) for g in glob.glob(s) if Path(g).is_file())
+            if not found:
+                unmatched.append(s)
+            for q in found:
+                add(q)
+        else:
+            unmatched.append(s)
+    return files, unmatched
+
+
+def unmatched_reason(item: str) -> str:
+    """One-line reason why an input matched no log file, and what to do.
+
+    Parameters
+    ----------
+    item : str
+        An input of :func:`expand_inputs` that it returned as unmatched.
+
+    Returns
+    -------
+    str
+        ``"ITEM: ..."``.
+    """
+    p = Path(item)
+    if p.is_dir():
+        exts = ", ".join(f"*{e}" for e in LOG_EXTENSIONS)
+        return (f"{item}: the folder holds no log files (looked for {exts}, not in"
+                " sub-folders); give the log files themselves or another folder")
+    if glob.has_magic(item):
+        return f"{item}: no file matches this pattern; check the folder and the pattern"
+    return f"{item}: no such file or folder; check the path"
+
+
+def output_names(inp: Path, out_dir: Path) -> dict[str, Path]:
+    """Output paths of one input.
+
+    Parameters
+    ----------
+    inp : Path
+        Input log ``NAME.ext``.
+    out_dir : Path
+        Output folder.
+
+    Returns
+    -------
+    dict
+        ``comp`` (NAME_comp.csv), ``track`` (NAME_track.csv) and ``fingerprint``
+        (.NAME.batch.json).
+    """
+    return {"comp": out_dir / f"{inp.stem}_comp.csv", "track": out_dir / f"{inp.stem}_track.csv",
+            "fingerprint": out_dir / f".{inp.stem}{FINGERPRINT_SUFFIX}"}
+
+
+def _up_to_date(outputs: Sequence[Path], sources: Sequence[Path]) -> bool:
+    try:
+        oldest_out = min(p.stat().st_mtime for p in outputs)
+        newest_in = max(p.stat().st_mtime for p in sources)
+    except (FileNotFoundError, ValueError):
+        return False
+    return oldest_out > newest_in
+
+
+def file_sha256(path: str | os.PathLike[str]) -> str:
+    """SHA-256 of a file's contents (hex), read in 1 MiB blocks."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def batch_fingerprint(
+    *,
+    cfg: Any,
+    model: str | os.PathLike[str] | None = None,
+    plan: str | os.PathLike[str] | None = None,
+    columns: dict[str, str] | None = None,
+    units: dict[str, str] | None = None,
+    fmt: str | None = None,
+    chunk_rows: int | None = None,
+    track_options: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """What a file's outputs depend on besides the file itself, and its digest.
+
+    Parameters
+    ----------
+    cfg : CompensationConfig
+        Effective pipeline options.
+    model, plan : path-like, optional
+        Model and plan files (their contents are hashed, not their names or times).
+    columns, units : dict, optional
+        Column map and unit conversions.
+    fmt : str, optional
+        Input format.
+    chunk_rows : int, optional
+        Chunk size of the model application (counts only with a model).
+    track_options : dict, optional
+        Keyword arguments of :func:`aeromag.track.track_file` (count only with a plan).
+
+    Returns
+    -------
+    dict
+        ``fingerprint`` (SHA-256 hex of the other entries, as sorted JSON) and the entries:
+        ``aeromag`` (version), ``config``, ``model_sha256``, ``plan_sha256``, ``columns``,
+        ``units``, ``format``, ``chunk_rows``, ``track``.
+    """
+    from .. import __version__
+
+    config = dataclasses.asdict(cfg) if dataclasses.is_dataclass(cfg) else repr(cfg)
+    parts: dict[str, Any] = {
+        "aeromag": __version__,
+        "config": config,
+        "model_sha256": None if model is None else file_sha256(model),
+        "plan_sha256": None if plan is None else file_sha256(plan),
+        "columns": dict(sorted(columns.items())) if columns else None,
+        "units": dict(sorted(units.items())) if units else None,
+        "format": fmt,
+        "chunk_rows": chunk_rows if model is not None else None,
+        "track": (dict(sorted((track_options or {}).items())) if plan is not None else None),
+    }
+    text = json.dumps(parts, sort_keys=True, default=str)
+    parts = json.loads(text)  # the stored form: tuples as lists, objects as text
+    return {"fingerprint": hashlib.sha256(text.encode()).hexdigest(), **parts}
+
+
+def _stored_fingerprint(path: Path) -> str | None:
+    """The fingerprint stored by a file's last successful run, or None."""
+    try:
+        return str(json.loads(path.read_text(encoding="utf-8"))["fingerprint"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def _refuse_overwriting_inputs(sources: Sequence[tuple[Path, str]],
+                               outputs: Sequence[Path]) -> None:
+    """Raise :class:`InputError` when an output of the run is one of its inputs.
+
+    Parameters
+    ----------
+    sources : sequence of (Path, str)
+        Input files and what they are (``"log"``, ``"model"``, ``"plan"``).
+    outputs : sequence of Path
+        Every file the run may write.
+    """
+    from ..compensate import check_outputs
+
+    existing: dict[tuple[int, int], Path] = {}
+    for o in outputs:
+        try:
+            st = o.stat()
+        except OSError:
+            continue  # not there yet: cannot be an existing input
+        existing[(st.st_dev, st.st_ino)] = o
+    for src, kind in sources:
+        try:
+            st = src.stat()
+        except OSError:
+            continue
+        o = existing.get((st.st_dev, st.st_ino))
+        if o is None:
+            continue
+        check_outputs(src, o, kind=kind)
+
+
+# --------------------------------------------------------------------------- one file
+def process_file(job: dict[str, Any]) -> dict[str, Any]:
+    """Compensate (and track-check) one log; never raises.
+
+    Parameters
+    ----------
+    job : dict
+        ``input``, ``out_dir``, ``model`` (path or None), ``plan`` (path or None), ``cfg``
+        (a :class:`~aeromag.compensate.CompensationConfig`), ``columns``, ``units``, ``fmt``,
+        ``chunk_rows`` (apply the model in chunks of this many rows, or None), ``track``
+        (keyword arguments of :func:`aeromag.track.track_file`), ``fingerprint`` (from
+        :func:`batch_fingerprint`, written to ``.NAME.batch.json`` when the file succeeds; the
+        old one is removed first).
+
+    Returns
+    -------
+    dict
+        The fields of a :class:`FileResult`.
+    """
+    from ..compensate import compensate_file
+    from ..io import json_path_for, write_json
+
+    t0 = time.perf_counter()
+    inp = Path(job["input"])
+    names = output_names(inp, Path(job["out_dir"]))
+    res: dict[str, Any] = {"input": str(inp), "status": "ok", "outputs": []}
+    errors: list[str] = []
+    # Outputs about to change: the old fingerprint no longer describes them.
+    try:
+        names["fingerprint"].unlink(missing_ok=True)
+    except OSError as exc:
+        log.debug("%s: %s", names["fingerprint"], exc)
+    try:
+        if job.get("chunk_rows") and job.get("model") is not None:
+            from ..chunked import apply_model_chunked
+
+            report = apply_model_chunked(inp, names["comp"], job["model"], job["cfg"],
+                                         chunk_rows=job["chunk_rows"], columns=job["columns"],
+                                         units=job["units"], fmt=job["fmt"])
+            res["n_rows"] = int(report.get("n_rows", 0)) or None
+        else:
+            out = compensate_file(inp, names["comp"], job["cfg"], model=job["model"],
+                                  columns=job["columns"], units=job["units"], fmt=job["fmt"])
+            report = out.report
+            res["n_rows"] = len(out.data) if out.data is not None else None
+        m = report.get("metrics", {})
+        res["improvement_ratio"] = m.get("improvement_ratio")
+        res["residual_std_nT"] = m.get("residual_std_nT")
+        res["outputs"] += [str(names["comp"]), str(json_path_for(names["comp"]))]
+    except AeromagError as exc:
+        errors.append(str(exc))
+    except Exception as exc:  # noqa: BLE001 - isolate every file, whatever breaks
+        log.debug("%s", traceback.format_exc())
+        errors.append(f"{inp}: internal error {type(exc).__name__}: {exc}".splitlines()[0])
+    if job.get("plan") is not None:
+        try:
+            from ..track import track_file
+
+            tr = track_file(inp, job["plan"], names["track"], columns=job["columns"],
+                            units=job["units"], fmt=job["fmt"], **(job.get("track") or {}))
+            res["flagged_legs"] = sum(1 for leg in tr.report.get("legs", [])
+                                      if leg.get("flagged"))
+            res["outputs"] += [str(names["track"]), str(json_path_for(names["track"]))]
+        except AeromagError as exc:
+            errors.append(f"track: {exc}")
+        except Exception as exc:  # noqa: BLE001
+            errors.append(f"track: {inp}: internal error {type(exc).__name__}: {exc}"
+                          .splitlines()[0])
+    if errors:
+        res["status"] = "failed"
+        res["error"] = " | ".join(errors)
+    elif job.get("fingerprint") is not None:
+        try:
+            write_json(job["fingerprint"], names["fingerprint"])
+        except OSError as exc:  # the outputs are good; the next run just redoes this file
+            log.warning("%s: cannot record the run's fingerprint (%s); the next batch run will"
+                        " process this file again", names["fingerprint"], exc)
+    res["seconds"] = time.perf_counter() - t0
+    return res
+
+
+# --------------------------------------------------------------------------- engines
+def _run_local(jobs: list[dict[str, Any]], workers: int,
+               done: Callable[[dict[str, Any]], None]) -> None:
+    if workers <= 1 or len(jobs) <= 1:
+        for j in jobs:
+            done(process_file(j))
+        return
+    ctx = get_context("forkserver") if "forkserver" in _start_methods() else None
+    with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=ctx) as ex:
+        futs = {ex.submit(process_file, j): j for j in jobs}
+        for f in as_completed(futs):
+            try:
+                done(f.result())
+            except Exception as exc:  # noqa: BLE001 - a worker died (e.g. out of memory)
+                j = futs[f]
+                done({"input": j["input"], "status": "failed", "outputs": [],
+                      "error": f"{j['input']}: worker failed ({type(exc).__name__}: {exc})"})
+
+
+def _start_methods() -> list[str]:
+    import multiprocessing
+
+    return multiprocessing.get_all_start_methods()
+
+
+def _run_dask(jobs: list[dict[str, Any]], scheduler: Any,
+              done: Callable[[dict[str, Any]], None]) -> None:
+    try:
+        from distributed import Client
+        from distributed import as_completed as dask_completed
+    except ImportError:
+        raise InputError(
+            "--scheduler needs Dask distributed: pip install 'aeromag[dask]'") from None
+    own = not isinstance(scheduler, Client)
+    try:
+        client = Client(scheduler) if own else scheduler
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise InputError(f"--scheduler {scheduler}: cannot connect ({exc}); is the Dask"
+                         " scheduler running at that address?") from None
+    try:
+        futs = client.map(process_file, jobs, pure=False, key=[
+            f"aeromag-{i}-{Path(j['input']).name}" for i, j in enumerate(jobs)])
+        index = {f.key: j for f, j in zip(futs, jobs, strict=True)}
+        for f in dask_completed(futs):
+            try:
+                done(f.result())
+            except Exception as exc:  # noqa: BLE001 - a worker was lost
+                j = index[f.key]
+                done({"input": j["input"], "status": "failed", "outputs": [],
+                      "error": f"{j['input']}: Dask task failed ({type(exc).__name__}: {exc})"})
+    finally:
+        if own:
+            client.close()
+
+
+# --------------------------------------------------------------------------- driver
+def run_batch(
+    inputs: Iterable[str | os.PathLike[str]],
+    out_dir: str | os.PathLike[str],
+    *,
+    model: str | os.PathLike[str] | None = None,
+    plan: str | os.PathLike[str] | None = None,
+    cfg: Any = None,
+    workers: int | None = None,
+    scheduler: Any = None,
+    force: bool = False,
+    columns: dict[str, str] | None = None,
+    units: dict[str, str] | None = None,
+    fmt: str | None = None,
+    progress: bool = True,
+    chunk_rows: int | None = None,
+    track_options: dict[str, Any] | None = None,
+) -> BatchSummary:
+    """Compensate (and with ``plan`` track-check) many logs in parallel.
+
+    Parameters
+    ----------
+    inputs : iterable of path-like
+        Files, glob patterns or folders.
+    out_dir : path-like
+        Output folder (created when missing).
+    model : path-like, optional
+        Saved model applied to every log; without it every log is self-calibrated exactly as
+        ``aeromag compensate`` does.
+    plan : path-like, optional
+        Mission plan: also run :func:`aeromag.track.track_file` on every log.
+    cfg : CompensationConfig, optional
+        Pipeline options (default: the command line's defaults).
+    workers : int, optional
+        Local worker processes (default: all cores); 1 runs in this process.
+    scheduler : str or distributed.Client, optional
+        Dask scheduler address (``tcp://host:8786``) or client: run the files there instead.
+    force : bool
+        Re-process every file; otherwise a file is skipped when its outputs are newer than it
+        and its stored fingerprint equals this run's (:func:`batch_fingerprint`).
+    columns, units : dict, optional
+        Column map and unit conversions, for every file.
+    fmt : str, optional
+        Input format for every file (default: from each extension).
+    progress : bool
+        Show a rich progress bar on stderr.
+    chunk_rows : int, optional
+        With ``model``: apply it in chunks of this many rows (bounded memory, see
+        :mod:`aeromag.chunked`) instead of reading each log whole.
+    track_options : dict, optional
+        Keyword arguments of :func:`aeromag.track.track_file` (``threshold_m`` [m], ...).
+
+    Returns
+    -------
+    BatchSummary
+        Per-file results; ``batch_summary.csv``/``.json`` are written to ``out_dir``.
+    """
+    from ..compensate import CompensationConfig
+    from ..io import write_csv, write_json
+    from ..tolles_lawson import TLModel
+
+    t_start = time.perf_counter()
+    cfg = cfg or CompensationConfig()
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: exists and is not a folder; give -o a folder")
+    if model is not None:
+        TLModel.load(model)  # a bad model is everyone's problem: fail before starting
+    if plan is not None and not Path(plan).is_file():
+        raise InputError(f"{plan}: plan file not found")
+    files, unmatched = expand_inputs(inputs)
+    if not files and not unmatched:
+        raise InputError("no input logs given")
+    stems: dict[str, Path] = {}
+    for f in files:
+        if f.stem in stems:
+            raise InputError(f"{f} and {stems[f.stem]} would both write {f.stem}_comp.csv;"
+                             " rename one or run them into different -o folders")
+        stems[f.stem] = f
+    per_file: dict[Path, list[Path]] = {}
+    for f in files:
+        names = output_names(f, out)
+        outs = [names["comp"], names["comp"].with_suffix(".json")]
+        if plan is not None:
+            outs += [names["track"], names["track"].with_suffix(".json")]
+        per_file[f] = outs
+    _refuse_overwriting_inputs(
+        [(f, "log") for f in files] + [(Path(p), k) for p, k in ((model, "model"),
+                                                                 (plan, "plan")) if p is not None],
+        [p for f in files for p in (*per_file[f], output_names(f, out)["fingerprint"])]
+        + [out / f"{SUMMARY_NAME}.csv", out / f"{SUMMARY_NAME}.json"])
+    fingerprint = batch_fingerprint(cfg=cfg, model=model, plan=plan, columns=columns,
+                                    units=units, fmt=fmt, chunk_rows=chunk_rows,
+                                    track_options=track_options)
+    out.mkdir(parents=True, exist_ok=True)
+    results: dict[str, FileResult] = {}
+    order = [str(f) for f in files] + unmatched
+    for s in unmatched:
+        results[s] = FileResult(s, "failed", error=unmatched_reason(s))
+    jobs: list[dict[str, Any]] = []
+    for f in files:
+        outs = per_file[f]
+        if (not force and _up_to_date(outs, [f])
+                and _stored_fingerprint(output_names(f, out)["fingerprint"])
+                == fingerprint["fingerprint"]):
+            results[str(f)] = FileResult(str(f), "skipped", [str(p) for p in outs])
+            continue
+        jobs.append({"input": str(f), "out_dir": str(out),
+                     "model": None if model is None else str(model),
+                     "plan": None if plan is None else str(plan), "cfg": cfg,
+                     "columns": columns, "units": units, "fmt": fmt, "chunk_rows": chunk_rows,
+                     "track": track_options, "fingerprint": fingerprint})
+    log.info("%d file(s) to process, %d up to date, %d unmatched", len(jobs),
+             sum(r.status == "skipped" for r in results.values()), len(unmatched))
+
+    bar = _progress(progress, len(jobs))
+
+    def done(r: dict[str, Any]) -> None:
+        results[r["input"]] = FileResult(**r)
+        if r["status"] == "failed":
+            log.warning("%s", r.get("error"))
+        if bar is not None:
+            bar[0].advance(bar[1])
+
+    try:
+        if jobs:
+            if scheduler is not None:
+                _run_dask(jobs, scheduler, done)
+            else:
+                _run_local(jobs, workers or os.cpu_count() or 1, done)
+    finally:
+        if bar is not None:
+            bar[0].stop()
+    summary = BatchSummary([results[k] for k in order], out,
+                           seconds=time.perf_counter() - t_start)
+    frame = summary.to_frame()
+    summary.summary_csv = write_csv(frame, out / f"{SUMMARY_NAME}.csv")
+    summary.summary_json = write_json(
+        {"out_dir": str(out), "model": None if model is None else str(model),
+         "plan": None if plan is None else str(plan), "seconds": summary.seconds,
+         "fingerprint": fingerprint,
+         "n_ok": sum(r.status == "ok" for r in summary.results),
+         "n_skipped": sum(r.status == "skipped" for r in summary.results),
+         "n_failed": len(summary.failed),
+         "files": [asdict(r) for r in summary.results]},
+        out / f"{SUMMARY_NAME}.json")
+    return summary
+
+
+def _progress(enabled: bool, total: int) -> tuple[Any, Any] | None:
+    if not enabled or total == 0:
+        return None
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
+
+    bar = Progress("[progress.description]{task.description}", BarColumn(),
+                   MofNCompleteColumn(), TimeElapsedColumn(),
+                   console=Console(stderr=True), transient=False)
+    task = bar.add_task("aeromag batch", total=total)
+    bar.start()
+    return bar, task
