@@ -1,9 +1,90 @@
-"""aeromag: post-processing of aeromagnetic surveys flown by aircraft and multirotor UAVs."""
+"""aeromag: post-processing of aeromagnetic surveys flown by aircraft and multirotor UAVs.
+
+The public API is flat::
+
+    import aeromag as am
+    df = am.read_log("survey.csv")
+    res = am.compensate(df)                  # fit on the survey itself, screen, apply
+    model = am.calibrate(am.read_log("calibration.csv")).model
+    out = am.compensate(df, model=model)
+
+Every public name is listed in ``__all__`` (``docs/api.md``); names are imported on first use,
+so ``import aeromag`` (and ``aeromag --help``) stays fast.  Everything else lives in the
+packages (``aeromag.compensation``, ``aeromag.io``, ...) or is private.
+"""
 
 from __future__ import annotations
+
+import importlib
+import sys
+import types
+from typing import Any
 
 from .errors import AeromagError, FitError, InputError
 
 __version__ = "0.1.0"
 
-__all__ = ["AeromagError", "FitError", "InputError", "__version__"]
+#: Public name -> module that defines it.  Other families add their names here (one line each).
+_API: dict[str, str] = {
+    # reading and writing logs
+    "read_log": "aeromag.io",
+    "write_csv": "aeromag.io",
+    # compensation
+    "CompensationConfig": "aeromag.compensation.config",
+    "CompensationResult": "aeromag.compensation.result",
+    "TLModel": "aeromag.compensation.model",
+    "TollesLawson": "aeromag.compensation.estimator",
+    "compensate": "aeromag.compensation.pipeline",
+    "calibrate": "aeromag.compensation.pipeline",
+    "fit_model": "aeromag.compensation.fit",
+    "apply_model": "aeromag.compensation.apply",
+    "compensation_metrics": "aeromag.compensation.metrics",
+    "design_matrix": "aeromag.compensation.terms",
+    "parse_terms": "aeromag.compensation.terms",
+    "TERMS_16": "aeromag.conventions",
+    "compensate_file": "aeromag.workflows.compensate",
+    "calibrate_file": "aeromag.workflows.compensate",
+    "apply_model_chunked": "aeromag.workflows.chunked",
+    # simulators
+    "simulate_calibration": "aeromag.synthetic",
+    "simulate_survey": "aeromag.synthetic",
+    "survey_plan": "aeromag.synthetic",
+    "write_simulation": "aeromag.workflows.simulate",
+    # quality control
+    "compute_qc": "aeromag.qc",
+    # track check
+    "check_track": "aeromag.track",
+}
+
+__all__ = ["AeromagError", "FitError", "InputError", "__version__", *sorted(_API)]
+
+
+def __getattr__(name: str) -> Any:
+    module = _API.get(name)
+    if module is None:
+        raise AttributeError(f"module 'aeromag' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_API))
+
+
+class _Package(types.ModuleType):
+    """The ``aeromag`` module: a public function is never shadowed by an old submodule.
+
+    Importing the deprecated module ``aeromag.compensate`` makes Python set the attribute
+    ``aeromag.compensate`` to that module, hiding the function ``am.compensate``; the package
+    keeps its public name instead (the module stays in ``sys.modules``, so
+    ``from aeromag.compensate import X`` works).
+    """
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name in _API and isinstance(value, types.ModuleType):
+            return
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package

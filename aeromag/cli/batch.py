@@ -23,7 +23,7 @@ from .compensate import (
     Verbose,
 )
 
-# Same as aeromag.batch.LOG_EXTENSIONS (a test checks it); literal here so that
+# Same as aeromag.workflows.batch.LOG_EXTENSIONS (a test checks it); literal here so that
 # 'aeromag --help' does not import pandas.
 LOG_EXTENSIONS = (".csv", ".txt", ".parquet", ".pq", ".xyz", ".h5", ".hdf5")
 
@@ -79,8 +79,8 @@ def batch(
     skipped (see --force).
     """
     setup_logging(verbose, quiet=not verbose)
-    from ..batch import run_batch
-    from ..compensate import CompensationConfig
+    from ..compensation.config import CompensationConfig
+    from ..workflows.batch import run_batch
 
     with user_errors():
         columns, unit_map = column_options(col, map_file, units)

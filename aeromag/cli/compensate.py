@@ -8,7 +8,7 @@ from typing import Annotated
 import typer
 
 from ..errors import InputError
-from .app import app, column_options, setup_logging, user_errors
+from ._app import app, column_options, setup_logging, user_errors
 
 Band = Annotated[
     tuple[float, float],
@@ -60,14 +60,14 @@ Plot = Annotated[Path | None, typer.Option("--plot", metavar="DIR", help="Also w
 
 def _warm(screen: bool, log: Path | None = None, fmt: str | None = None) -> None:
     """Start parsing ``log`` (a CSV) on a thread, then import what the run needs (scipy.signal,
-    and scikit-learn when screening) on this thread while it parses (see aeromag.warm)."""
+    and scikit-learn when screening) on this thread while it parses (see aeromag.io.warm)."""
     import importlib
 
-    from ..warm import prefetch_csv
+    from ..io.warm import prefetch_csv
 
     if log is not None and fmt in (None, "csv"):
         prefetch_csv(log)
-    mods = ["aeromag.compensate", "scipy.signal", "aeromag.qc"]
+    mods = ["aeromag.compensation", "scipy.signal", "aeromag.qc"]
     if screen:
         mods += ["sklearn.decomposition", "sklearn.covariance", "scipy.stats"]
     for name in mods:
@@ -125,9 +125,10 @@ def compensate(
     setup_logging(verbose)
     _warm(screen=model is None and not no_screen, log=None if chunk_rows else survey, fmt=fmt)
     # Library imports here, not at module level: 'aeromag --help' stays instant.
-    from ..compensate import CompensationConfig, compensate_file
+    from ..compensation.config import CompensationConfig
+    from ..compensation.model import TLModel
     from ..io import json_path_for
-    from ..tolles_lawson import TLModel
+    from ..workflows.compensate import compensate_file
 
     with user_errors():
         if json_path_for(output) == output:
@@ -150,7 +151,7 @@ def compensate(
                                  "run 'aeromag report' on the output")
             if chunk_rows < 1:
                 raise InputError(f"--chunk-rows {chunk_rows}: must be a positive row count")
-            from ..chunked import apply_model_chunked
+            from ..workflows.chunked import apply_model_chunked
 
             report = apply_model_chunked(survey, output, TLModel.load(model), cfg,
                                          chunk_rows=chunk_rows, columns=columns,
@@ -160,7 +161,9 @@ def compensate(
         res = compensate_file(survey, output, cfg, model=model, columns=columns, units=unit_map,
                               fmt=fmt)
         if plot is not None:
-            from ..report import write_report  # matplotlib only when figures are asked for
+            from ..workflows.report import (
+                write_report,  # matplotlib only when figures are asked for
+            )
 
             page = write_report(res.data, res.report, plot, cfg=cfg)
     _summary(res.report, output, json_path_for(output))
@@ -203,7 +206,8 @@ def calibrate(
     """
     setup_logging(verbose)
     _warm(screen=not no_screen, log=cal, fmt=fmt)
-    from ..compensate import CompensationConfig, calibrate_file
+    from ..compensation.config import CompensationConfig
+    from ..workflows.compensate import calibrate_file
 
     with user_errors():
         columns, unit_map = column_options(col, map_file, units)
@@ -216,7 +220,9 @@ def calibrate(
         )
         res = calibrate_file(cal, output, cfg, columns=columns, units=unit_map, fmt=fmt)
         if plot is not None:
-            from ..report import write_report  # matplotlib only when figures are asked for
+            from ..workflows.report import (
+                write_report,  # matplotlib only when figures are asked for
+            )
 
             page = write_report(res.data, res.report, plot, cfg=cfg)
     _summary(res.report, output, None)

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from .app import app, setup_logging, user_errors
+from ._app import app, setup_logging, user_errors
 
 log = logging.getLogger(__name__)
 
@@ -63,7 +63,7 @@ def simulate(
 ) -> None:
     """Write synthetic flights, plans and their ground truth (help: ``_HELP``)."""
     setup_logging(verbose)
-    from ..simulate import write_simulation
+    from ..workflows.simulate import write_simulation
 
     with user_errors():
         paths = write_simulation(output, seed=seed, faults=faults, rate_hz=rate, small=small)

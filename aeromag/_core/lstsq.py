@@ -1,0 +1,67 @@
+"""The one least-squares solve of the package: (ridge-)regularised normal equations."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import FitError
+
+
+def solve_normal(
+    gram: np.ndarray, rhs: np.ndarray, ridge: float = 0.0
+) -> tuple[np.ndarray, float, float]:
+    """Solve the (ridge-)regularised normal equations ``(G + ridge*D) c = b``.
+
+    The ridge penalty is scaled by the diagonal ``D`` of ``G`` so ``ridge`` is dimensionless
+    (0 = plain least squares; 1e-3 a light touch).
+
+    Parameters
+    ----------
+    gram : ndarray, shape (k, k)
+        ``A.T @ A`` of the (band-passed) design matrix.
+    rhs : ndarray, shape (k,)
+        ``A.T @ y``.
+    ridge : float
+        Relative ridge parameter (>= 0).
+
+    Returns
+    -------
+    coef : ndarray, shape (k,)
+        Coefficients [nT; eddy nT*s].
+    cond : float
+        Condition number of ``A`` (square root of that of ``G``).
+    cond_scaled : float
+        Condition number of ``A`` with unit-norm columns: the collinearity of the terms
+        independent of their units.
+
+    Raises
+    ------
+    FitError
+        When ``G`` is singular (a term never varies, e.g. a constant fluxgate).
+    """
+    d = np.diag(gram).copy()
+    if not np.all(np.isfinite(gram)) or not np.all(np.isfinite(rhs)):
+        raise FitError("the fit matrix has non-finite values; check the fluxgate and mag columns")
+    if np.any(d <= 0):
+        raise FitError(
+            "a model term never varies in the fitting band (constant fluxgate or no manoeuvres);"
+            " fly manoeuvres, widen --band or choose fewer --terms"
+        )
+    ev = np.linalg.eigvalsh(gram)
+    cond = float(np.sqrt(ev[-1] / ev[0])) if ev[0] > 0 else float("inf")
+    inv = 1.0 / np.sqrt(d)
+    gs = gram * inv[:, None] * inv[None, :]
+    evs = np.linalg.eigvalsh(gs)
+    cond_s = float(np.sqrt(evs[-1] / evs[0])) if evs[0] > 0 else float("inf")
+    if ridge <= 0 and not (evs[0] > 1e-14 * evs[-1]):
+        raise FitError(
+            f"the fit is ill-conditioned (scaled condition number {cond_s:.3g}); the terms are"
+            " collinear: add manoeuvres, use --ridge 1e-3, or choose fewer --terms"
+        )
+    g = gs + ridge * np.eye(len(d))
+    try:
+        z = np.linalg.solve(g, rhs * inv)
+    except np.linalg.LinAlgError:
+        raise FitError("the fit matrix is singular; add manoeuvres or use --ridge") from None
+    return z * inv, cond, cond_s
+

@@ -1,0 +1,179 @@
+"""The typer application object and helpers shared by every command.
+
+The CLI is a thin shell over the Python API: each command parses options, calls one API
+function, and turns :class:`~aeromag.errors.AeromagError` into a one-line message on stderr
+with exit status 1 (no traceback for a user's mistake).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import logging
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..errors import AeromagError
+
+app = typer.Typer(
+    name="aeromag",
+    help="Aeromagnetic survey post-processing: Tolles-Lawson compensation with PCA screening "
+    "of segments, DGPS track-deviation checks, batch processing.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    # Plain click help: help strings are shown as written (rich markup would eat "[columns]"
+    # and "'aeromag[dask]'"), flags get no "<bool>" type as if they took a value, and a usage
+    # error is three plain lines instead of a box.
+    rich_markup_mode=None,
+)
+
+log = logging.getLogger(__name__)
+
+
+def _version(value: bool) -> None:
+    """``--version``: print ``aeromag X.Y.Z`` and exit."""
+    if value:
+        from .. import __version__
+
+        typer.echo(f"aeromag {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
+                                          help="Print the aeromag version and exit.")] = False,
+) -> None:
+    """Options before the command (``--version``); the group's help is ``app``'s."""
+
+
+#: Exit status for a user's mistake (bad file, bad option value).
+EXIT_USER_ERROR = 1
+
+
+@contextlib.contextmanager
+def user_errors() -> Iterator[None]:
+    """Turn :class:`AeromagError` into ``error: ...`` on stderr and exit status 1.
+
+    An operating-system error (an output folder that cannot be written, a full disk, a path
+    that is a directory) is the user's to fix too: one line naming the path, no traceback.
+    """
+    try:
+        yield
+    except AeromagError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(EXIT_USER_ERROR) from None
+    except OSError as exc:
+        typer.echo(f"error: {os_error_message(exc)}", err=True)
+        raise typer.Exit(EXIT_USER_ERROR) from None
+
+
+def os_error_message(exc: OSError) -> str:
+    """One line for an :class:`OSError`: the path, the system's reason and what to do."""
+    where = exc.filename if exc.filename is not None else "<file>"
+    why = exc.strerror or str(exc)
+    what = {
+        errno.EACCES: "check its permissions or choose another -o",
+        errno.EPERM: "check its permissions or choose another -o",
+        errno.EROFS: "the file system is read-only: choose another -o",
+        errno.ENOSPC: "free disk space or choose another -o",
+        errno.EISDIR: "it is a folder: give a file name",
+        errno.ENOTDIR: "a part of the path is a file, not a folder: fix the path",
+        errno.ENOENT: "check the path",
+    }.get(exc.errno or -1, "check the path")
+    return " ".join(f"{where}: {why}; {what}".split())
+
+
+def column_options(
+    col: list[str] | None, map_file: Path | None, units: list[str] | None
+) -> tuple[dict[str, str] | None, dict[str, str] | None]:
+    """Merge ``--col``, ``--map`` and ``--units`` options into (columns, units) dicts.
+
+    A map entry ``NAME=SOURCE`` renames the file's column ``SOURCE`` to ``NAME``; a ``NAME``
+    that is not a canonical column (``time``, ``lat``, ..., ``leg``) is almost always a mistake
+    (``--col foo=mag`` renames ``mag`` away and the pipeline falls back to the fluxgate
+    magnitude), so it draws one warning line (see :func:`warn_non_canonical`).
+
+    Parameters
+    ----------
+    col : list of str or None
+        ``--col NAME=SOURCE`` options.
+    map_file : Path or None
+        ``--map`` TOML file (``[columns]``, ``[units]``).
+    units : list of str or None
+        ``--units NAME=UNIT`` options.
+
+    Returns
+    -------
+    columns, units : dict or None, dict or None
+        ``{canonical: source}`` and ``{column_or_group: unit}``, None when empty.
+    """
+    from ..io import parse_column_map, read_map_file
+
+    columns: dict[str, str] = {}
+    unit_map: dict[str, str] = {}
+    if map_file is not None:
+        c, u = read_map_file(map_file)
+        warn_non_canonical(c, f"--map {map_file}:")
+        columns.update(c)
+        unit_map.update(u)
+    c = parse_column_map(col or [], option="--col")
+    warn_non_canonical(c, "--col")
+    columns.update(c)
+    unit_map.update(parse_column_map(units or [], option="--units"))
+    return columns or None, unit_map or None
+
+
+def warn_non_canonical(columns: Mapping[str, str], option: str = "--col") -> list[str]:
+    """Warn (one line each) about map entries whose target name is not canonical.
+
+    Parameters
+    ----------
+    columns : mapping
+        Column map ``{NAME: SOURCE}`` (NAME the canonical name, SOURCE the file's column).
+    option : str
+        Option quoted in the warning.
+
+    Returns
+    -------
+    list of str
+        The non-canonical NAMEs.
+    """
+    from ..io import CANONICAL_COLUMNS
+
+    canon = ", ".join(CANONICAL_COLUMNS)
+    bad = [name for name in columns if name not in CANONICAL_COLUMNS]
+    for name in bad:
+        src = columns[name]
+        if src in CANONICAL_COLUMNS:
+            effect = f"renames the log's column {src!r} to {name!r}, so it is not used as {src}"
+            if src == "mag":
+                effect += " (compensation then takes the fluxgate magnitude as the total field)"
+        else:
+            effect = f"{name!r} is not a canonical column, so column {src!r} is not used"
+        log.warning("%s %s=%s %s; write NAME=SOURCE with NAME one of %s", option, name, src,
+                    effect, canon)
+    return bad
+
+
+def setup_logging(verbose: bool, quiet: bool = False) -> None:
+    """Configure library logging for the command line (warnings by default).
+
+    Parameters
+    ----------
+    verbose : bool
+        Debug messages with timestamps [ms].
+    quiet : bool
+        Library warnings off (errors only); the command line's own warnings about its options
+        (``aeromag.cli``) are still shown.
+    """
+    level = logging.DEBUG if verbose else (logging.ERROR if quiet else logging.WARNING)
+    fmt = "%(relativeCreated)6.0f ms %(levelname)s: %(message)s" if verbose else \
+        "%(levelname)s: %(message)s"
+    logging.basicConfig(level=level, format=fmt, force=True)
+    logging.getLogger(__package__).setLevel(
+        logging.WARNING if quiet and not verbose else logging.NOTSET)

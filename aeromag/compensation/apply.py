@@ -1,0 +1,160 @@
+"""Apply a TL model to a log: add ``mag_tl``, ``mag_comp``, ``segment``, ``segment_kept``."""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from .._core.filters import butter_sos, filter_stretches, lowpass_stretches
+from .._core.parallel import submit
+from .._core.stretches import find_stretches
+from ..errors import FitError
+from .config import CompensationConfig
+from .metrics import _band_metrics
+from .model import TLModel
+from .prepare import Prepared, _every, prepare
+
+log = logging.getLogger(__name__)
+
+
+# --------------------------------------------------------------------------- applying
+def apply_model(
+    df: pd.DataFrame, model: TLModel, cfg: CompensationConfig | None = None, *,
+    prep: Prepared | None = None, kept_segments: np.ndarray | None = None,
+    source: str | None = None,
+) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """Apply a TL model: add ``mag_tl``, ``mag_comp``, ``segment``, ``segment_kept``.
+
+    ``mag_tl`` is the model on the unfiltered design matrix (never re-centred, so it does not
+    depend on what else is in the file); ``mag_comp = mag - mag_tl``, low-pass filtered per
+    stretch unless ``cfg.filter_output`` is False.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Log with canonical columns.
+    model : TLModel
+        Model to apply.
+    cfg : CompensationConfig, optional
+        Options.
+    prep : Prepared, optional
+        Arrays already prepared from ``df``.
+    kept_segments : ndarray of int, optional
+        Segment ids kept by screening (default: all segments kept).
+    source : str, optional
+        File name for messages.
+
+    Returns
+    -------
+    data : DataFrame
+        A copy of ``df`` with the four added columns.
+    metrics : dict
+        ``improvement_ratio``, ``residual_std_nT`` and friends (band-passed, see interface.md).
+    """
+    out, metrics, _ = _apply(df, model, cfg or CompensationConfig(), prep=prep,
+                             kept_segments=kept_segments, source=source)
+    return out, metrics
+
+
+def _apply(
+    df: pd.DataFrame, model: TLModel, cfg: CompensationConfig, *, prep: Prepared | None,
+    kept_segments: np.ndarray | None, source: str | None, release_flux: bool = False,
+) -> tuple[pd.DataFrame, dict[str, Any], np.ndarray]:
+    """:func:`apply_model`, also returning the band-passed ``mag_comp`` (edges trimmed to NaN)
+    that the metrics were computed on, so the per-segment residuals and the QC block reuse it.
+    ``release_flux`` drops ``prep.flux`` once the model is evaluated (``compensate`` owns its
+    ``prep``; at 1e7 samples that frees 240 MB before the filters run).
+    """
+    prep = prep or prepare(df, cfg, source=source)
+    t = prep.time
+    ok = prep.flux_ok
+    if ok.all():
+        st_all = prep.stretch if prep.valid.all() else find_stretches(t, None, cfg.max_gap_s)
+        mag_tl = model.predict(prep.flux, t, st_all)
+    else:
+        fstretch = find_stretches(t, ok, cfg.max_gap_s)
+        mag_tl = np.full(len(t), np.nan)
+        mag_tl[ok] = model.predict(prep.flux[ok], t[ok], fstretch[ok])
+    if release_flux:
+        prep.flux = None  # type: ignore[assignment]
+    comp = np.subtract(prep.mag, mag_tl)
+    # The metrics band-pass mag over the stretches where mag_comp is finite, which are known
+    # now (the low-pass keeps finiteness inside stretches): mag is filtered on a pool thread
+    # while mag_comp is low-passed here.
+    valid_st = prep.stretch >= 0
+    fin = np.isfinite(comp)
+    st_m = prep.stretch if fin[valid_st].all() else find_stretches(t, fin & valid_st,
+                                                                    cfg.max_gap_s)
+    del fin, valid_st
+    sos_band = butter_sos("bandpass", cfg.band_hz, prep.fs, cfg.order)
+    mag_bp_future = submit(
+        lambda: filter_stretches(np.asarray(prep.mag, dtype=np.float64)[None, :], st_m,
+                                 sos_band, axis=1)[0])
+    seg = prep.segment
+    if kept_segments is None:
+        kept = np.ones(len(seg), dtype=bool)  # a saved model: every sample counts as kept
+    else:
+        kept = np.isin(seg, kept_segments) & (seg >= 0)
+    if cfg.filter_output:
+        cut = cfg.lowpass_hz if cfg.lowpass_hz is not None else cfg.band_hz[1]
+        # Low-pass per stretch, but each dropped segment on its own: a fault (a source
+        # switching on, a drift step) must not ring through the filter into good data.
+        st = prep.stretch
+        if kept_segments is None or kept[seg >= 0].all():
+            lab = st
+        else:
+            dropped = np.where((seg >= 0) & ~kept, seg, -1)
+            lab = np.cumsum(np.r_[True, (st[1:] != st[:-1]) | (dropped[1:] != dropped[:-1])]) - 1
+            lab = np.where(st >= 0, lab, -1)
+        comp_out = lowpass_stretches(comp, t, lab, cut, cfg.order, fs_hz=prep.fs)
+        del comp  # the unfiltered copy is not kept (mag - mag_tl, for whoever needs it)
+    else:
+        comp_out = comp
+    # A shallow copy: pandas' copy-on-write keeps the caller's frame untouched.
+    out = df.copy(deep=False)
+    out["mag_tl"] = mag_tl
+    out["mag_comp"] = comp_out
+    missing = seg < 0
+    out["segment"] = pd.arrays.IntegerArray(np.where(missing, 0, seg) if missing.any() else seg,
+                                            missing)
+    out["segment_kept"] = kept
+    metrics, comp_bp = _band_metrics(prep.mag, comp_out, t, prep.stretch, cfg, kept=kept,
+                                     fs_hz=prep.fs, stretch_bp=st_m,
+                                     mag_bp=mag_bp_future.result())
+    return out, metrics, comp_bp
+
+
+
+def _check_plausible(data: pd.DataFrame, metrics: dict[str, Any], prep: Prepared,
+                     cfg: CompensationConfig, *, fitted: bool) -> None:
+    """Refuse (fitted) or warn about (saved model) a non-physical compensation.
+
+    A model fitted on this very log must not make its band-passed field worse, and no
+    aircraft's interference approaches the Earth field itself (``cfg.max_interference``).
+    """
+    tl = data["mag_tl"].to_numpy()
+    sub = np.abs(tl[:: _every(tl)])
+    sub = sub[np.isfinite(sub)]
+    peak = float(np.percentile(sub, 99)) if sub.size else float("nan")
+    limit = cfg.max_interference * prep.field_nT
+    if np.isfinite(peak) and np.isfinite(limit) and peak > limit:
+        msg = (f"{prep.source}: the model gives an aircraft interference of {peak:.4g} nT"
+               f" ({peak / prep.field_nT:.0%} of the {prep.field_nT:.0f} nT field), which no"
+               " aircraft makes")
+        if fitted:
+            raise FitError(
+                msg + ": this flight does not determine the TL terms at low frequency (too few"
+                " headings or manoeuvres); calibrate on a box flight with manoeuvres and apply"
+                " it with --model, or regularise with --ridge 1e-3 (limit: --max-interference)"
+            )
+        log.warning("%s; check that the model belongs to this aircraft and sensor", msg)
+    ratio = metrics.get("improvement_ratio", float("nan"))
+    if fitted and np.isfinite(ratio) and ratio < 1.0:
+        log.warning(
+            "%s: the fitted model leaves more band-passed variation than it removes"
+            " (improvement ratio %.3g < 1): the fit is unreliable; calibrate on a flight with"
+            " manoeuvres and use --model", prep.source, ratio)
+

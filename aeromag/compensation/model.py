@@ -1,0 +1,253 @@
+"""A fitted Tolles-Lawson model (:class:`TLModel`) and its evaluation ``A @ coef``."""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._core import parallel as _parallel
+from ..errors import InputError
+from .terms import (
+    _ALL_TERMS,
+    _AXIS,
+    FIELD_SCALE_NT,
+    PREDICT_BLOCK,
+    direction_cosines,
+    time_derivative,
+)
+
+log = logging.getLogger(__name__)
+
+
+def predict_interference(
+    flux_nT: np.ndarray, time_s: np.ndarray, terms: Sequence[str], coef: np.ndarray, *,
+    stretch: np.ndarray | None = None, scale_nT: float = FIELD_SCALE_NT,
+    block: int | None = None,
+) -> np.ndarray:
+    """Evaluate ``A @ coef``: the modelled interference [nT], block by block.
+
+    Gives the same values (to rounding) as ``design_matrix(...) @ coef`` without ever holding
+    the n x k design matrix: each block of ``block`` samples is evaluated with one sample of
+    context on each side, so the derivatives inside a block are exactly those of the whole
+    log (``np.gradient`` per stretch).
+
+    Parameters
+    ----------
+    flux_nT : ndarray, shape (n, 3)
+        Body-frame fluxgate [nT].
+    time_s : ndarray, shape (n,)
+        Times [s], strictly increasing.
+    terms : sequence of str
+        Term names.
+    coef : ndarray, shape (len(terms),)
+        Coefficients [nT; eddy terms nT*s].
+    stretch : ndarray of int, shape (n,), optional
+        Continuous-stretch labels; derivatives never cross a change.
+    scale_nT : float
+        The model's field scale [nT] (induced and eddy columns are in ``|B| / scale_nT``).
+    block : int, optional
+        Samples per block (default :data:`PREDICT_BLOCK`).
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Interference [nT].
+    """
+    flux = np.asarray(flux_nT, dtype=np.float64)
+    t = np.asarray(time_s, dtype=np.float64)
+    perm, ind, eddy, bias = coefficient_forms(terms, coef)
+    n = len(t)
+    out = np.empty(n)
+    step = int(block or PREDICT_BLOCK)
+    need_d = bool(np.any(eddy))
+
+    def run(a: int) -> None:
+        b = min(n, a + step)
+        lo, hi = max(0, a - 1), min(n, b + 1)  # one sample of context for the derivative
+        cos, bt = direction_cosines(flux[lo:hi])
+        k = slice(a - lo, a - lo + (b - a))
+        c = cos[k]
+        # A @ coef as quadratic forms: c.p + |B|/s (c^T M c + c^T N c').
+        quad = np.einsum("ij,ij->i", c @ ind, c)
+        if need_d:
+            dcos = time_derivative(cos, t[lo:hi], None if stretch is None else stretch[lo:hi])
+            quad += np.einsum("ij,ij->i", c @ eddy, dcos[k])
+        r = out[a:b]
+        np.multiply(bt[k], quad, out=r)
+        r /= scale_nT
+        r += c @ perm
+        if bias:
+            r += bias
+
+    # Contiguous runs of blocks on the filter threads (each block's arithmetic is the same
+    # whichever thread runs it, so the result does not depend on the thread count).
+    starts = list(range(0, n, step))
+    parts = max(1, min(_parallel.FILTER_THREADS, len(starts) // 4))
+
+    def run_part(i: int) -> None:
+        for a in starts[len(starts) * i // parts:len(starts) * (i + 1) // parts]:
+            run(a)
+
+    _parallel.parallel_map(run_part, list(range(parts)))
+    return out
+
+
+def coefficient_forms(
+    terms: Sequence[str], coef: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """The TL model as a vector and two 3 x 3 forms: ``A @ coef`` equals
+    ``c.p + (|B|/scale) (c^T M c + c^T N c') + bias``.
+
+    Parameters
+    ----------
+    terms : sequence of str
+        Term names (see :func:`parse_terms`).
+    coef : ndarray, shape (len(terms),)
+        Coefficients.
+
+    Returns
+    -------
+    p : ndarray, shape (3,)
+        Permanent coefficients [nT].
+    M : ndarray, shape (3, 3)
+        Induced coefficients, ``M[i, j]`` for term ``ci*cj`` [nT].
+    N : ndarray, shape (3, 3)
+        Eddy-current coefficients, ``N[i, j]`` for term ``ci*cj'`` [nT s].
+    bias : float
+        Constant term [nT].
+    """
+    c = np.asarray(coef, dtype=np.float64)
+    if c.shape != (len(terms),):
+        raise InputError(f"{len(terms)} terms but {c.size} coefficients")
+    p = np.zeros(3)
+    M = np.zeros((3, 3))
+    N = np.zeros((3, 3))
+    bias = 0.0
+    for name, v in zip(terms, c, strict=True):
+        if name == "bias":
+            bias += float(v)
+        elif "*" not in name:
+            p[_AXIS[name]] += v
+        else:
+            a, b = name.split("*")
+            if b.endswith("'"):
+                N[_AXIS[a], _AXIS[b[:-1]]] += v
+            else:
+                M[_AXIS[a], _AXIS[b]] += v
+    return p, M, N, bias
+
+
+
+@dataclass
+class TLModel:
+    """A fitted Tolles-Lawson model: term names and coefficients (a property of the aircraft).
+
+    Attributes
+    ----------
+    terms : tuple of str
+        Term names in order.
+    coef : ndarray
+        Coefficients [nT; eddy terms nT*s], same order.
+    scale_nT : float
+        The ``|B|`` scale of the induced/eddy terms (50000 nT).
+    meta : dict
+        Provenance and fit report (band, segments, metrics...).
+    """
+
+    terms: tuple[str, ...]
+    coef: np.ndarray
+    scale_nT: float = FIELD_SCALE_NT
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.terms = tuple(self.terms)
+        self.coef = np.asarray(self.coef, dtype=np.float64)
+        if self.coef.shape != (len(self.terms),):
+            raise InputError(
+                f"model has {len(self.terms)} terms but {self.coef.size} coefficients"
+            )
+
+    def predict(
+        self, flux_nT: np.ndarray, time_s: np.ndarray, stretch: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Modelled aircraft interference ``A @ coef`` [nT] (unfiltered, no re-centring).
+
+        Parameters
+        ----------
+        flux_nT : ndarray, shape (n, 3)
+            Body-frame fluxgate [nT].
+        time_s : ndarray, shape (n,)
+            Times [s].
+        stretch : ndarray of int, optional
+            Continuous-stretch labels (derivatives never cross a change).
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            Interference [nT].
+        """
+        return predict_interference(flux_nT, time_s, self.terms, self.coef,
+                                    stretch=stretch, scale_nT=self.scale_nT)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dictionary (``terms``, ``coef``, ``scale_nT`` and the report)."""
+        d = dict(self.meta)
+        d.update(
+            {
+                "terms": list(self.terms),
+                "coef": [float(c) for c in self.coef],
+                "scale_nT": float(self.scale_nT),
+            }
+        )
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any], *, source: str = "<model>") -> TLModel:
+        """Build a model from a dictionary as written by :meth:`to_dict`."""
+        try:
+            terms = tuple(str(t) for t in d["terms"])
+            coef = np.asarray([float(c) for c in d["coef"]], dtype=np.float64)
+        except (KeyError, TypeError, ValueError):
+            raise InputError(
+                f"{source}: not a model file (needs 'terms' and 'coef' lists);"
+                " write one with 'aeromag calibrate'"
+            ) from None
+        unknown = [t for t in terms if t not in _ALL_TERMS]
+        if unknown:
+            raise InputError(f"{source}: unknown term(s) {', '.join(unknown)} in the model")
+        if len(coef) != len(terms):
+            raise InputError(f"{source}: {len(terms)} terms but {len(coef)} coefficients")
+        if not np.all(np.isfinite(coef)):
+            raise InputError(f"{source}: the model has non-finite coefficients")
+        meta = {k: v for k, v in d.items() if k not in ("terms", "coef", "scale_nT")}
+        return cls(terms, coef, float(d.get("scale_nT", FIELD_SCALE_NT)), meta)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> TLModel:
+        """Read a model JSON file (as written by ``aeromag calibrate``)."""
+        p = Path(path)
+        try:
+            d = json.loads(p.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise InputError(f"{p}: model file not found") from None
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise InputError(
+                f"{p}: not valid JSON ({exc}); pass a file from 'aeromag calibrate'"
+            ) from None
+        if not isinstance(d, dict):
+            raise InputError(f"{p}: not a model file; pass a file from 'aeromag calibrate'")
+        return cls.from_dict(d, source=str(p))
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the model JSON atomically."""
+        from ..io import write_json
+
+        return write_json(self.to_dict(), path)
+

@@ -1,0 +1,133 @@
+"""Arrays of a log ready for fitting or applying: fluxgate, total field, stretches, segments."""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from .._core.filters import sampling_rate
+from .._core.stretches import find_stretches, interpolate_short_gaps
+from ..conventions import FLUX_COLUMNS
+from ..errors import FitError, InputError
+from .config import CompensationConfig
+from .segments import assign_segments, line_labels
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class Prepared:
+    """Arrays of a log ready for fitting/applying (see :func:`prepare`)."""
+
+    time: np.ndarray
+    flux: np.ndarray
+    mag: np.ndarray
+    flux_ok: np.ndarray
+    valid: np.ndarray
+    stretch: np.ndarray
+    segment: np.ndarray
+    fs: float
+    source: str
+    mag_from_flux: bool
+    line_of_segment: dict[int, float] | None = None
+    field_nT: float = float("nan")  # median total field (mag, else the fluxgate's) [nT]
+
+
+
+def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = None) -> Prepared:
+    """Extract and validate the arrays the pipeline needs.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Log with canonical columns (``time``, ``flux_x/y/z``, optional ``mag``, ``line``).
+    cfg : CompensationConfig
+        Pipeline options.
+    source : str, optional
+        File name quoted in errors (default ``df.attrs["source"]``).
+
+    Returns
+    -------
+    Prepared
+    """
+    src = source or str(df.attrs.get("source", "<log>"))
+    missing = [c for c in ("time", *FLUX_COLUMNS) if c not in df.columns]
+    if missing:
+        raise InputError(
+            f"{src}: missing column(s) {', '.join(missing)}; map them with --col NAME=SOURCE"
+        )
+    t = df["time"].to_numpy(dtype=np.float64)
+    if len(t) < 2:
+        raise InputError(f"{src}: only {len(t)} row(s); a log needs many samples to fit")
+    flux = np.empty((len(t), 3), dtype=np.float64)
+    for j, c in enumerate(FLUX_COLUMNS):
+        flux[:, j], _ = interpolate_short_gaps(df[c].to_numpy(dtype=np.float64), t,
+                                               cfg.max_interp_s, copy=False)
+    # |B|^2 is NaN where any axis is, so one pass finds the usable fluxgate samples.
+    bt2 = np.einsum("ij,ij->i", flux, flux)
+    flux_ok = np.isfinite(bt2) & (bt2 > 0)
+    mag_from_flux = "mag" not in df.columns
+    if mag_from_flux:
+        mag = np.sqrt(bt2)
+        log.info("%s: no 'mag' column: the fluxgate magnitude is the measured total field", src)
+    else:
+        mag, _ = interpolate_short_gaps(df["mag"].to_numpy(dtype=np.float64), t, cfg.max_interp_s,
+                                        copy=False)
+    if not flux_ok.any():
+        raise InputError(f"{src}: columns flux_x/flux_y/flux_z hold no usable sample")
+    first = flux[int(np.argmax(flux_ok))]
+    varies = False
+    for j in range(3):
+        col = flux[:, j]
+        if np.any((col != first[j]) & flux_ok):
+            varies = True
+            break
+    if not varies:
+        raise FitError(
+            f"{src}: columns flux_x, flux_y, flux_z are constant: the fluxgate did not record"
+            " attitude changes; check the column map (--col) or the instrument"
+        )
+    step = _every(flux_ok)
+    flux_field = float(np.median(np.sqrt(bt2[::step][flux_ok[::step]])))
+    mag_sub = None if mag_from_flux else mag[:: _every(mag)]
+    _warn_units(src, flux_field, mag_sub)
+    del bt2
+    # The Earth field's magnitude: the scalar magnetometer's when there is one.
+    fin = mag_sub[np.isfinite(mag_sub)] if mag_sub is not None else np.zeros(0)
+    field_nT = float(np.median(fin)) if fin.size else flux_field
+    valid = flux_ok & np.isfinite(mag)
+    if valid.sum() < 2:
+        raise InputError(f"{src}: column 'mag' holds no usable sample")
+    stretch = find_stretches(t, valid, cfg.max_gap_s)
+    line = df["line"].to_numpy(dtype=np.float64) if "line" in df.columns else None
+    if line is not None and not np.isfinite(line).any():
+        line = None
+    segment = assign_segments(t, stretch, line, cfg.segment_seconds)
+    fs = sampling_rate(t)
+    return Prepared(t, flux, mag, flux_ok, valid, stretch, segment, fs, src, mag_from_flux,
+                    line_labels(line), field_nT)
+
+
+def _every(x: np.ndarray, most: int = 100_000) -> int:
+    """Stride that leaves at most ``most`` samples of ``x`` (for cheap medians)."""
+    return max(1, len(x) // most)
+
+
+def _warn_units(src: str, med: float, mag: np.ndarray | None) -> None:
+    """Warn (never convert) when field magnitudes do not look like nT (``med``: the median
+    fluxgate magnitude)."""
+    if not 1_000.0 <= med <= 200_000.0:
+        log.warning(
+            "%s: the fluxgate magnitude is %.4g, not an Earth field in nT (20000-70000);"
+            " if the fluxgate is in uT, mT or G pass --units flux=uT (or mT, G)", src, med)
+    if mag is not None:
+        fin = mag[np.isfinite(mag)]
+        mm = float(np.median(fin)) if fin.size else float("nan")
+        if np.isfinite(mm) and not 0.1 < mm / med < 10.0:
+            log.warning(
+                "%s: median mag %.4g and fluxgate magnitude %.4g differ by more than 10x;"
+                " check their units (--units mag=..., --units flux=...)", src, mm, med)
+

@@ -1,0 +1,162 @@
+"""``aeromag compensate`` and ``aeromag calibrate`` as functions: file in, files out."""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from ..compensation.config import CompensationConfig
+from ..compensation.model import TLModel
+from ..compensation.pipeline import compensate
+from ..compensation.result import CompensationResult
+from ..conventions import FLUX_COLUMNS
+from ..errors import InputError
+from ..io import atomic_path, json_path_for, read_log, write_csv, write_csv_passthrough, write_json
+
+log = logging.getLogger(__name__)
+
+
+# --------------------------------------------------------------------------- files
+def check_outputs(source: str | os.PathLike[str], *outputs: str | os.PathLike[str],
+                  kind: str = "input log") -> None:
+    """Refuse outputs that would overwrite an input (the log, a plan, a model).
+
+    Parameters
+    ----------
+    source : path-like
+        The input file.
+    *outputs : path-like
+        Files about to be written (e.g. OUT.csv and OUT.json).
+    kind : str
+        What ``source`` is, for the message.
+
+    Raises
+    ------
+    InputError
+        When an output is the input file itself, or the first of several outputs (the data,
+        when its report is the second) ends in ``.json`` so that the report would replace it.
+    """
+    src = Path(source)
+    if outputs and json_path_for(Path(outputs[0])) == Path(outputs[0]) and len(outputs) > 1:
+        raise InputError(f"-o {outputs[0]}: the report goes to OUT.json, so OUT must not end in"
+                         " .json; give the output another name, e.g. -o survey_comp.csv")
+    for out in outputs:
+        o = Path(out)
+        same = o.resolve() == src.resolve()
+        if not same and o.exists() and src.exists():
+            same = os.path.samefile(o, src)
+        if same:
+            raise InputError(f"{src}: -o {o} would overwrite the {kind}; choose another -o")
+
+
+def compensate_file(
+    path: str | os.PathLike[str], out_path: str | os.PathLike[str],
+    cfg: CompensationConfig | None = None, *, model: TLModel | str | os.PathLike[str] | None = None,
+    columns: dict[str, str] | None = None, units: dict[str, str] | None = None,
+    fmt: str | None = None,
+) -> CompensationResult:
+    """Read a log, compensate it and write ``OUT.csv`` and ``OUT.json`` atomically.
+
+    Parameters
+    ----------
+    path : path-like
+        Input log.
+    out_path : path-like
+        Output CSV; the report goes to the same name with ``.json``.
+    cfg : CompensationConfig, optional
+        Options.
+    model : TLModel or path-like, optional
+        Saved model to apply instead of fitting.
+    columns, units : dict, optional
+        Column map and unit conversions.
+    fmt : str, optional
+        Input format (default from the extension).
+
+    Returns
+    -------
+    CompensationResult
+    """
+    cfg = cfg or CompensationConfig()
+    check_outputs(path, out_path, json_path_for(Path(out_path)))
+    if model is not None and not isinstance(model, TLModel):
+        mpath = Path(model)
+        model = TLModel.load(mpath)
+        model.meta["path"] = str(mpath)
+    t0 = time.perf_counter()
+    df = read_log(path, columns=columns, units=units, required=("time", *FLUX_COLUMNS), fmt=fmt)
+    t1 = time.perf_counter()
+    log.info("%s: read %d rows in %.2f s", path, len(df), t1 - t0)
+    res = compensate(df, cfg, model=model, source=str(path))
+    t2 = time.perf_counter()
+    log.info("%s: %s in %.2f s", path, "model applied" if model is not None else
+             "fitted, screened and applied", t2 - t1)
+    out = Path(out_path)
+    write_outputs(res.data, res.report, out, passthrough=df.attrs.get("passthrough_csv"))
+    log.info("%s: wrote %s in %.2f s", path, out, time.perf_counter() - t2)
+    return res
+
+
+def write_outputs(data: pd.DataFrame, report: dict[str, Any], out_csv: Path, *,
+                  passthrough: dict[str, Any] | None = None) -> None:
+    """Write the output log and its JSON report; both appear or neither does.
+
+    ``passthrough`` (``{"path", "columns"}``, set by :func:`aeromag.io.read_log` on a plain
+    CSV) says that ``data`` starts with that file's columns, unchanged: their lines are then
+    copied verbatim and only the added columns are formatted
+    (:func:`aeromag.io.write_csv_passthrough`).
+    """
+    out_json = json_path_for(out_csv)
+    with atomic_path(out_csv) as tmp_csv:
+        done = False
+        if passthrough:
+            cols = list(passthrough["columns"])
+            if list(data.columns[: len(cols)]) == cols and len(data.columns) > len(cols):
+                done = write_csv_passthrough(passthrough["path"], cols,
+                                             data.iloc[:, len(cols):], tmp_csv)
+                if not done:
+                    log.info("%s: not a plain CSV, output written column by column",
+                             passthrough["path"])
+        if not done:
+            write_csv(data, tmp_csv)
+        write_json(report, out_json)
+
+
+def calibrate_file(
+    path: str | os.PathLike[str], model_path: str | os.PathLike[str],
+    cfg: CompensationConfig | None = None, *, columns: dict[str, str] | None = None,
+    units: dict[str, str] | None = None, fmt: str | None = None,
+) -> CompensationResult:
+    """Fit and screen on a calibration log; write the model JSON atomically.
+
+    Parameters
+    ----------
+    path : path-like
+        Calibration log.
+    model_path : path-like
+        Output model file (JSON with ``terms``, ``coef``, ``segments``, ``metrics``...).
+    cfg : CompensationConfig, optional
+        Options.
+    columns, units : dict, optional
+        Column map and unit conversions.
+    fmt : str, optional
+        Input format.
+
+    Returns
+    -------
+    CompensationResult
+        ``data`` is the calibration log with the model applied (not written).
+    """
+    cfg = cfg or CompensationConfig()
+    check_outputs(path, model_path)
+    if cfg.fom is None:
+        cfg = dataclasses.replace(cfg, fom=True)
+    df = read_log(path, columns=columns, units=units, required=("time", *FLUX_COLUMNS), fmt=fmt)
+    res = compensate(df, cfg, source=str(path))
+    write_json(res.report, model_path)
+    return res
