@@ -11,7 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from aeromag.cli import app
-from aeromag.simulate_mission import write_mission_files
+from aeromag.workflows.mission import write_mission_files
 
 runner = CliRunner()
 

@@ -6,12 +6,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from aeromag.detect import (
-    combine_alarms,
+from aeromag._core.angles import wrap_deg
+from aeromag.detection.alarms import Alarms
+from aeromag.detection.combine import combine_alarms
+from aeromag.detection.heading import (
     heading_detector,
     mag_heading_from_flux,
     parse_calm_window,
-    wrap_deg,
 )
 from aeromag.errors import InputError
 
@@ -69,8 +70,33 @@ def test_combine():
     tr = np.array([0, 1, 0, 0, 1, 0], bool)
     hd = np.array([0, 0, 0, 1, 0, 0], bool)
     legs = np.array([0, 0, 0, 0, 0, -1])
-    assert combine_alarms(tr, hd, legs, "or").tolist() == [0, 1, 0, 1, 1, 0]
-    assert combine_alarms(tr, hd, legs, "and").tolist() == [0, 0, 0, 1, 1, 0]
-    assert combine_alarms(tr, None, legs, "and").tolist() == [0, 1, 0, 0, 1, 0]
+    assert combine_alarms([tr, hd], legs, "or").tolist() == [0, 1, 0, 1, 1, 0]
+    assert combine_alarms([tr, hd], legs, "and").tolist() == [0, 0, 0, 1, 1, 0]
+    assert combine_alarms([tr, None], legs, "and").tolist() == [0, 1, 0, 0, 1, 0]
     with pytest.raises(InputError):
-        combine_alarms(tr, hd, legs, "xor")
+        combine_alarms([tr, hd], legs, "xor")
+
+
+def test_combine_any_number_of_detectors():
+    legs = np.array([0, 0, 0, 0, 1, 1, -1])
+    a = np.array([0, 1, 0, 0, 0, 1, 1], bool)
+    b = np.array([0, 0, 1, 0, 0, 1, 1], bool)
+    c = Alarms(name="pf", time_s=np.arange(7.0), stat=np.arange(7.0), threshold=2.5,
+               alarm=np.array([0, 0, 0, 1, 0, 1, 1], bool))
+    assert combine_alarms([a, b, c], legs, "or").tolist() == [0, 1, 1, 1, 0, 1, 0]
+    # confirmation: all three have fired on the leg by the sample
+    assert combine_alarms([a, b, c], legs, "and").tolist() == [0, 0, 0, 1, 0, 1, 0]
+    assert combine_alarms([], legs).tolist() == [0] * 7
+
+
+def test_heading_detector_returns_alarms():
+    t = np.arange(0, 60, 0.1)
+    rng = np.random.default_rng(1)
+    mh = rng.normal(0, 0.5, t.size)
+    mh[400:] += 10.0
+    df = pd.DataFrame({"time": t, "heading": np.zeros_like(t), "mag_heading": mh % 360})
+    res = heading_detector(df)
+    assert isinstance(res, Alarms) and res.name == "heading"
+    assert res.threshold == pytest.approx(5 * res.sigma_deg)
+    assert res.first_alarm_time == pytest.approx(40.0)
+    assert not res.alarm[:400].any() and res.alarm[400:].all()

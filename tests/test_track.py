@@ -8,12 +8,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from aeromag._core.geodesy import geodetic_to_ned, ned_to_geodetic
 from aeromag.errors import InputError
 from aeromag.track import (
     assign_legs,
     check_track,
     cross_track,
-    geodetic_to_ned,
     track_alarm,
     validate_plan,
 )
@@ -145,7 +145,6 @@ def test_track_alarm_min_duration():
 
 def test_check_track_uses_leg_column_and_reports_every_leg():
     wps = np.array([[0, 0, 0], [200, 0, 0], [200, 20, 0.]])
-    from aeromag.simulate_mission import ned_to_geodetic
     origin = (60.0, 5.0, 100.0)
     pg = ned_to_geodetic(wps, origin)
     pos = _flight(wps[:2]) + np.array([0, 1.5, 0])  # 1.5 m east of leg 0 throughout

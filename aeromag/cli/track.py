@@ -62,7 +62,7 @@ def track(
     """
     setup_logging(verbose)
     from ..io import json_path_for
-    from ..track import track_file
+    from ..workflows.track import track_file
 
     with user_errors():
         columns, unit_map = column_options(col, map_file, units)
