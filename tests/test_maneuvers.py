@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from aeromag.errors import InputError
-from aeromag.maneuvers import MANEUVERS, detect_maneuvers, moving_mean
-from aeromag.simulate import simulate_calibration
+from aeromag.qc.maneuvers import MANEUVERS, detect_maneuvers, moving_mean
+from aeromag.synthetic import simulate_calibration
 
 
 @pytest.fixture(scope="module")

@@ -4,18 +4,18 @@ from __future__ import annotations
 
 import pytest
 
-from aeromag.compensate import compensate
+from aeromag.compensation.pipeline import compensate
 from aeromag.errors import InputError
 from aeromag.plot import compensation as pc
 from aeromag.qc import compute_qc
-from aeromag.simulate import simulate_calibration
+from aeromag.synthetic import simulate_calibration
 
 
 @pytest.fixture(scope="module")
 def res():
     df, _ = simulate_calibration(seed=6, n_boxes=1, faults={4: "noise_burst"})
     r = compensate(df)
-    return r, compute_qc(r.data, r.report, fit=False)
+    return r, compute_qc(r, fit=False)
 
 
 PNG = b"\x89PNG\r\n\x1a\n"

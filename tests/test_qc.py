@@ -6,7 +6,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from aeromag.compensate import CompensationConfig, compensate, prepare, segment_normal_equations
+from aeromag.compensation.config import CompensationConfig
+from aeromag.compensation.normal import SegmentStats, segment_normal_equations
+from aeromag.compensation.pipeline import compensate
+from aeromag.compensation.prepare import prepare
+from aeromag.compensation.result import CompensationResult
+from aeromag.compensation.terms import TERMS_16
 from aeromag.qc import (
     compute_qc,
     fom_summary,
@@ -16,8 +21,7 @@ from aeromag.qc import (
     quality_metrics,
     variance_inflation,
 )
-from aeromag.simulate import simulate_calibration
-from aeromag.tolles_lawson import TERMS_16
+from aeromag.synthetic import simulate_calibration
 
 
 @pytest.fixture(scope="module")
@@ -28,7 +32,7 @@ def cal_result():
 
 def test_fom_matches_truth_and_drops(cal_result):
     res, _ = cal_result
-    q = compute_qc(res.data, res.report)
+    q = compute_qc(res)
     fom = q.metrics["fom"]
     assert fom["complete_boxes"] == [0]
     assert fom["n_maneuvers"] == 12
@@ -58,8 +62,6 @@ def test_metrics_block(cal_result):
 
 def test_loso_equals_explicit_refit():
     rng = np.random.default_rng(0)
-    from aeromag.compensate import SegmentStats
-
     m, k, n = 6, 3, 50
     A = rng.normal(size=(m, n, k))
     y = A @ np.array([1.0, -2.0, 0.5]) + rng.normal(0, 0.1, (m, n))
@@ -97,7 +99,7 @@ def test_no_maneuvers_no_fom():
     rng = np.random.default_rng(2)
     df = pd.DataFrame({"time": t, "mag": 50000 + rng.normal(0, 0.1, t.size),
                        "mag_comp": 50000 + rng.normal(0, 0.05, t.size)})
-    q = compute_qc(df)
+    q = compute_qc(CompensationResult(df, None, {}))
     assert q.metrics["fom"] is None and q.notes
 
 

@@ -13,9 +13,9 @@ import pytest
 from typer.testing import CliRunner
 
 from aeromag.cli import app
-from aeromag.compensate import compensate_file
-from aeromag.report import FIGURES, build_report
-from aeromag.simulate import simulate_calibration
+from aeromag.synthetic import simulate_calibration
+from aeromag.workflows.compensate import compensate_file
+from aeromag.workflows.report import FIGURES, build_report
 
 
 class _Imgs(HTMLParser):

@@ -9,8 +9,8 @@ from matplotlib.figure import Figure
 from typer.testing import CliRunner
 
 from aeromag.cli import app
-from aeromag.compensate import compensate
-from aeromag.simulate import simulate_calibration
+from aeromag.compensation.pipeline import compensate
+from aeromag.synthetic import simulate_calibration
 
 runner = CliRunner()
 

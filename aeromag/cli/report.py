@@ -35,7 +35,7 @@ def report(
     """
     setup_logging(verbose)
     with user_errors():
-        from ..report import build_report
+        from ..workflows.report import build_report
 
         page = build_report(out_csv, output, report_json, maneuver_column=maneuver_column)
     typer.echo(str(page))

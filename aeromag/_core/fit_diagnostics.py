@@ -1,0 +1,151 @@
+"""Diagnostics of a least-squares fit from per-segment normal equations (pure numerics).
+
+Given per-segment Gram matrices ``G_j = A_j' A_j``, right-hand sides ``b_j = A_j' y_j``,
+``yy_j = y_j' y_j`` and sizes ``n_j`` (any object with the attributes ``ids``, ``n``, ``gram``,
+``rhs``, ``yy``, e.g. :class:`aeromag.compensate.SegmentStats`):
+
+* :func:`variance_inflation` - VIF per column, ``diag(R^-1)`` of the unit-diagonal Gram matrix;
+* :func:`loso_cv` - leave-one-segment-out residuals, ``c_j = (G - G_j)^-1 (b - b_j)``;
+* :func:`diagnostics_from_stats` - condition numbers, VIF and pooled CV in one call.
+
+Used by the compensation fit (its report's ``fit`` block) and by :mod:`aeromag.qc`, so both give
+the same numbers.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["diagnostics_from_stats", "loso_cv", "variance_inflation"]
+
+
+def variance_inflation(gram: np.ndarray) -> np.ndarray:
+    """Variance inflation factors of the columns of a (zero-mean) design matrix.
+
+    ``VIF_j = [R^-1]_jj`` with ``R`` the correlation matrix, here the Gram matrix scaled to
+    unit diagonal (band-passed columns have zero mean).
+
+    Parameters
+    ----------
+    gram : ndarray, shape (k, k)
+        ``A.T @ A``.
+
+    Returns
+    -------
+    ndarray, shape (k,)
+        VIF per column (1 = orthogonal to the others; above 10 = strongly collinear).
+    """
+    d = np.sqrt(np.maximum(np.diag(gram), 1e-300))
+    r = gram / d[:, None] / d[None, :]
+    try:
+        return np.diag(np.linalg.inv(r)).copy()
+    except np.linalg.LinAlgError:
+        return np.full(len(d), np.inf)
+
+
+def loso_cv(stats: Any, kept: np.ndarray, ridge: float = 0.0) -> pd.DataFrame:
+    """Leave-one-segment-out residuals from per-segment normal equations.
+
+    For each kept segment ``j`` the model is refitted on the other kept segments,
+    ``c_j = (G - G_j)^-1 (b - b_j)``, and its band-passed residual is
+    ``sqrt((yy_j - 2 c_j.b_j + c_j.G_j.c_j) / n_j)``.  Dropped segments get the residual under
+    the model fitted on all kept segments (they were left out anyway).
+
+    Parameters
+    ----------
+    stats : SegmentStats-like
+        Per-segment Gram matrices, right-hand sides, ``yy`` and sizes.
+    kept : ndarray of bool, shape (m,)
+        Segments used in the fit.
+    ridge : float
+        Relative ridge parameter of the fit.
+
+    Returns
+    -------
+    DataFrame
+        ``segment``, ``n``, ``kept``, ``fit_residual_std_nT`` (in-sample) and
+        ``cv_residual_std_nT`` (out of sample).
+    """
+    G = stats.gram[kept].sum(axis=0)
+    b = stats.rhs[kept].sum(axis=0)
+    Gi = np.where(kept[:, None, None], G - stats.gram, G)
+    bi = np.where(kept[:, None], b - stats.rhs, b)
+    k = G.shape[0]
+
+    def solve(g: np.ndarray, r: np.ndarray) -> np.ndarray:
+        d = np.sqrt(np.maximum(np.diagonal(g, axis1=-2, axis2=-1), 1e-300))
+        gs = g / d[..., :, None] / d[..., None, :] + ridge * np.eye(k)
+        rhs = (r / d)[..., None]
+        try:
+            z = np.linalg.solve(gs, rhs)[..., 0]
+        except np.linalg.LinAlgError:
+            z = (np.linalg.pinv(gs) @ rhs)[..., 0]
+        return z / d
+
+    c_all = solve(G, b)
+    c_cv = solve(Gi, bi)
+
+    def resid(c: np.ndarray) -> np.ndarray:
+        c = np.broadcast_to(c, stats.rhs.shape)
+        sse = stats.yy - 2 * np.einsum("mk,mk->m", c, stats.rhs) + np.einsum(
+            "mk,mkj,mj->m", c, stats.gram, c)
+        return np.sqrt(np.maximum(sse, 0.0) / stats.n)
+
+    return pd.DataFrame({"segment": stats.ids.astype(int), "n": stats.n.astype(int),
+                         "kept": kept, "fit_residual_std_nT": resid(c_all),
+                         "cv_residual_std_nT": resid(c_cv)})
+
+
+def diagnostics_from_stats(
+    stats: Any, kept: np.ndarray, fit_terms: tuple[str, ...], ridge: float = 0.0,
+) -> tuple[dict[str, Any], pd.DataFrame]:
+    """Condition numbers, VIF and leave-one-segment-out CV from per-segment normal equations.
+
+    Parameters
+    ----------
+    stats : SegmentStats-like
+        Per-segment band-passed normal equations.
+    kept : ndarray of bool, shape (m,)
+        Segments used in the fit.
+    fit_terms : tuple of str
+        Names of the fitted terms.
+    ridge : float
+        Relative ridge parameter of the fit.
+
+    Returns
+    -------
+    diagnostics : dict
+        See :func:`fit_diagnostics`.
+    segments : DataFrame
+        Output of :func:`loso_cv`.
+    """
+    G = stats.gram[kept].sum(axis=0)
+    ev = np.linalg.eigvalsh(G)
+    d = np.sqrt(np.maximum(np.diag(G), 1e-300))
+    evs = np.linalg.eigvalsh(G / d[:, None] / d[None, :])
+    vif = variance_inflation(G)
+    segs = loso_cv(stats, kept, ridge)
+    nk = segs.loc[segs["kept"], "n"].to_numpy()
+
+    def pooled(col: str) -> float:
+        v = segs.loc[segs["kept"], col].to_numpy()
+        return float(np.sqrt(np.sum(v**2 * nk) / max(nk.sum(), 1)))
+
+    cv = pooled("cv_residual_std_nT")
+    fit = pooled("fit_residual_std_nT")
+    diag = {
+        "terms": list(fit_terms),
+        "condition_number": float(np.sqrt(ev[-1] / ev[0])) if ev[0] > 0 else float("inf"),
+        "condition_number_scaled": float(np.sqrt(evs[-1] / evs[0])) if evs[0] > 0
+        else float("inf"),
+        "vif": {t: float(v) for t, v in zip(fit_terms, vif, strict=True)},
+        "max_vif": float(np.max(vif)),
+        "n_segments_kept": int(kept.sum()),
+        "fit_residual_std_nT": fit,
+        "cv_residual_std_nT": cv,
+        "cv_ratio": cv / fit if fit > 0 else None,
+    }
+    return diag, segs

@@ -1,0 +1,47 @@
+"""Per-sample labels of a compensated log: segment ids and the screening's kept flags."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["kept_mask", "segment_labels"]
+
+
+def segment_labels(data: pd.DataFrame) -> np.ndarray:
+    """Segment id per sample (``segment`` column; -1 where absent or empty).
+
+    Parameters
+    ----------
+    data : DataFrame
+        Compensated log.
+
+    Returns
+    -------
+    ndarray of int64, shape (n,)
+    """
+    if "segment" not in data.columns:
+        return np.full(len(data), -1, dtype=np.int64)
+    s = pd.to_numeric(data["segment"], errors="coerce").to_numpy(dtype=np.float64)
+    return np.where(np.isfinite(s), s, -1).astype(np.int64)
+
+
+def kept_mask(data: pd.DataFrame) -> np.ndarray:
+    """Whether each sample's segment was kept by the screening (``segment_kept``; all True
+    when the column is absent).
+
+    Parameters
+    ----------
+    data : DataFrame
+        Compensated log (``segment_kept`` written ``true``/``false`` or boolean).
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+    """
+    if "segment_kept" not in data.columns:
+        return np.ones(len(data), dtype=bool)
+    k = data["segment_kept"]
+    if k.dtype == object or pd.api.types.is_string_dtype(k):
+        return k.astype(str).str.strip().str.lower().isin(["true", "1", "yes"]).to_numpy()
+    return k.fillna(False).to_numpy(dtype=bool)

@@ -1,0 +1,280 @@
+"""All quality-control metrics of a compensated log: :func:`compute_qc`.
+
+Every number is computed from a :class:`aeromag.compensate.CompensationResult` (the output of
+``aeromag compensate``: ``mag``, ``mag_tl``, ``mag_comp``, ``segment``, ``segment_kept``, its
+configuration and report).  See ``docs/qc.md`` for the definitions.
+
+* **FOM** (Figure of Merit, :mod:`aeromag.qc.fom`): the sum over the 12 manoeuvres of a
+  calibration box of the peak-to-peak amplitude of the band-passed signal within the manoeuvre.
+* **Improvement ratio** and **residual std**, per segment and per heading.
+* **Noise** (:mod:`aeromag.qc.noise`): band-limited std before/after and the fourth-difference
+  noise estimate.
+* **Fit diagnostics** (:mod:`aeromag.qc.diagnostics`): condition numbers, variance inflation
+  factors and leave-one-segment-out CV from the per-segment normal equations.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import warnings
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from .._core.stretches import find_stretches
+from ..compensation.config import CompensationConfig
+from ..compensation.metrics import compensation_metrics
+from ..compensation.terms import TERMS_16
+from ..errors import AeromagError, InputError
+from .diagnostics import fit_diagnostics
+from .fom import fom_summary, fom_table
+from .labels import segment_labels
+from .maneuvers import CARDINALS, ManeuverResult, detect_maneuvers
+from .noise import band_passed, fourth_difference_noise, grouped_std
+
+__all__ = ["QCResult", "compute_qc", "quality_metrics"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class QCResult:
+    """Quality-control results of one compensated log.
+
+    Attributes
+    ----------
+    metrics : dict
+        JSON-ready metrics (see :func:`compute_qc`).
+    fom : DataFrame or None
+        Per-manoeuvre peak-to-peak table (:func:`aeromag.qc.fom_table`), None when no FOM.
+    maneuvers : ManeuverResult or None
+        Detected legs and manoeuvres.
+    segments : DataFrame
+        Per-segment residual std, kept flag and cross-validated residual.
+    notes : list of str
+        Why something could not be computed.
+    """
+
+    metrics: dict[str, Any]
+    fom: pd.DataFrame | None
+    maneuvers: ManeuverResult | None
+    segments: pd.DataFrame
+    notes: list[str] = field(default_factory=list)
+
+
+def compute_qc(
+    result: Any,
+    *legacy: Any,
+    config: CompensationConfig | None = None,
+    maneuvers: ManeuverResult | None = None,
+    maneuver_column: str | None = None,
+    fit: bool = True,
+    fom: bool = True,
+) -> QCResult:
+    """All quality-control metrics of a compensated log.
+
+    Parameters
+    ----------
+    result : CompensationResult
+        What :func:`aeromag.compensate.compensate` returned (or the report workflow loaded from
+        ``OUT.csv``/``OUT.json``): ``data`` (``time``, ``mag`` or the fluxgate, ``mag_comp``,
+        ``mag_tl``, ``segment``, ``segment_kept``; attitude when available), ``report``, and the
+        configuration it was compensated with (``config``).
+    config : CompensationConfig, optional
+        The configuration (default: ``result.config``).
+    maneuvers : ManeuverResult, optional
+        Already detected manoeuvres.
+    maneuver_column : str, optional
+        Column naming the manoeuvre of each sample (instead of detection).
+    fit : bool
+        Compute the fit diagnostics (VIF, condition number, CV); needs the fluxgate.
+    fom : bool
+        Detect manoeuvres and compute the FOM (a calibration flight); False skips it unless
+        ``maneuvers`` or ``maneuver_column`` is given.
+
+    Returns
+    -------
+    QCResult
+        ``metrics`` holds ``improvement_ratio``, ``residual_std_nT``, ``std_before_nT``,
+        ``fom`` (box FOM before/after [nT], per-box and per-manoeuvre tables, or None),
+        ``residual_std_by_segment_nT``, ``residual_std_by_heading_nT``, ``noise``, ``fit``
+        (condition numbers, VIF, leave-one-segment-out CV), ``maneuvers``, ``notes``.
+    """
+    if isinstance(result, pd.DataFrame):  # the old compute_qc(data, report, cfg) call
+        warnings.warn("compute_qc(data, report, cfg) is deprecated: pass the CompensationResult",
+                      DeprecationWarning, stacklevel=2)
+        rep = (legacy[0] if legacy else None) or {}
+        cfg = config or (legacy[1] if len(legacy) > 1 else None) or _config_of(rep)
+        return _compute(result, rep, cfg, maneuvers=maneuvers, maneuver_column=maneuver_column,
+                        fit=fit, fom_on=fom)
+    if legacy:
+        raise TypeError("compute_qc(result): too many positional arguments")
+    cfg = config if config is not None else getattr(result, "config", None)
+    report = getattr(result, "report", None) or {}
+    if cfg is None:
+        cfg = _config_of(report)
+    data = result.data
+    if data is None:
+        raise InputError("this result holds no compensated data (use compensate())")
+    return _compute(data, report, cfg, maneuvers=maneuvers, maneuver_column=maneuver_column,
+                    fit=fit, fom_on=fom)
+
+
+def _compute(
+    data: pd.DataFrame, report: dict[str, Any], cfg: CompensationConfig, *,
+    maneuvers: ManeuverResult | None, maneuver_column: str | None, fit: bool, fom_on: bool,
+    base_metrics: dict[str, Any] | None = None, comp_bp: np.ndarray | None = None,
+    segment: np.ndarray | None = None, fs_hz: float | None = None,
+) -> QCResult:
+    terms = tuple(report.get("terms") or TERMS_16)
+    if base_metrics is None:
+        base_metrics = report.get("metrics") or None
+    notes: list[str] = []
+    t = data["time"].to_numpy(dtype=np.float64)
+    if "mag_comp" not in data.columns:
+        raise InputError("the log has no 'mag_comp' column; run 'aeromag compensate' first")
+    if "mag" in data.columns:
+        mag = data["mag"].to_numpy(dtype=np.float64)
+    else:
+        mag = np.linalg.norm(data[["flux_x", "flux_y", "flux_z"]].to_numpy(dtype=np.float64),
+                             axis=1)
+    comp = data["mag_comp"].to_numpy(dtype=np.float64)
+    band = cfg.band_hz
+    if base_metrics is None:
+        st = find_stretches(t, np.isfinite(mag) & np.isfinite(comp), cfg.max_gap_s)
+        base = compensation_metrics(mag, comp, t, st, cfg)
+    else:
+        base = base_metrics
+    metrics: dict[str, Any] = {
+        "band_hz": list(band),
+        "improvement_ratio": base["improvement_ratio"],
+        "residual_std_nT": base["residual_std_nT"],
+        "std_before_nT": base["std_before_nT"],
+    }
+    if comp_bp is None:
+        trim = (0.5 / band[0]) if cfg.trim_s is None else cfg.trim_s
+        comp_bp = band_passed(comp, t, band, cfg.order, cfg.max_gap_s, trim_s=trim,
+                              fs_hz=fs_hz)
+    seg = segment_labels(data) if segment is None else np.asarray(segment)
+    seg_std = grouped_std(comp_bp, seg)
+    metrics["residual_std_by_segment_nT"] = {str(k): v for k, v in seg_std.items()}
+    # Noise levels.
+    raw_after = mag - data["mag_tl"].to_numpy(dtype=np.float64) if "mag_tl" in data.columns \
+        else comp
+    metrics["noise"] = {
+        "band_hz": list(band),
+        "band_std_before_nT": base["std_before_nT"],
+        "band_std_after_nT": base["residual_std_nT"],
+        "fourth_difference_before_nT": fourth_difference_noise(mag, t, cfg.max_gap_s),
+        "fourth_difference_after_nT": fourth_difference_noise(raw_after, t, cfg.max_gap_s),
+    }
+    # Manoeuvres, heading legs, FOM.
+    fom_tab = None
+    if maneuvers is None and not fom_on and maneuver_column is None:
+        notes.append("manoeuvre detection skipped (no FOM): run 'aeromag report' or --fom")
+    elif maneuvers is None:
+        try:
+            maneuvers = detect_maneuvers(data, maneuver_column=maneuver_column,
+                                         max_gap_s=cfg.max_gap_s)
+        except AeromagError as exc:
+            notes.append(f"manoeuvre detection failed: {exc}")
+    if maneuvers is not None:
+        hl = maneuvers.labels["heading_leg"].to_numpy()
+        metrics["residual_std_by_heading_nT"] = {
+            CARDINALS[k]: v for k, v in grouped_std(comp_bp, hl).items()}
+        metrics["maneuvers"] = {
+            "method": maneuvers.method, "n_legs": len(maneuvers.legs),
+            "n_maneuvers": len(maneuvers.table), "complete_boxes": maneuvers.complete_boxes,
+            "heading_offset_deg": maneuvers.heading_offset_deg, "notes": maneuvers.notes}
+        if len(maneuvers.table):
+            fom_tab = fom_table(data, maneuvers, band_hz=band, order=cfg.order,
+                            max_gap_s=cfg.max_gap_s)
+            summary = fom_summary(fom_tab)
+            summary["table"] = _records(fom_tab)
+            metrics["fom"] = summary
+        else:
+            notes.append("no pitch/roll/yaw manoeuvre found: no FOM (not a calibration flight?)")
+            metrics["fom"] = None
+    else:
+        metrics["fom"] = None
+    segs = pd.DataFrame({"segment": list(seg_std), "residual_std_nT": list(seg_std.values())})
+    if fit and {"flux_x", "flux_y", "flux_z"} <= set(data.columns):
+        try:
+            diag, cv = fit_diagnostics(data, cfg, terms)
+            metrics["fit"] = diag
+            segs = cv.merge(segs, on="segment", how="outer")
+        except AeromagError as exc:
+            notes.append(f"fit diagnostics failed: {exc}")
+    metrics["notes"] = notes
+    for n in notes:
+        log.info("qc: %s", n)
+    return QCResult(metrics, fom_tab, maneuvers, segs, notes)
+
+
+def quality_metrics(
+    data: pd.DataFrame, report: dict[str, Any] | None = None,
+    cfg: CompensationConfig | None = None, *, detect: bool = True, fit: bool = True,
+    maneuver_column: str | None = None, maneuvers: ManeuverResult | None = None,
+    **legacy: Any,
+) -> dict[str, Any]:
+    """JSON-ready QC metrics of a compensated log given as a table and its report.
+
+    Prefer :func:`compute_qc` on the :class:`~aeromag.compensate.CompensationResult`.
+
+    Parameters
+    ----------
+    data : DataFrame
+        Compensated log.
+    report : dict, optional
+        Its report.
+    cfg : CompensationConfig, optional
+        Configuration (default: the report's ``config`` block).
+    detect, fit : bool
+        Manoeuvres/FOM and fit diagnostics (see :func:`compute_qc`'s ``fom`` and ``fit``).
+    maneuver_column : str, optional
+        Column naming each sample's manoeuvre.
+    maneuvers : ManeuverResult, optional
+        Already detected manoeuvres.
+    **legacy
+        ``base_metrics``, ``comp_bp``, ``segment``, ``fs_hz``: deprecated pass-through of
+        arrays the compensation already computed.
+
+    Returns
+    -------
+    dict
+        See :func:`compute_qc`.
+    """
+    if legacy:
+        unknown = set(legacy) - {"base_metrics", "comp_bp", "segment", "fs_hz"}
+        if unknown:
+            raise TypeError(f"quality_metrics: unexpected argument(s) {sorted(unknown)}")
+        warnings.warn("quality_metrics(base_metrics=, comp_bp=, segment=, fs_hz=) is deprecated:"
+                      " call aeromag.qc.compute_qc on the CompensationResult",
+                      DeprecationWarning, stacklevel=2)
+    rep = report or {}
+    cfg = cfg if cfg is not None else _config_of(rep)
+    return _compute(data, rep, cfg, maneuvers=maneuvers, maneuver_column=maneuver_column,
+                    fit=fit, fom_on=detect, **legacy).metrics
+
+
+def _config_of(report: dict[str, Any]) -> CompensationConfig:
+    """The configuration recorded in an in-memory report (defaults for what it lacks).
+
+    Only for results that do not carry their configuration; files are read by the report
+    workflow, which builds the typed result.
+    """
+    names = {f.name for f in dataclasses.fields(CompensationConfig)}
+    kw = {k: v for k, v in (report.get("config") or {}).items() if k in names}
+    if "band_hz" not in kw and report.get("band_hz"):
+        kw["band_hz"] = report["band_hz"]
+    return CompensationConfig(**kw)
+
+
+def _records(df: pd.DataFrame) -> list[dict[str, Any]]:
+    out = []
+    for rec in df.to_dict(orient="records"):
+        out.append({k: (v.item() if hasattr(v, "item") else v) for k, v in rec.items()})
+    return out
