@@ -54,6 +54,14 @@ _API: dict[str, str] = {
     "compute_qc": "aeromag.qc",
     # track check
     "check_track": "aeromag.track",
+    # online estimation: recursive least squares with forgetting, compass calibration
+    "RecursiveLeastSquares": "aeromag._core.rls",
+    "RLSResult": "aeromag._core.rls",
+    "CompassCalibration": "aeromag.compass",
+    "calibrate_compass": "aeromag.compass",
+    "igrf_field": "aeromag.compass",
+    "compass_file": "aeromag.workflows.compass",
+    "simulate_compass": "aeromag.synthetic.compass",
 }
 
 __all__ = ["AeromagError", "FitError", "InputError", "__version__", *sorted(_API)]

@@ -19,7 +19,7 @@ from .conftest import hand_flight
 
 runner = CliRunner()
 
-COMMANDS = ("compensate", "calibrate", "simulate", "track", "batch", "report")
+COMMANDS = ("compensate", "calibrate", "simulate", "track", "batch", "report", "compass")
 
 
 def _help(*args: str) -> str:

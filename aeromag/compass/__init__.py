@@ -1,2 +1,27 @@
 """Vector-magnetometer calibration (12 parameters: soft-iron matrix and hard-iron offset)
-against the expected Earth field, online by recursive least squares with forgetting."""
+against the expected Earth field, online by recursive least squares with forgetting.
+
+Modules: ``reference`` (the Earth field: IGRF-14 via ``ppigrf``, or explicit), ``calibration``
+(:class:`CompassCalibration`, the tilt-compensated heading, the excitation indicator).
+"""
+
+from __future__ import annotations
+
+from .calibration import (
+    EXCITATION_THRESHOLD,
+    CompassCalibration,
+    CompassResult,
+    ExcitationWindow,
+    calibrate_compass,
+    compass_heading,
+    convergence_time,
+    excitation_windows,
+    heading_error_stats,
+    reference_in_body,
+)
+from .reference import IGRF_RANGE, ReferenceField, explicit_field, igrf_field
+
+__all__ = ["EXCITATION_THRESHOLD", "IGRF_RANGE", "CompassCalibration", "CompassResult",
+           "ExcitationWindow", "ReferenceField", "calibrate_compass", "compass_heading",
+           "convergence_time", "excitation_windows", "explicit_field", "heading_error_stats",
+           "igrf_field", "reference_in_body"]

@@ -1,0 +1,414 @@
+"""Online 12-parameter calibration of a vector magnetometer, the compass heading, excitation.
+
+The calibrated field is ``flux_cal = D @ flux + e`` (soft-iron matrix ``D``, 3 x 3, and
+hard-iron offset ``e``, nT), estimated sample by sample by recursive least squares with a
+forgetting factor (:mod:`aeromag._core.rls`) against the expected Earth field rotated into
+body axes by the attitude, ``b_ref = C_nb.T m``.  Each body axis ``i`` is one output of a
+regression on the shared regressor ``[flux / F0, 1]``: ``b_ref_i / F0 = D_i . flux / F0 +
+e_i / F0`` (``F0`` the reference intensity, so the regressor is of order one and ``P_0 =
+alpha I`` means the same whatever the field).  The calibrated field of sample k uses the
+estimate from the samples before it (strictly causal, the a-priori estimate): the heading of
+a sample then never depends on that sample's own reference field, which is built from the
+attitude heading it is compared with.  (With the a-posteriori estimate and a short memory the
+fit would reproduce the reference and the heading error would look smaller than it is.)
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._core.angles import wrap360_deg, wrap_deg
+from .._core.rls import RecursiveLeastSquares, check_forgetting
+from .._core.rotations import rotate_body_to_ned, rotate_ned_to_body
+from ..errors import InputError
+
+log = logging.getLogger(__name__)
+
+__all__ = ["CompassCalibration", "CompassResult", "ExcitationWindow", "compass_heading",
+           "excitation_windows", "heading_error_stats", "EXCITATION_THRESHOLD",
+           "calibrate_compass", "convergence_time", "reference_in_body"]
+
+#: Number of parameters: D (9, row-major) and e (3).
+N_PARAMS = 12
+
+#: Minimum excitation (see :func:`excitation_windows`) of a window whose estimate can be
+#: trusted.  Set from the study's simulator: +-10 deg of roll, pitch and heading gives
+#: about 0.006, +-20 deg about 0.02 (+-10 deg did not converge in the study).
+EXCITATION_THRESHOLD = 0.012
+
+
+def compass_heading(flux_cal_nT: np.ndarray, pitch_deg: np.ndarray, roll_deg: np.ndarray,
+                    declination_deg: np.ndarray | float = 0.0) -> np.ndarray:
+    """True heading from a calibrated body-frame field, tilt-compensated.
+
+    The field is levelled with roll and pitch (yaw left out): in that frame it is
+    ``(H cos(Dec - psi), H sin(Dec - psi), Z)``, so the magnetic heading is
+    ``-atan2(b_y, b_x)`` and the true heading adds the declination.
+
+    Parameters
+    ----------
+    flux_cal_nT : ndarray, shape (n, 3)
+        Calibrated field in body axes [nT].
+    pitch_deg, roll_deg : ndarray, shape (n,)
+        Attitude [deg].
+    declination_deg : float or ndarray, shape (n,)
+        Declination [deg, east of true north].
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        True heading [deg] in [0, 360).
+    """
+    lvl = rotate_body_to_ned(flux_cal_nT, np.deg2rad(roll_deg), np.deg2rad(pitch_deg), 0.0)
+    psi_m = -np.rad2deg(np.arctan2(lvl[:, 1], lvl[:, 0]))
+    return wrap360_deg(psi_m + np.asarray(declination_deg, dtype=np.float64))
+
+
+def heading_error_stats(err_deg: np.ndarray) -> dict[str, float | None]:
+    """RMS and mean of a heading error over its finite samples.
+
+    Parameters
+    ----------
+    err_deg : ndarray
+        Heading error [deg], wrapped.
+
+    Returns
+    -------
+    dict
+        ``heading_err_rms_deg``, ``heading_err_mean_deg``, ``heading_err_max_abs_deg``
+        (None when no finite sample).
+    """
+    e = np.asarray(err_deg, dtype=np.float64)
+    e = e[np.isfinite(e)]
+    if not e.size:
+        return {"heading_err_rms_deg": None, "heading_err_mean_deg": None,
+                "heading_err_max_abs_deg": None}
+    return {"heading_err_rms_deg": float(np.sqrt(np.mean(e * e))),
+            "heading_err_mean_deg": float(e.mean()),
+            "heading_err_max_abs_deg": float(np.abs(e).max())}
+
+
+@dataclass
+class ExcitationWindow:
+    """Attitude excitation of one window of the flight.
+
+    Attributes
+    ----------
+    start_time, end_time : float
+        Window [s].
+    n : int
+        Samples in the window.
+    roll_range_deg, pitch_range_deg, heading_range_deg : float
+        Peak-to-peak attitude [deg] (heading unwrapped).
+    excitation : float
+        Square root of the smallest eigenvalue of the covariance of the reference field's
+        direction in body axes (dimensionless): how well the window determines all 12
+        parameters (0: a plane of directions, some parameters not determined).
+    sufficient : bool
+        ``excitation >= threshold``.
+    """
+
+    start_time: float
+    end_time: float
+    n: int
+    roll_range_deg: float
+    pitch_range_deg: float
+    heading_range_deg: float
+    excitation: float
+    sufficient: bool
+
+    def to_dict(self) -> dict[str, float | int | bool]:
+        """JSON-ready dict."""
+        return dict(self.__dict__)
+
+
+def excitation_windows(time_s: np.ndarray, heading_deg: np.ndarray, pitch_deg: np.ndarray,
+                       roll_deg: np.ndarray, ref_body_nT: np.ndarray, *,
+                       window_s: float = 5.0, threshold: float = EXCITATION_THRESHOLD,
+                       ) -> list[ExcitationWindow]:
+    """Excitation indicator per window: attitude ranges and the spread of field directions.
+
+    The 12 parameters are determined only if the measured field directions span a volume:
+    field vectors of constant magnitude lie on a sphere, and a small patch of it (small
+    manoeuvres) is nearly flat, leaving the combination of the matrix and the offset
+    along its normal undetermined.  The indicator is the square root of the smallest
+    eigenvalue of the covariance of the unit reference vector in body axes over the
+    window; it grows as the square of the manoeuvre amplitude.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,)
+        Times [s].
+    heading_deg, pitch_deg, roll_deg : ndarray, shape (n,)
+        Attitude [deg].
+    ref_body_nT : ndarray, shape (n, 3)
+        Reference field in body axes [nT].
+    window_s : float
+        Window length [s].
+    threshold : float
+        Minimum excitation of a sufficient window.
+
+    Returns
+    -------
+    list of ExcitationWindow
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    if not len(t):
+        return []
+    u = ref_body_nT / np.linalg.norm(ref_body_nT, axis=1, keepdims=True)
+    hdg = np.rad2deg(np.unwrap(np.deg2rad(heading_deg)))
+    edges = np.arange(t[0], t[-1] + window_s, window_s)
+    bounds = np.searchsorted(t, edges)
+    out = []
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        if b - a < 4:
+            continue
+        ok = np.isfinite(u[a:b]).all(axis=1)
+        uu = u[a:b][ok]
+        exc = float(np.sqrt(max(np.linalg.eigvalsh(np.cov(uu.T))[0], 0.0))) if len(uu) > 3 \
+            else 0.0
+
+        def rng(x: np.ndarray) -> float:
+            x = x[np.isfinite(x)]
+            return float(x.max() - x.min()) if x.size else 0.0
+
+        out.append(ExcitationWindow(
+            start_time=float(t[a]), end_time=float(t[b - 1]), n=int(b - a),
+            roll_range_deg=rng(roll_deg[a:b]), pitch_range_deg=rng(pitch_deg[a:b]),
+            heading_range_deg=rng(hdg[a:b]), excitation=exc, sufficient=exc >= threshold))
+    return out
+
+
+@dataclass
+class CompassResult:
+    """What :meth:`CompassCalibration.run` returns.
+
+    Attributes
+    ----------
+    flux_cal_nT : ndarray, shape (n, 3)
+        Calibrated field, each sample with the estimate from the samples before it [nT].
+    matrix : ndarray, shape (3, 3)
+        Final ``D``.
+    offset_nT : ndarray, shape (3,)
+        Final ``e`` [nT].
+    matrix_history : ndarray, shape (n, 3, 3)
+    offset_history_nT : ndarray, shape (n, 3)
+    skipped : ndarray of bool, shape (n,)
+        Samples not used (flux, attitude or reference not finite).
+    forgetting : float
+    """
+
+    flux_cal_nT: np.ndarray
+    matrix: np.ndarray
+    offset_nT: np.ndarray
+    matrix_history: np.ndarray
+    offset_history_nT: np.ndarray
+    skipped: np.ndarray
+    forgetting: float
+    extra: dict = field(default_factory=dict)
+
+
+class CompassCalibration:
+    """Online hard- and soft-iron calibration (12 parameters) by RLS with forgetting.
+
+    Parameters
+    ----------
+    forgetting : float
+        lambda, 0 < lambda <= 1 (1: plain RLS; the study: 0.96-0.975).
+    alpha : float
+        Prior covariance scale of the normalised parameters (``P_0 = alpha I``).
+    field_scale_nT : float
+        ``F0``, the scale of the regressor [nT] (set it to the reference intensity).
+    """
+
+    def __init__(self, forgetting: float = 0.975, *, alpha: float = 1e4,
+                 field_scale_nT: float = 50000.0) -> None:
+        self.forgetting = check_forgetting(forgetting)
+        self.alpha = float(alpha)
+        self.f0 = float(field_scale_nT)
+        theta0 = np.vstack([np.eye(3), np.zeros((1, 3))])  # D = I, e = 0
+        self.rls = RecursiveLeastSquares(4, 3, forgetting=self.forgetting, alpha=self.alpha,
+                                         theta0=theta0)
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """Current ``D`` (3 x 3)."""
+        return self.rls.theta[:3].T.copy()
+
+    @property
+    def offset_nT(self) -> np.ndarray:
+        """Current ``e`` [nT]."""
+        return self.rls.theta[3] * self.f0
+
+    def _regressor(self, flux_nT: np.ndarray) -> np.ndarray:
+        f = np.atleast_2d(np.asarray(flux_nT, dtype=np.float64)) / self.f0
+        return np.column_stack([f, np.ones(len(f))])
+
+    def step(self, flux_nT: np.ndarray, ref_body_nT: np.ndarray) -> np.ndarray:
+        """One sample: update and return the calibrated field of this sample.
+
+        Parameters
+        ----------
+        flux_nT : ndarray, shape (3,)
+            Measured field in body axes [nT].
+        ref_body_nT : ndarray, shape (3,)
+            Expected Earth field in body axes [nT].
+
+        Returns
+        -------
+        ndarray, shape (3,)
+            ``D @ flux + e`` with the estimate before this sample [nT] (NaN if the flux is
+            not finite).
+        """
+        phi = self._regressor(flux_nT)[0]
+        cal = (phi @ self.rls.theta) * self.f0
+        self.rls.step(phi, np.asarray(ref_body_nT, dtype=np.float64) / self.f0)
+        return cal
+
+    def run(self, flux_nT: np.ndarray, ref_body_nT: np.ndarray) -> CompassResult:
+        """Calibrate a whole log (vectorised; continues from the current state).
+
+        Parameters
+        ----------
+        flux_nT : ndarray, shape (n, 3)
+            Measured field in body axes [nT].
+        ref_body_nT : ndarray, shape (n, 3)
+            Expected Earth field in body axes [nT] (NaN where the attitude is missing).
+
+        Returns
+        -------
+        CompassResult
+        """
+        phi = self._regressor(flux_nT)
+        before = self.rls.theta.copy()
+        res = self.rls.run(phi, np.asarray(ref_body_nT, dtype=np.float64) / self.f0)
+        th = res.theta  # (n, 4, 3), after each sample
+        prior = np.concatenate([before[None], th[:-1]])  # before each sample
+        cal = np.einsum("ki,kij->kj", phi, prior) * self.f0
+        cal[~np.isfinite(phi).all(axis=1)] = np.nan
+        return CompassResult(
+            flux_cal_nT=cal, matrix=self.matrix, offset_nT=self.offset_nT,
+            matrix_history=np.transpose(th[:, :3, :], (0, 2, 1)),
+            offset_history_nT=th[:, 3, :] * self.f0, skipped=res.skipped,
+            forgetting=self.forgetting)
+
+
+def reference_in_body(ref_ned_nT: np.ndarray, heading_deg: np.ndarray, pitch_deg: np.ndarray,
+                      roll_deg: np.ndarray) -> np.ndarray:
+    """Expected Earth field in body axes, ``C_nb.T m``.
+
+    Parameters
+    ----------
+    ref_ned_nT : ndarray, shape (3,) or (n, 3)
+        Reference field in NED [nT].
+    heading_deg, pitch_deg, roll_deg : ndarray, shape (n,)
+        Attitude (true heading) [deg].
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+        [nT]; NaN where the attitude is not finite.
+    """
+    return rotate_ned_to_body(ref_ned_nT, np.deg2rad(roll_deg), np.deg2rad(pitch_deg),
+                              np.deg2rad(heading_deg))
+
+
+def calibrate_compass(flux_nT: np.ndarray, heading_deg: np.ndarray, pitch_deg: np.ndarray,
+                      roll_deg: np.ndarray, ref_ned_nT: np.ndarray, *,
+                      time_s: np.ndarray | None = None, forgetting: float = 0.975,
+                      alpha: float = 1e4, window_s: float = 5.0) -> CompassResult:
+    """Calibrate a log end to end: estimate, calibrated field, heading, its error, excitation.
+
+    Parameters
+    ----------
+    flux_nT : ndarray, shape (n, 3)
+        Measured field in body axes [nT].
+    heading_deg, pitch_deg, roll_deg : ndarray, shape (n,)
+        Attitude [deg]; heading true.
+    ref_ned_nT : ndarray, shape (3,) or (n, 3)
+        Reference Earth field in NED [nT].
+    time_s : ndarray, shape (n,), optional
+        Times [s] (for the excitation windows; sample index / 50 when omitted).
+    forgetting, alpha : float
+        See :class:`CompassCalibration`.
+    window_s : float
+        Excitation window [s].
+
+    Returns
+    -------
+    CompassResult
+        With ``extra`` holding ``mag_heading_cal`` [deg], ``heading_err_deg`` [deg],
+        ``metrics`` and ``excitation`` (list of :class:`ExcitationWindow`).
+
+    Raises
+    ------
+    InputError
+        Fewer usable samples than parameters.
+    """
+    flux = np.asarray(flux_nT, dtype=np.float64)
+    ref = np.asarray(ref_ned_nT, dtype=np.float64)
+    b_ref = reference_in_body(ref, heading_deg, pitch_deg, roll_deg)
+    usable = np.isfinite(flux).all(axis=1) & np.isfinite(b_ref).all(axis=1)
+    if usable.sum() < N_PARAMS:
+        raise InputError(f"only {int(usable.sum())} samples with flux_x/y/z, heading, pitch "
+                         f"and roll: the calibration needs at least {N_PARAMS} (12 "
+                         "parameters); give a longer log")
+    f0 = float(np.nanmean(np.linalg.norm(np.atleast_2d(ref), axis=1)))
+    cal = CompassCalibration(forgetting, alpha=alpha, field_scale_nT=f0)
+    res = cal.run(flux, b_ref)
+    decl = np.rad2deg(np.arctan2(np.atleast_2d(ref)[:, 1], np.atleast_2d(ref)[:, 0]))
+    hdg = compass_heading(res.flux_cal_nT, pitch_deg, roll_deg,
+                          decl if decl.size > 1 else float(decl[0]))
+    err = wrap_deg(hdg - np.asarray(heading_deg, dtype=np.float64))
+    t = np.arange(len(flux)) / 50.0 if time_s is None else np.asarray(time_s, dtype=float)
+    res.extra = {
+        "mag_heading_cal": hdg, "heading_err_deg": err,
+        "metrics": heading_error_stats(err),
+        "excitation": excitation_windows(t, heading_deg, pitch_deg, roll_deg, b_ref,
+                                         window_s=window_s),
+    }
+    return res
+
+
+def convergence_time(time_s: np.ndarray, err_deg: np.ndarray, start_s: float, *,
+                     threshold_deg: float = 1.0, window_s: float = 1.0,
+                     step_s: float = 0.1) -> float:
+    """Time after ``start_s`` from which the running RMS heading error stays below a level.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,)
+        Times [s].
+    err_deg : ndarray, shape (n,)
+        Heading error [deg].
+    start_s : float
+        Start (e.g. the interference switch) [s].
+    threshold_deg : float
+        Level of the RMS over ``window_s`` [deg].
+    window_s, step_s : float
+        Length and step of the sliding window [s].
+
+    Returns
+    -------
+    float
+        Seconds from ``start_s`` to the end of the last window above the level (0 when none
+        is); ``inf`` when the last window is above it (never converged).
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    e = np.asarray(err_deg, dtype=np.float64)
+    starts = np.arange(start_s, t[-1] - window_s + 1e-9, step_s)
+    lo = np.searchsorted(t, starts)
+    hi = np.searchsorted(t, starts + window_s)
+    c2 = np.concatenate([[0.0], np.cumsum(np.where(np.isfinite(e), e * e, 0.0))])
+    cnt = np.concatenate([[0], np.cumsum(np.isfinite(e))])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rms = np.sqrt((c2[hi] - c2[lo]) / (cnt[hi] - cnt[lo]))
+    above = np.flatnonzero(~(rms < threshold_deg))
+    if not above.size:
+        return 0.0
+    if above[-1] == len(rms) - 1:
+        return float("inf")
+    return float(starts[above[-1]] + window_s - start_s)
