@@ -3,6 +3,7 @@
 from ._deprecated import forward
 
 __getattr__, __dir__ = forward(__name__, (
+    "aeromag.workflows.compensate",
     "aeromag.compensation",
     "aeromag.compensation.pipeline",
     "aeromag.compensation.config",
@@ -14,6 +15,6 @@ __getattr__, __dir__ = forward(__name__, (
     "aeromag.compensation.result",
     "aeromag.compensation.segments",
     "aeromag.compensation.screening",
-    "aeromag.workflows.compensate",
+    "aeromag.compensation.report",
     "aeromag._core.moments",
 ))

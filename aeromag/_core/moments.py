@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
+
+__all__ = ["StreamingMoments", "masked_std"]
 
 
 def masked_std(x: np.ndarray, mask: np.ndarray) -> float:
@@ -47,3 +51,37 @@ def masked_std(x: np.ndarray, mask: np.ndarray) -> float:
     # Band-passed data are centred: the raw second moment loses nothing to cancellation.
     return float(np.sqrt(max(s2 / cnt - mean * mean, 0.0)))
 
+
+
+@dataclass
+class StreamingMoments:
+    """Streaming count / mean / M2 (Chan et al.'s parallel variance) of one or more series.
+
+    Attributes
+    ----------
+    n : int
+        Samples added.
+    mean, m2 : ndarray, shape (k,)
+        Mean and sum of squared deviations of each of the ``k`` series.
+    """
+
+    n: int = 0
+    mean: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    m2: np.ndarray = field(default_factory=lambda: np.zeros(2))
+
+    def add(self, x: np.ndarray) -> None:
+        """Add a block of samples, shape (k, n_block)."""
+        k = x.shape[1]
+        if k == 0:
+            return
+        mb = x.mean(axis=1)
+        m2b = ((x - mb[:, None]) ** 2).sum(axis=1)
+        n = self.n + k
+        delta = mb - self.mean
+        self.mean = self.mean + delta * k / n
+        self.m2 = self.m2 + m2b + delta**2 * self.n * k / n
+        self.n = n
+
+    def std(self) -> np.ndarray:
+        """Population standard deviation of each series (NaN before any sample)."""
+        return np.sqrt(self.m2 / self.n) if self.n else np.full(len(self.mean), np.nan)

@@ -11,11 +11,11 @@ import pandas as pd
 from .._core.filters import butter_sos, filter_stretches, lowpass_stretches
 from .._core.parallel import submit
 from .._core.stretches import find_stretches
-from ..errors import FitError
 from .config import CompensationConfig
+from .fit import check_interference
 from .metrics import _band_metrics
 from .model import TLModel
-from .prepare import Prepared, _every, prepare
+from .prepare import Prepared, prepare
 
 log = logging.getLogger(__name__)
 
@@ -133,24 +133,11 @@ def _check_plausible(data: pd.DataFrame, metrics: dict[str, Any], prep: Prepared
     """Refuse (fitted) or warn about (saved model) a non-physical compensation.
 
     A model fitted on this very log must not make its band-passed field worse, and no
-    aircraft's interference approaches the Earth field itself (``cfg.max_interference``).
+    aircraft's interference approaches the Earth field itself (``cfg.max_interference``,
+    :func:`aeromag.compensation.fit.check_interference`).
     """
-    tl = data["mag_tl"].to_numpy()
-    sub = np.abs(tl[:: _every(tl)])
-    sub = sub[np.isfinite(sub)]
-    peak = float(np.percentile(sub, 99)) if sub.size else float("nan")
-    limit = cfg.max_interference * prep.field_nT
-    if np.isfinite(peak) and np.isfinite(limit) and peak > limit:
-        msg = (f"{prep.source}: the model gives an aircraft interference of {peak:.4g} nT"
-               f" ({peak / prep.field_nT:.0%} of the {prep.field_nT:.0f} nT field), which no"
-               " aircraft makes")
-        if fitted:
-            raise FitError(
-                msg + ": this flight does not determine the TL terms at low frequency (too few"
-                " headings or manoeuvres); calibrate on a box flight with manoeuvres and apply"
-                " it with --model, or regularise with --ridge 1e-3 (limit: --max-interference)"
-            )
-        log.warning("%s; check that the model belongs to this aircraft and sensor", msg)
+    check_interference(data["mag_tl"].to_numpy(), prep.field_nT, cfg.max_interference,
+                       source=prep.source, fitted=fitted)
     ratio = metrics.get("improvement_ratio", float("nan"))
     if fitted and np.isfinite(ratio) and ratio < 1.0:
         log.warning(

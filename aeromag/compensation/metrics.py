@@ -83,21 +83,50 @@ def _band_metrics(
     use = trim_mask(st, time_s, trim) & fin
     if use.sum() < 10:
         use = fin
-    out: dict[str, Any] = {"n_samples": int(use.sum())}
     before = masked_std(mag_bp, use)
     after = masked_std(comp_bp, use)
+    kept_std = None
+    if kept is not None:
+        uk = use if kept.all() else use & kept
+        if uk.any():
+            kept_std = ((before, after) if uk is use
+                        else (masked_std(mag_bp, uk), masked_std(comp_bp, uk)))
+    out = metrics_dict(int(use.sum()), before, after, kept_std, cfg.band_hz)
+    comp_bp[~use] = np.nan
+    return out, comp_bp
+
+
+
+def metrics_dict(n_samples: int, before: float, after: float,
+                 kept: tuple[float, float] | None, band_hz: tuple[float, float]
+                 ) -> dict[str, Any]:
+    """The ``metrics`` block from band-passed standard deviations (in memory and chunked).
+
+    Parameters
+    ----------
+    n_samples : int
+        Samples the standard deviations were taken over.
+    before, after : float
+        Std of band-passed ``mag`` and of band-passed ``mag_comp`` [nT].
+    kept : (float, float) or None
+        The same over the kept segments.
+    band_hz : (float, float)
+        The fitting band [Hz].
+
+    Returns
+    -------
+    dict
+        ``n_samples``, ``std_before_nT``, ``residual_std_nT``, ``improvement_ratio``
+        (before / after), the ``kept_`` versions, ``band_hz``.
+    """
+    out: dict[str, Any] = {"n_samples": int(n_samples)}
     out["std_before_nT"] = before
     out["residual_std_nT"] = after
     out["improvement_ratio"] = before / after if after > 0 else float("nan")
     if kept is not None:
-        uk = use if kept.all() else use & kept
-        if uk.any():
-            b2 = before if uk is use else masked_std(mag_bp, uk)
-            a2 = after if uk is use else masked_std(comp_bp, uk)
-            out["kept_std_before_nT"] = b2
-            out["kept_residual_std_nT"] = a2
-            out["kept_improvement_ratio"] = b2 / a2 if a2 > 0 else float("nan")
-    out["band_hz"] = list(cfg.band_hz)
-    comp_bp[~use] = np.nan
-    return out, comp_bp
-
+        b2, a2 = kept
+        out["kept_std_before_nT"] = b2
+        out["kept_residual_std_nT"] = a2
+        out["kept_improvement_ratio"] = b2 / a2 if a2 > 0 else float("nan")
+    out["band_hz"] = list(band_hz)
+    return out

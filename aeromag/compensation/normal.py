@@ -133,13 +133,3 @@ def _residual_std(stats: SegmentStats, coef: np.ndarray) -> np.ndarray:
         "mk,mkj,mj->m", c, stats.gram, c
     )
     return np.sqrt(np.maximum(sse, 0.0) / stats.n)
-
-
-
-def _scaled_cond(gram: np.ndarray) -> np.ndarray:
-    d = np.sqrt(np.maximum(np.diagonal(gram, axis1=-2, axis2=-1), 1e-300))
-    gs = gram / d[..., :, None] / d[..., None, :]
-    ev = np.linalg.eigvalsh(gs)
-    with np.errstate(divide="ignore"):
-        return np.sqrt(ev[..., -1] / np.where(ev[..., 0] > 0, ev[..., 0], 0.0))
-

@@ -16,31 +16,33 @@ Steps (patent M1, see ``shared/methods.md``):
 3. the TL design matrix with derivatives against real time within each stretch; the target and
    every column band-passed (zero-phase Butterworth) per stretch, filter edges trimmed;
 4. per-segment normal equations; a pooled fit; per-segment fits shrunk toward the pool;
-5. PCA screening of the per-segment coefficients (:mod:`aeromag.screening`), repeated with the
-   pool of the kept set until the kept set is stable;
+5. PCA screening of the per-segment coefficients (:mod:`aeromag.compensation.screening`),
+   repeated with the pool of the kept set until the kept set is stable;
 6. one refit on all kept segments; ``mag_tl = A @ coef`` (unfiltered, never re-centred: it is a
+   property of the aircraft); ``mag_comp = mag - mag_tl``, low-pass filtered (level kept).
+
+The functions here return the report without its ``qc`` block: quality control builds on the
+compensation (:mod:`aeromag.qc`), and :func:`aeromag.compensate` (the public function, in
+:mod:`aeromag.workflows.compensate`) adds it.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import datetime as _dt
-import logging
-from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from .. import __version__
 from .apply import _apply, _check_plausible
-from .config import CompensationConfig, _config_dict, _resolve_gap
+from .config import CompensationConfig, _resolve_gap
 from .fit import fit_model
 from .model import TLModel
-from .prepare import Prepared, prepare
+from .prepare import prepare
+from .report import AppliedRun, applied_report
 from .result import CompensationResult
 from .segments import segment_counts
 
-log = logging.getLogger(__name__)
+__all__ = ["calibrate", "compensate"]
 
 
 def compensate(
@@ -64,7 +66,7 @@ def compensate(
     Returns
     -------
     CompensationResult
-        ``data`` holds the output table, ``report`` the JSON report.
+        ``data`` holds the output table, ``report`` the JSON report (without ``qc``).
     """
     cfg = _resolve_gap(cfg or CompensationConfig(), df)
     prep = prepare(df, cfg, source=source)
@@ -77,52 +79,19 @@ def compensate(
         report = dict(fit.report)
         report["metrics"] = metrics
         report["model_source"] = "fitted"
-        report["qc"] = _qc_block(data, report, cfg, comp_bp, prep)
         fit.model.meta["metrics"] = metrics
-        return CompensationResult(data, fit.model, report, fit.screen, fit.segment_table)
+        return CompensationResult(data, fit.model, report, fit.screen, fit.segment_table,
+                                  fit=fit.fit, config=cfg, comp_bp_nT=comp_bp,
+                                  segment=prep.segment, fs_hz=prep.fs)
     data, metrics, comp_bp = _apply(df, model, cfg, prep=prep, kept_segments=None,
                                     source=source, release_flux=True)
     _check_plausible(data, metrics, prep, cfg, fitted=False)
     seg_ids, counts = segment_counts(prep.segment)
-    report = {
-        "aeromag_version": __version__,
-        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-        "source": prep.source,
-        "terms": list(model.terms),
-        "coef": [float(c) for c in model.coef],
-        "scale_nT": model.scale_nT,
-        "model_source": str(model.meta.get("path", "given")),
-        "band_hz": list(cfg.band_hz),
-        "sampling_rate_hz": prep.fs,
-        "segments": [
-            {"id": int(s), "n": int(c), "kept": True, "scores": None, "residual_std": None}
-            for s, c in zip(seg_ids, counts, strict=True)
-        ],
-        "screening": {"enabled": False, "notes": ["a saved model was applied: nothing fitted"]},
-        "metrics": metrics,
-        "config": _config_dict(cfg),
-    }
-    report["qc"] = _qc_block(data, report, cfg, comp_bp, prep)
-    by_seg = report["qc"].get("residual_std_by_segment_nT") or {}
-    for e in report["segments"]:
-        e["residual_std"] = by_seg.get(str(e["id"]))
-    return CompensationResult(data, model, report, None, None)
-
-
-
-def _qc_block(data: pd.DataFrame, report: dict[str, Any], cfg: CompensationConfig,
-              comp_bp: np.ndarray | None = None, prep: Prepared | None = None) -> dict:
-    """The ``qc`` block of a report (FOM only when ``cfg.fom``; fit diagnostics are in
-    ``report["fit"]`` already, computed from the fit's own statistics).  ``comp_bp`` is the
-    band-passed ``mag_comp`` of the metrics, reused rather than filtered again."""
-    from ..qc import quality_metrics  # qc builds on this module: import here
-
-    extra: dict[str, Any] = {}
-    if comp_bp is not None and prep is not None:
-        extra = {"comp_bp": comp_bp, "segment": prep.segment, "fs_hz": prep.fs}
-    return quality_metrics(data, report, cfg, fit=False, detect=bool(cfg.fom),
-                           base_metrics=report.get("metrics"), **extra)
-
+    report = applied_report(AppliedRun(prep.source, model, cfg, prep.fs,
+                                       dict(zip(seg_ids.tolist(), counts.tolist(), strict=True)),
+                                       metrics))
+    return CompensationResult(data, model, report, None, None, config=cfg, comp_bp_nT=comp_bp,
+                              segment=prep.segment, fs_hz=prep.fs)
 
 
 def calibrate(

@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from .._core.lstsq import solve_normal
+from .._core.lstsq import solve_normal, solve_normal_batch
 from .config import CompensationConfig
 from .normal import SegmentStats, _residual_std
 
@@ -370,9 +370,7 @@ def _add_one_guard(stats: SegmentStats, kept: np.ndarray, cfg: CompensationConfi
     if d.size:
         Gd = G[None] + stats.gram[d]
         bd = b[None] + stats.rhs[d]
-        inv = 1.0 / np.sqrt(np.maximum(np.diagonal(Gd, axis1=1, axis2=2), 1e-300))
-        gs = Gd * inv[:, :, None] * inv[:, None, :] + ridge * np.eye(G.shape[0])
-        cd = np.linalg.solve(gs, (bd * inv)[..., None])[..., 0] * inv
+        cd = solve_normal_batch(Gd, bd, ridge)
         msd = np.diagonal(Gd, axis1=1, axis2=2) / (n[kept].sum() + n[d])[:, None]
         sub = SegmentStats(stats.ids[d], stats.n[d], stats.gram[d], stats.rhs[d],
                            stats.yy[d], {})
@@ -412,3 +410,112 @@ def _readmit(stats: SegmentStats, kept: np.ndarray, cfg: CompensationConfig
         back_all[back] = True
     return kept, back_all
 
+
+
+@dataclass
+class ScreeningOutcome:
+    """What the screening loop decided (:func:`screen_segments`).
+
+    Attributes
+    ----------
+    kept : ndarray of bool, shape (m,)
+        Segments kept for the final fit (order of ``stats.ids``).
+    screened : bool
+        Whether PCA screening ran (requested, and enough segments).
+    screen : ScreenResult or None
+        The last PCA screening.
+    seg_coef : ndarray, shape (m, k)
+        Each segment's own fit, shrunk toward the pool.
+    readmitted : ndarray of bool, shape (m,)
+        Segments put back after the loop settled.
+    iterations : int
+        Screening rounds.
+    notes : list of str
+        What the loop had to say (in the report's ``screening.notes``).
+    excess, own_ratio : ndarray or None
+        Pooled-fit residual over the kept median, own-fit excess over its kept median.
+    """
+
+    kept: np.ndarray
+    screened: bool
+    screen: ScreenResult | None
+    seg_coef: np.ndarray
+    readmitted: np.ndarray
+    iterations: int
+    notes: list[str]
+    excess: np.ndarray | None = None
+    own_ratio: np.ndarray | None = None
+
+
+def screen_segments(stats: SegmentStats, cfg: CompensationConfig) -> ScreeningOutcome:
+    """The whole screening loop: pool, shrunk segment fits, PCA + MCD, guards, re-admission.
+
+    Parameters
+    ----------
+    stats : SegmentStats
+        Band-passed per-segment normal equations of the fitted terms.
+    cfg : CompensationConfig
+        Screening options (``screen``, ``min_segments``, ``max_iter``, ``shrink``,
+        ``pca_variance``, ``screen_quantile``, the materiality guards, ``ridge``).
+
+    Returns
+    -------
+    ScreeningOutcome
+    """
+    m = len(stats.ids)
+    fit_terms_k = stats.gram.shape[1]
+    excess = own_ratio = None
+    kept = np.ones(m, dtype=bool)
+    screen: ScreenResult | None = None
+    notes: list[str] = []
+    iterations = 0
+    seg_coef = np.full((m, fit_terms_k), np.nan)
+    readmitted = np.zeros(m, dtype=bool)
+    screened = cfg.screen and m >= cfg.min_segments
+    if cfg.screen and not screened:
+        notes.append(
+            f"only {m} segment(s) could be fitted (screening needs {cfg.min_segments}):"
+            " fitted without screening"
+        )
+    if screened:
+        for iterations in range(1, cfg.max_iter + 1):  # noqa: B007 - reported below
+            G = stats.gram[kept].sum(axis=0)
+            b = stats.rhs[kept].sum(axis=0)
+            pooled, _, _ = solve_normal(G, b, max(cfg.ridge, 1e-9))
+            col_ms = np.diag(G) / stats.n[kept].sum()
+            seg_coef = shrunk_segment_fits(stats.gram, stats.rhs, stats.n.astype(float), pooled,
+                                           col_ms, cfg.shrink)
+            screen = pca_screen(seg_coef, variance=cfg.pca_variance,
+                                quantile=cfg.screen_quantile)
+            r_pool = _residual_std(stats, pooled)
+            own = own_fit_excess(r_pool, _residual_std(stats, seg_coef))
+            excess = r_pool / np.median(r_pool[kept])
+            own_ratio = own / max(float(np.median(own[kept])), 1e-300)
+            out = ~screen.kept & _material(r_pool, own, kept, cfg)
+            masked = masked_outlier(r_pool, own, screen.kept, kept,
+                                    residual_ratio=cfg.inlier_excess,
+                                    own_ratio=cfg.inlier_own_excess,
+                                    min_excess_nT=cfg.min_excess_nT)
+            if masked is not None:
+                out[masked] = True
+            new = ~out
+            if new.sum() < max(3, (m + 1) // 2):
+                # Never let the "main cluster" be a minority: keep the closest half.
+                order = np.argsort(screen.distance)
+                new = np.zeros(m, dtype=bool)
+                new[order[: max(3, (m + 1) // 2)]] = True
+                notes.append("screening would drop most segments: kept the closest half")
+            if np.array_equal(new, kept):
+                break
+            kept = new
+        else:
+            notes.append(f"screening did not settle within {cfg.max_iter} rounds")
+        kept, readmitted = _readmit(stats, kept, cfg)
+    else:
+        # Not screened: each segment's own (shrunk) fit is still recorded for the report.
+        G0 = stats.gram.sum(axis=0)
+        pooled0, _, _ = solve_normal(G0, stats.rhs.sum(axis=0), max(cfg.ridge, 1e-9))
+        seg_coef = shrunk_segment_fits(stats.gram, stats.rhs, stats.n.astype(float), pooled0,
+                                       np.diag(G0) / stats.n.sum(), cfg.shrink)
+    return ScreeningOutcome(kept, bool(screened), screen, seg_coef, readmitted, iterations,
+                            notes, excess, own_ratio)

@@ -24,23 +24,23 @@ whole and then processed in chunks.
 
 from __future__ import annotations
 
-import datetime as _dt
 import logging
 import math
 import os
 from collections.abc import Iterator
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from .. import __version__
 from .._core.filters import butter_sos, filter_stretches, min_filter_length
+from .._core.moments import StreamingMoments
 from .._core.stretches import find_stretches, interpolate_short_gaps
-from ..compensation.config import CompensationConfig, _config_dict
+from ..compensation.config import CompensationConfig
+from ..compensation.metrics import metrics_dict
 from ..compensation.model import TLModel
+from ..compensation.report import AppliedRun, applied_report
 from ..errors import InputError
 from ..io import (
     FLUX_COLUMNS,
@@ -128,30 +128,6 @@ def overlap_rows(fs_hz: float, cfg: CompensationConfig, *, eps: float = 1e-18) -
         decay = math.ceil(math.log(eps) / math.log(r)) if 0 < r < 1 else 10_000
         n = max(n, int(1.5 * decay) + min_filter_length(sos))
     return n + int(math.ceil(cfg.max_interp_s * fs_hz)) + 8
-
-
-@dataclass
-class _Moments:
-    """Streaming count / mean / M2 (Chan et al.) of one or more series."""
-
-    n: int = 0
-    mean: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    m2: np.ndarray = field(default_factory=lambda: np.zeros(2))
-
-    def add(self, x: np.ndarray) -> None:
-        k = x.shape[1]
-        if k == 0:
-            return
-        mb = x.mean(axis=1)
-        m2b = ((x - mb[:, None]) ** 2).sum(axis=1)
-        n = self.n + k
-        delta = mb - self.mean
-        self.mean = self.mean + delta * k / n
-        self.m2 = self.m2 + m2b + delta**2 * self.n * k / n
-        self.n = n
-
-    def std(self) -> np.ndarray:
-        return np.sqrt(self.m2 / self.n) if self.n else np.full(2, np.nan)
 
 
 # --------------------------------------------------------------------------- main
@@ -302,10 +278,10 @@ def apply_model_chunked(
     sos_low = butter_sos("lowpass", cut, fs, cfg.order, option="--lowpass")
     sos_band = butter_sos("bandpass", cfg.band_hz, fs, cfg.order)
     trim = (0.5 / cfg.band_hz[0]) if cfg.trim_s is None else cfg.trim_s
-    m_use, m_kept, m_fin = _Moments(), _Moments(), _Moments()
+    m_use, m_kept, m_fin = StreamingMoments(), StreamingMoments(), StreamingMoments()
     # Fourth differences of mag and of mag - mag_tl (the QC noise levels), by first sample.
-    d4_before = _Moments(mean=np.zeros(1), m2=np.zeros(1))
-    d4_after = _Moments(mean=np.zeros(1), m2=np.zeros(1))
+    d4_before = StreamingMoments(mean=np.zeros(1), m2=np.zeros(1))
+    d4_after = StreamingMoments(mean=np.zeros(1), m2=np.zeros(1))
     seg_n: dict[int, int] = {}
     seg_stats: dict[int, np.ndarray] = {}
     out_csv = Path(out_path)
@@ -406,26 +382,10 @@ def apply_model_chunked(
         residual = {i: float(np.sqrt(max(s[2] / s[0] - (s[1] / s[0]) ** 2, 0.0)))
                     for i, s in seg_stats.items()}
         qc = _qc_block(metrics, residual, d4_before, d4_after, cfg)
-        report: dict[str, Any] = {
-            "aeromag_version": __version__,
-            "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-            "source": source,
-            "terms": list(model.terms),
-            "coef": [float(c) for c in model.coef],
-            "scale_nT": model.scale_nT,
-            "model_source": str(model.meta.get("path", "given")),
-            "band_hz": list(cfg.band_hz),
-            "sampling_rate_hz": fs,
-            "segments": [{"id": int(i), "n": int(seg_n[i]), "kept": True, "scores": None,
-                          "residual_std": residual.get(i)} for i in sorted(seg_n)],
-            "screening": {"enabled": False,
-                          "notes": ["a saved model was applied: nothing fitted"]},
-            "metrics": metrics,
-            "config": _config_dict(cfg),
-            "qc": qc,
-            "n_rows": n_rows,
-            "chunked": {"chunk_rows": int(chunk_rows), "overlap_rows": int(overlap)},
-        }
+        report = applied_report(AppliedRun(
+            source, model, cfg, fs, {int(i): int(n) for i, n in seg_n.items()}, metrics,
+            residual, qc, {"n_rows": n_rows, "chunked": {"chunk_rows": int(chunk_rows),
+                                                         "overlap_rows": int(overlap)}}))
         write_json(report, json_path_for(out_csv))
     return report
 
@@ -444,12 +404,12 @@ def _fourth_differences(x: np.ndarray, t: np.ndarray, max_gap_s: float, a: int, 
     return d4[same]
 
 
-def _qc_block(metrics: dict[str, Any], residual: dict[int, float], d4_before: _Moments,
-              d4_after: _Moments, cfg: CompensationConfig) -> dict[str, Any]:
+def _qc_block(metrics: dict[str, Any], residual: dict[int, float], d4_before: StreamingMoments,
+              d4_after: StreamingMoments, cfg: CompensationConfig) -> dict[str, Any]:
     """The report's ``qc`` block, as ``compensate()`` writes it for an applied model."""
     from ..qc import FOURTH_DIFF_NORM
 
-    def noise(m: _Moments) -> float:
+    def noise(m: StreamingMoments) -> float:
         return float(m.std()[0] / FOURTH_DIFF_NORM) if m.n else float("nan")
 
     note = "manoeuvre detection skipped (no FOM): run 'aeromag report' or --fom"
@@ -481,19 +441,13 @@ def _median_from_counts(counts: dict[float, int]) -> float:
     return float(lo) if n % 2 else float(np.mean([lo, hi]))
 
 
-def _metrics(use: _Moments, kept: _Moments, fin: _Moments,
+def _metrics(use: StreamingMoments, kept: StreamingMoments, fin: StreamingMoments,
              cfg: CompensationConfig) -> dict[str, Any]:
-    """The metrics of :func:`aeromag.compensate.compensation_metrics` from moments."""
+    """The metrics of :func:`aeromag.compensation.metrics.compensation_metrics` from moments."""
     m = use if use.n >= 10 else fin
-    out: dict[str, Any] = {"n_samples": int(m.n)}
     before, after = (float(x) for x in m.std())
-    out["std_before_nT"] = before
-    out["residual_std_nT"] = after
-    out["improvement_ratio"] = before / after if after > 0 else float("nan")
+    kept_std = None
     if use.n >= 10 and kept.n:
         b2, a2 = (float(x) for x in kept.std())
-        out["kept_std_before_nT"] = b2
-        out["kept_residual_std_nT"] = a2
-        out["kept_improvement_ratio"] = b2 / a2 if a2 > 0 else float("nan")
-    out["band_hz"] = list(cfg.band_hz)
-    return out
+        kept_std = (b2, a2)
+    return metrics_dict(m.n, before, after, kept_std, cfg.band_hz)

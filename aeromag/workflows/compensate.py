@@ -1,4 +1,10 @@
-"""``aeromag compensate`` and ``aeromag calibrate`` as functions: file in, files out."""
+"""``aeromag compensate`` and ``aeromag calibrate`` as functions: file in, files out.
+
+:func:`compensate` and :func:`calibrate` (``am.compensate``, ``am.calibrate``) are the
+in-memory runs: the compensation of :mod:`aeromag.compensation.pipeline` plus the report's
+``qc`` block from :mod:`aeromag.qc` (quality control builds on the compensation, so the two
+meet here, above both).
+"""
 
 from __future__ import annotations
 
@@ -6,20 +12,93 @@ import dataclasses
 import logging
 import os
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
+from ..compensation import pipeline as _pipeline
 from ..compensation.config import CompensationConfig
 from ..compensation.model import TLModel
-from ..compensation.pipeline import compensate
 from ..compensation.result import CompensationResult
 from ..conventions import FLUX_COLUMNS
 from ..errors import InputError
 from ..io import atomic_path, json_path_for, read_log, write_csv, write_csv_passthrough, write_json
 
 log = logging.getLogger(__name__)
+
+
+__all__ = ["calibrate", "calibrate_file", "check_outputs", "compensate", "compensate_file",
+           "write_outputs"]
+
+
+def compensate(
+    df: pd.DataFrame, cfg: CompensationConfig | None = None, *, model: TLModel | None = None,
+    source: str | None = None,
+) -> CompensationResult:
+    """Compensate a log in memory, report ``qc`` block included (``am.compensate``).
+
+    Parameters
+    ----------
+    df : DataFrame
+        Log with canonical columns.
+    cfg : CompensationConfig, optional
+        Options.
+    model : TLModel, optional
+        A saved model to apply instead of fitting.
+    source : str, optional
+        File name for messages and the report.
+
+    Returns
+    -------
+    CompensationResult
+        See :func:`aeromag.compensation.pipeline.compensate`.
+    """
+    res = _pipeline.compensate(df, cfg, model=model, source=source)
+    _add_qc(res)
+    return res
+
+
+def calibrate(
+    df: pd.DataFrame, cfg: CompensationConfig | None = None, *, source: str | None = None,
+) -> CompensationResult:
+    """Fit and screen the model on a calibration log in memory (``am.calibrate``).
+
+    Parameters
+    ----------
+    df : DataFrame
+        Calibration log with canonical columns.
+    cfg : CompensationConfig, optional
+        Options (the Figure of Merit is on unless ``cfg.fom`` is False).
+    source : str, optional
+        File name for messages and the report.
+
+    Returns
+    -------
+    CompensationResult
+    """
+    res = _pipeline.calibrate(df, cfg, source=source)
+    _add_qc(res)
+    return res
+
+
+def _add_qc(res: CompensationResult) -> None:
+    """Add the ``qc`` block (FOM only when ``cfg.fom``; the fit diagnostics are in
+    ``report["fit"]`` already) and, for an applied model, each segment's residual."""
+    from ..qc import quality_metrics
+
+    cfg = res.config
+    with warnings.catch_warnings():  # the arrays the metrics used, not filtered again
+        warnings.simplefilter("ignore", DeprecationWarning)
+        res.report["qc"] = quality_metrics(
+            res.data, res.report, cfg, fit=False, detect=bool(cfg.fom),
+            base_metrics=res.report.get("metrics"), comp_bp=res.comp_bp_nT,
+            segment=res.segment, fs_hz=res.fs_hz)
+    if res.fit is None:
+        by_seg = res.report["qc"].get("residual_std_by_segment_nT") or {}
+        for e in res.report["segments"]:
+            e["residual_std"] = by_seg.get(str(e["id"]))
 
 
 # --------------------------------------------------------------------------- files

@@ -1,0 +1,213 @@
+"""The one builder of the JSON report (``OUT.json``, ``MODEL.json``) from typed results.
+
+Three runs write a report: a fit (:func:`fit_report`, from a
+:class:`~aeromag.compensation.fit.FitOutcome`), and a saved model applied in memory or chunk by
+chunk (:func:`applied_report`, from an :class:`AppliedRun`).  Modules pass these dataclasses;
+only this module turns them into the dictionary that becomes JSON.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .. import __version__
+from .config import CompensationConfig, _config_dict
+from .model import TLModel
+from .screening import RULE
+from .segments import segment_counts
+
+if TYPE_CHECKING:
+    from .fit import FitOutcome
+
+__all__ = ["AppliedRun", "applied_report", "fit_report"]
+
+
+def _header(source: str) -> dict[str, Any]:
+    return {"aeromag_version": __version__,
+            "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+            "source": source}
+
+
+@dataclass
+class AppliedRun:
+    """A saved model applied to a log (in memory or chunked).
+
+    Attributes
+    ----------
+    source : str
+        The log.
+    model : TLModel
+        The model applied.
+    cfg : CompensationConfig
+        Options.
+    fs_hz : float
+        Sampling rate [Hz].
+    segment_n : dict of int to int
+        Samples per segment id.
+    metrics : dict
+        :mod:`aeromag.compensation.metrics` of the run.
+    residual_by_segment : dict of int to float
+        Band-passed residual std per segment [nT] (None where unknown).
+    qc : dict or None
+        The ``qc`` block.
+    extra : dict
+        Keys added at the end (the chunked run's ``n_rows`` and ``chunked``).
+    """
+
+    source: str
+    model: TLModel
+    cfg: CompensationConfig
+    fs_hz: float
+    segment_n: dict[int, int]
+    metrics: dict[str, Any]
+    residual_by_segment: dict[int, float | None] = field(default_factory=dict)
+    qc: dict[str, Any] | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def applied_report(run: AppliedRun) -> dict[str, Any]:
+    """The report of a saved model applied to a log (every segment counts as kept).
+
+    Parameters
+    ----------
+    run : AppliedRun
+        What was applied and measured.
+
+    Returns
+    -------
+    dict
+        interface.md keys (``terms``, ``coef``, ``segments``, ``metrics``) and more.
+    """
+    model, cfg = run.model, run.cfg
+    report: dict[str, Any] = {
+        **_header(run.source),
+        "terms": list(model.terms),
+        "coef": [float(c) for c in model.coef],
+        "scale_nT": model.scale_nT,
+        "model_source": str(model.meta.get("path", "given")),
+        "band_hz": list(cfg.band_hz),
+        "sampling_rate_hz": run.fs_hz,
+        "segments": [{"id": int(i), "n": int(run.segment_n[i]), "kept": True, "scores": None,
+                      "residual_std": run.residual_by_segment.get(i)}
+                     for i in sorted(run.segment_n)],
+        "screening": {"enabled": False, "notes": ["a saved model was applied: nothing fitted"]},
+        "metrics": run.metrics,
+        "config": _config_dict(cfg),
+    }
+    if run.qc is not None:
+        report["qc"] = run.qc
+    report.update(run.extra)
+    return report
+
+
+def _segment_entries(fit: FitOutcome) -> list[dict[str, Any]]:
+    """One entry per segment: fitted ones with their scores and guards, too-short ones."""
+    stats, out, prep = fit.stats, fit.screening, fit.prep
+    screen = out.screen
+    # "n" counts the segment's samples in the log (as when a saved model is applied);
+    # "n_fit" those its fit used (valid, filterable, filter edges trimmed).
+    all_ids, all_n = segment_counts(prep.segment)
+    n_of = dict(zip(all_ids.tolist(), all_n.tolist(), strict=True))
+    segments = []
+    for j, sid in enumerate(stats.ids):
+        entry: dict[str, Any] = {
+            "id": int(sid),
+            "n": int(n_of.get(int(sid), 0)),
+            "n_fit": int(stats.n[j]),
+            "kept": bool(out.kept[j]),
+            "scores": screen.scores[j].tolist() if screen is not None else None,
+            "residual_std": float(fit.residual[j]),
+            "cv_residual_std": float(fit.cv_residual[j]),
+            "condition_number": float(fit.segment_condition[j]),
+            "coef": [float(c) for c in out.seg_coef[j]],
+        }
+        if screen is not None:
+            entry["robust_distance"] = float(screen.distance[j])
+            entry["pca_outlier"] = bool(not screen.kept[j])
+            entry["residual_excess"] = float(out.excess[j])
+            entry["own_fit_excess"] = float(out.own_ratio[j])
+            entry["readmitted"] = bool(out.readmitted[j])
+        segments.append(entry)
+    for sid, cnt in sorted(stats.too_short.items()):
+        segments.append({"id": sid, "n": int(n_of.get(int(sid), 0)), "n_fit": cnt,
+                         "kept": False, "scores": None,
+                         "residual_std": None, "condition_number": None,
+                         "reason": "too short to fit"})
+    segments.sort(key=lambda e: e["id"])
+    if prep.line_of_segment:
+        for e in segments:
+            e["line"] = prep.line_of_segment.get(e["id"])
+    return segments
+
+
+def _screening_block(fit: FitOutcome) -> dict[str, Any]:
+    cfg, stats, out = fit.cfg, fit.stats, fit.screening
+    screen = out.screen
+    block: dict[str, Any] = {
+        "enabled": out.screened,
+        "requested": bool(cfg.screen),
+        "method": "pca+mcd",
+        "rule": RULE,
+        "pca_variance_threshold": cfg.pca_variance,
+        "quantile": cfg.screen_quantile,
+        "shrink": cfg.shrink,
+        "min_excess": cfg.min_excess,
+        "min_excess_nT": cfg.min_excess_nT,
+        "iterations": out.iterations,
+        "n_segments": len(stats.ids),
+        "n_kept": int(out.kept.sum()),
+        "dropped": [int(s) for s in stats.ids[~out.kept]],
+        "readmitted": [int(s) for s in stats.ids[out.readmitted]],
+        "notes": out.notes + (screen.notes if screen is not None else []),
+    }
+    if screen is not None:
+        block.update(screen.to_dict())
+        block["notes"] = out.notes + screen.notes
+    return block
+
+
+def fit_report(fit: FitOutcome) -> dict[str, Any]:
+    """The report of a fit (``MODEL.json``; ``OUT.json`` adds the metrics and ``qc``).
+
+    Parameters
+    ----------
+    fit : FitOutcome
+        What the fit decided and measured.
+
+    Returns
+    -------
+    dict
+        ``terms``, ``coef``, ``fit``, ``segments``, ``screening``, ``config`` and more.
+    """
+    cfg, prep, stats, diag = fit.cfg, fit.prep, fit.stats, fit.diagnostics
+    n_fit = int(stats.n[fit.screening.kept].sum())
+    return {
+        **_header(prep.source),
+        "terms": list(fit.terms),
+        "coef": [float(c) for c in fit.coef],
+        "scale_nT": 50000.0,
+        "band_hz": list(cfg.band_hz),
+        "filter_order": cfg.order,
+        "sampling_rate_hz": prep.fs,
+        "mag_from_fluxgate": prep.mag_from_flux,
+        "fit": {
+            "n_samples": n_fit,
+            "n_segments_fitted": int(fit.screening.kept.sum()),
+            "condition_number": fit.cond,
+            "condition_number_scaled": fit.cond_scaled,
+            "ridge": cfg.ridge,
+            "residual_std_nT": float(np.sqrt(max(fit.sse, 0.0) / max(n_fit, 1))),
+            "vif": diag["vif"],
+            "max_vif": diag["max_vif"],
+            "cv_residual_std_nT": diag["cv_residual_std_nT"],
+            "cv_ratio": diag["cv_ratio"],
+        },
+        "segments": _segment_entries(fit),
+        "screening": _screening_block(fit),
+        "config": _config_dict(cfg),
+    }
+
