@@ -14,7 +14,7 @@ def test_get_params_clone_roundtrip():
     est = TollesLawson(terms="16", band=(0.05, 0.8), ridge=1e-4, order=3, max_gap_s=2.0)
     p = est.get_params()
     assert p == {"terms": "16", "band": (0.05, 0.8), "ridge": 1e-4, "order": 3,
-                 "max_gap_s": 2.0}
+                 "max_gap_s": 2.0, "max_condition": 1e5, "max_interference": 0.25}
     c = clone(est)
     assert c is not est and c.get_params() == p
     assert TollesLawson(**p).get_params() == p
@@ -49,3 +49,39 @@ def test_numpy_input_matches_dataframe(cal):
     a = TollesLawson().fit(X, cal["mag"]).coef_
     b = TollesLawson().fit(X.to_numpy(), cal["mag"].to_numpy()).coef_
     assert np.allclose(a, b)
+
+
+def _level_flight(seed: int = 0, n: int = 6000) -> tuple[np.ndarray, np.ndarray]:
+    """Straight and level at 10 Hz with 1 degree of smooth attitude jitter: nearly collinear
+    TL terms (scaled condition number between 1e5 and 1e7)."""
+    from aeromag.synthetic import body_field
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / 10.0
+    kernel = np.hanning(21) / np.hanning(21).sum()
+    jit = [np.convolve(rng.standard_normal(n), kernel, mode="same") * 4.0 for _ in range(3)]
+    b = body_field(np.array([20000.0, 1000.0, 45000.0]), 30.0 + jit[0], jit[1], jit[2])
+    X = np.column_stack([t, b])
+    y = np.linalg.norm(b, axis=1) + 0.01 * rng.standard_normal(n)
+    return X, y
+
+
+def test_estimator_refuses_what_calibrate_refuses():
+    """The estimator shares the pipeline's fit: an ill-conditioned fit is refused at 1e5 (the
+    old estimator refused only near 1e7 and fitted such data silently)."""
+    from aeromag.errors import FitError
+
+    X, y = _level_flight()
+    with pytest.raises(FitError, match="ill-conditioned"):
+        TollesLawson().fit(X, y)
+    # The same data, regularised, fit.
+    assert TollesLawson(ridge=1e-3, max_interference=10.0).fit(X, y).coef_.shape == (16,)
+
+
+def test_transform_is_mag_minus_predict(cal):
+    X = cal[["time", "flux_x", "flux_y", "flux_z"]]
+    est = TollesLawson().fit(X, cal["mag"])
+    comp = est.transform(X, cal["mag"])
+    np.testing.assert_allclose(comp, cal["mag"].to_numpy() - est.predict(X))
+    np.testing.assert_allclose(est.transform(cal[["time", "flux_x", "flux_y", "flux_z", "mag"]]),
+                               comp)

@@ -1,8 +1,11 @@
 """The Tolles-Lawson compensator as a scikit-learn estimator (``fit`` / ``predict`` /
-``get_params``), so it can sit in a ``Pipeline``.
+``transform`` / ``get_params``), so it can sit in a ``Pipeline``.
 
-Kept apart from :mod:`aeromag.compensation.model` so that applying a saved model never imports
-scikit-learn.
+:meth:`TollesLawson.fit` runs the pipeline's own fit (:func:`aeromag.compensation.fit.fit_outcome`,
+one segment per stretch, no screening), so it refuses what ``aeromag calibrate`` refuses:
+a scaled condition number above ``max_condition`` and an interference above
+``max_interference`` of the Earth field.  Kept apart from :mod:`aeromag.compensation.model`
+so that applying a saved model never imports scikit-learn.
 """
 
 from __future__ import annotations
@@ -11,14 +14,22 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+import pandas as pd
 from sklearn.base import BaseEstimator, RegressorMixin
 
-from .._core.lstsq import solve_normal
+from .._core.filters import bandpass_stretches
+from .._core.stretches import find_stretches
+from ..conventions import FLUX_COLUMNS
 from ..errors import InputError
+from .config import CompensationConfig, _resolve_gap
+from .fit import check_interference, fit_outcome
 from .model import TLModel
-from .terms import design_matrix, parse_terms
+from .prepare import prepare
 
 __all__ = ["TollesLawson"]
+
+#: Segment length that makes every stretch one segment [s].
+_WHOLE_STRETCH_S = 1e12
 
 
 class TollesLawson(RegressorMixin, BaseEstimator):
@@ -26,13 +37,13 @@ class TollesLawson(RegressorMixin, BaseEstimator):
 
     ``X`` has four columns: time [s], flux_x, flux_y, flux_z [nT] (an array or a DataFrame with
     columns ``time, flux_x, flux_y, flux_z``); ``y`` is the scalar magnetometer [nT].
-    :meth:`predict` returns the modelled aircraft interference (``mag_tl``) [nT], so
-    ``y - predict(X)`` is the compensated field.
+    :meth:`predict` returns the modelled aircraft interference (``mag_tl``) [nT] and
+    :meth:`transform` the compensated field ``y - predict(X)`` [nT].
 
     Parameters
     ----------
     terms : str or sequence of str
-        Term set (see :func:`parse_terms`), default ``"16"``.
+        Term set (see :func:`aeromag.compensation.terms.parse_terms`), default ``"16"``.
     band : tuple of float
         Band-pass edges applied to the target and every term before least squares [Hz].
     ridge : float
@@ -41,6 +52,11 @@ class TollesLawson(RegressorMixin, BaseEstimator):
         Butterworth filter order.
     max_gap_s : float or None
         A time step longer than this starts a new stretch [s]; default 5 sample intervals.
+    max_condition : float
+        Largest scaled condition number of an unregularised fit (as ``--max-condition``).
+    max_interference : float
+        Largest plausible ``|mag_tl|`` (99th percentile) as a fraction of the Earth field
+        (as ``--max-interference``).
 
     Attributes
     ----------
@@ -63,57 +79,79 @@ class TollesLawson(RegressorMixin, BaseEstimator):
         ridge: float = 0.0,
         order: int = 4,
         max_gap_s: float | None = None,
+        max_condition: float = 1e5,
+        max_interference: float = 0.25,
     ) -> None:
         self.terms = terms
         self.band = band
         self.ridge = ridge
         self.order = order
         self.max_gap_s = max_gap_s
+        self.max_condition = max_condition
+        self.max_interference = max_interference
 
     @staticmethod
     def _split_X(X: Any) -> tuple[np.ndarray, np.ndarray]:
-        if hasattr(X, "columns") and {"time", "flux_x", "flux_y", "flux_z"} <= set(X.columns):
-            arr = X[["time", "flux_x", "flux_y", "flux_z"]].to_numpy(dtype=np.float64)
+        if hasattr(X, "columns") and {"time", *FLUX_COLUMNS} <= set(X.columns):
+            arr = X[["time", *FLUX_COLUMNS]].to_numpy(dtype=np.float64)
         else:
             arr = np.asarray(X, dtype=np.float64)
         if arr.ndim != 2 or arr.shape[1] != 4:
             raise InputError("X must have 4 columns: time [s], flux_x, flux_y, flux_z [nT]")
         return arr[:, 0], arr[:, 1:4]
 
-    def fit(self, X: Any, y: Any) -> TollesLawson:
-        """Fit the coefficients by band-passed least squares; returns ``self``."""
-        from .._core.filters import bandpass_pieces
-        from .._core.stretches import find_stretches
+    def _config(self) -> CompensationConfig:
+        terms = self.terms if isinstance(self.terms, str) else ",".join(self.terms)
+        return CompensationConfig(band_hz=self.band, terms=terms, ridge=self.ridge,
+                                  order=self.order, max_gap_s=self.max_gap_s, screen=False,
+                                  segment_seconds=_WHOLE_STRETCH_S,
+                                  max_condition=self.max_condition,
+                                  max_interference=self.max_interference)
 
+    def fit(self, X: Any, y: Any) -> TollesLawson:
+        """Fit the coefficients by band-passed least squares (the pipeline's fit).
+
+        Parameters
+        ----------
+        X : array-like, shape (n, 4)
+            time [s], flux_x, flux_y, flux_z [nT].
+        y : array-like, shape (n,)
+            Scalar magnetometer [nT].
+
+        Returns
+        -------
+        TollesLawson
+            ``self``.
+
+        Raises
+        ------
+        FitError
+            Ill-conditioned, or an interference no aircraft makes (as ``aeromag calibrate``).
+        """
         t, flux = self._split_X(X)
         yv = np.asarray(y, dtype=np.float64).ravel()
         if len(yv) != len(t):
             raise InputError(f"X has {len(t)} rows but y has {len(yv)}")
-        terms = parse_terms(self.terms)
-        fit_terms = tuple(x for x in terms if x != "bias")
-        stretch = find_stretches(t, np.isfinite(yv) & np.all(np.isfinite(flux), axis=1),
-                                 self.max_gap_s)
-        ok = stretch >= 0
-        A = design_matrix(flux[ok], t[ok], fit_terms, stretch=stretch[ok])
-        gram, rhs, _, n = bandpass_pieces(A, yv[ok], t[ok], stretch[ok], self.band, self.order)
-        coef, _cond, cond_s = solve_normal(gram, rhs, self.ridge)
-        full = np.zeros(len(terms))
-        idx = [terms.index(x) for x in fit_terms]
-        full[idx] = coef
-        if "bias" in terms:
-            resid = yv[ok] - A @ coef
-            full[terms.index("bias")] = float(np.mean(resid))
-        self.terms_ = terms
-        self.coef_ = full
-        self.condition_number_ = cond_s
-        self.n_samples_fit_ = int(n)
-        self.model_ = TLModel(terms, full)
+        df = pd.DataFrame({"time": t, "flux_x": flux[:, 0], "flux_y": flux[:, 1],
+                           "flux_z": flux[:, 2], "mag": yv})
+        cfg = _resolve_gap(self._config(), df)
+        prep = prepare(df, cfg, source="TollesLawson.fit")
+        fit = fit_outcome(prep, cfg)
+        model = TLModel(fit.terms, fit.coef)
+        ok = prep.flux_ok
+        tl = model.predict(prep.flux[ok], prep.time[ok],
+                           find_stretches(prep.time[ok], None, cfg.max_gap_s))
+        check_interference(tl, prep.field_nT, self.max_interference, source="TollesLawson.fit",
+                           fitted=True)
+        self.terms_ = fit.terms
+        self.coef_ = fit.coef
+        self.condition_number_ = fit.cond_scaled
+        self.n_samples_fit_ = int(fit.stats.n[fit.screening.kept].sum())
+        self.model_ = model
         return self
 
     def predict(self, X: Any) -> np.ndarray:
         """Modelled aircraft interference ``mag_tl`` [nT] for each row of ``X``."""
-        from .._core.stretches import find_stretches
-
         if not hasattr(self, "model_"):
             from sklearn.exceptions import NotFittedError
 
@@ -122,11 +160,30 @@ class TollesLawson(RegressorMixin, BaseEstimator):
         stretch = find_stretches(t, np.all(np.isfinite(flux), axis=1), self.max_gap_s)
         return self.model_.predict(flux, t, stretch)
 
+    def transform(self, X: Any, y: Any = None) -> np.ndarray:
+        """The compensated total field ``mag - mag_tl`` [nT] (unfiltered).
+
+        Parameters
+        ----------
+        X : array-like or DataFrame
+            As for :meth:`predict`; a DataFrame may carry the scalar as its ``mag`` column.
+        y : array-like, shape (n,), optional
+            Scalar magnetometer [nT] (default: ``X["mag"]``).
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            Compensated field [nT].
+        """
+        if y is None:
+            if not (hasattr(X, "columns") and "mag" in X.columns):
+                raise InputError("transform needs the scalar magnetometer: pass y or a 'mag'"
+                                 " column in X")
+            y = X["mag"]
+        return np.asarray(y, dtype=np.float64).ravel() - self.predict(X)
+
     def score(self, X: Any, y: Any, sample_weight: Any = None) -> float:
         """Improvement ratio: std of band-passed ``y`` over std of band-passed ``y - predict``."""
-        from .._core.filters import bandpass_stretches
-        from .._core.stretches import find_stretches
-
         t, _ = self._split_X(X)
         yv = np.asarray(y, dtype=np.float64).ravel()
         stretch = find_stretches(t, np.isfinite(yv), self.max_gap_s)
