@@ -1,1 +1,14 @@
-"""Navigation without GNSS: the 12-state unscented Kalman filter and its sensor models."""
+"""Navigation without GNSS: the 12-state unscented Kalman filter and its sensor models.
+
+``NavFilter`` fuses a MEMS IMU with optical flow, a rangefinder, a barometer, the gravity
+and magnetic-north vectors and (when used) GNSS, following the package's sequential
+convention (construct, ``step``, ``run`` -> :class:`FilterResult`).  ``UnscentedKalmanFilter``
+is the generic filter it is built on.  See ``docs/navigate.md``.
+"""
+
+from .config import NavConfig
+from .filter import ALL_SENSORS, NavFilter, NavInputs, magnetic_reference_from_log
+from .ukf import DivergenceError, FilterResult, InnovationStats, UnscentedKalmanFilter
+
+__all__ = ["ALL_SENSORS", "DivergenceError", "FilterResult", "InnovationStats", "NavConfig",
+           "NavFilter", "NavInputs", "UnscentedKalmanFilter", "magnetic_reference_from_log"]

@@ -1,0 +1,157 @@
+"""Settings of the navigation filter: noise, gates, rates and initial uncertainties.
+
+The noise defaults are the sensor table of the study reproduced (methods.md M4): MPU-6000
+IMU (gyro 0.05 °/s, accelerometer 0.05 g), HMC5983 magnetometer (1° heading), HRLV-EZ4 sonar
+(0.01 m), PX4Flow (1 cm/s), u-blox LEA-6H GPS (2.5 m CEP).  The IMU figures are taken as the
+white-noise rms of one sample at the log's IMU rate (the filter turns them into noise
+densities with the median IMU interval); the flow figure is a velocity, turned into rad/s by
+the height at each sample.  Everything is an option; see ``docs/navigate.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+__all__ = ["NavConfig"]
+
+
+@dataclass
+class NavConfig:
+    """Navigation filter settings (units in the names).
+
+    Attributes
+    ----------
+    gyro_noise_dps : float
+        Gyro white noise, rms of one sample, °/s (MPU-6000: 0.05).
+    accel_noise_g : float
+        Accelerometer white noise, rms of one sample, g (MPU-6000: 0.05).
+    gyro_bias_init_dps : float
+        Initial one-sigma gyro bias, °/s.
+    gyro_bias_walk_dps_rt_s : float
+        Gyro bias random walk, °/s/sqrt(s).
+    accel_bias : bool
+        Estimate accelerometer biases (15 states instead of 12).
+    accel_bias_init_ms2 : float
+        Initial one-sigma accelerometer bias, m/s².
+    accel_bias_walk_ms2_rt_s : float
+        Accelerometer bias random walk, m/s²/sqrt(s).
+    flow_noise_ms : float
+        Optical-flow noise as a ground velocity, m/s (PX4Flow: 0.01).
+    flow_min_quality : int
+        Flow samples with a lower ``flow_quality`` are not used (0 is invalid).
+    flow_min_distance_m : float
+        No flow below this distance to the ground (the image is out of focus).
+    range_noise_m : float
+        Rangefinder noise, m (HRLV-EZ4: 0.01).
+    range_min_m, range_max_m : float
+        Valid rangefinder readings (HRLV-EZ4: 0.3 to 5 m).
+    ground_walk_m_rt_s : float
+        Random walk of the ground level (the flat-ground state), m/sqrt(s).
+    max_tilt_deg : float
+        Flow and range are not used beyond this tilt (flat-ground model).
+    baro_noise_m : float
+        Barometer noise, m.
+    baro_with_range : bool
+        Fuse the barometer also while the rangefinder is valid (default: only without it).
+    baro_interval_s, mag_interval_s, gravity_interval_s : float
+        Shortest interval between two fused samples of these sensors, s.
+    mag_heading_noise_deg : float
+        Magnetometer heading noise, ° (HMC5983: 1).
+    mag_field_tolerance : float
+        Relative tolerance of the field strength against the reference (gate).
+    mag_inclination_tolerance_deg : float
+        Tolerance of the inclination against the reference, ° (gate).
+    gravity_noise_ms2 : float
+        Extra noise of the gravity-vector measurement (vibration, unmodelled acceleration),
+        m/s², added to the averaged accelerometer noise.
+    gravity_max_accel_ms2 : float
+        No gravity update while the filter's own acceleration estimate exceeds this, m/s².
+    gravity_max_force_dev_ms2 : float
+        No gravity update while abs(norm of the specific force - g) exceeds this, m/s².
+    gravity_max_rate_dps : float
+        No gravity update while the body rate exceeds this, °/s.
+    gps_cep_m : float
+        GNSS horizontal accuracy, CEP (m); the per-axis sigma is CEP / 1.1774.
+    gps_vert_noise_m : float
+        GNSS vertical one-sigma, m.
+    gps_vel_noise_ms : float
+        GNSS velocity one-sigma per axis, m/s.
+    init_seconds : float
+        Length of the window at the start used to level (accelerometer) and to find the
+        heading (magnetometer), s.
+    init_pos_std_m, init_vel_std_ms, init_tilt_std_deg, init_yaw_std_deg : float
+        Initial one-sigma uncertainties.
+    innovation_gate_p : float
+        A measurement whose normalised innovation squared exceeds the chi-square quantile of
+        this probability is rejected (an outlier); after ``max_rejections`` in a row from one
+        sensor the next one is accepted (the filter re-locks instead of ignoring it forever).
+    max_rejections : int
+        See ``innovation_gate_p``.
+    max_imu_step_s : float
+        Combine consecutive IMU samples into steps of at most this length (delta angles and
+        delta velocities summed; coning neglected); 0 propagates every sample.
+    alpha, beta, kappa : float
+        Sigma-point scaling.
+    max_position_std_m : float
+        The run ends with an error when the position uncertainty exceeds this (diverged).
+    """
+
+    gyro_noise_dps: float = 0.05
+    accel_noise_g: float = 0.05
+    gyro_bias_init_dps: float = 0.5
+    gyro_bias_walk_dps_rt_s: float = 0.002
+    accel_bias: bool = False
+    accel_bias_init_ms2: float = 0.1
+    accel_bias_walk_ms2_rt_s: float = 1e-4
+    flow_noise_ms: float = 0.01
+    flow_min_quality: int = 1
+    flow_min_distance_m: float = 0.3
+    range_noise_m: float = 0.01
+    range_min_m: float = 0.3
+    range_max_m: float = 5.0
+    ground_walk_m_rt_s: float = 0.001
+    max_tilt_deg: float = 30.0
+    baro_noise_m: float = 0.5
+    baro_with_range: bool = False
+    baro_interval_s: float = 0.1
+    mag_interval_s: float = 0.1
+    gravity_interval_s: float = 0.1
+    mag_heading_noise_deg: float = 1.0
+    mag_field_tolerance: float = 0.15
+    mag_inclination_tolerance_deg: float = 5.0
+    gravity_noise_ms2: float = 0.1
+    gravity_max_accel_ms2: float = 0.5
+    gravity_max_force_dev_ms2: float = 0.5
+    gravity_max_rate_dps: float = 30.0
+    gps_cep_m: float = 2.5
+    gps_vert_noise_m: float = 4.0
+    gps_vel_noise_ms: float = 0.1
+    init_seconds: float = 1.0
+    init_pos_std_m: float = 0.01
+    init_vel_std_ms: float = 0.3
+    init_tilt_std_deg: float = 2.0
+    init_yaw_std_deg: float = 5.0
+    innovation_gate_p: float = 0.99999
+    max_rejections: int = 25
+    max_imu_step_s: float = 0.0
+    alpha: float = 1.0
+    beta: float = 2.0
+    kappa: float = 0.0
+    max_position_std_m: float = 1e5
+
+    def __post_init__(self) -> None:
+        for name, value in asdict(self).items():
+            if isinstance(value, bool):
+                continue
+            if not (isinstance(value, int | float) and value == value and abs(value) < 1e300):
+                raise ValueError(f"{name} must be a finite number, got {value!r}")
+            if value < 0:
+                raise ValueError(f"{name} must not be negative, got {value!r}")
+        if not 0 < self.innovation_gate_p < 1:
+            raise ValueError("innovation_gate_p must be in (0, 1)")
+        if self.range_max_m <= self.range_min_m:
+            raise ValueError("range_max_m must exceed range_min_m")
+
+    def as_dict(self) -> dict[str, float | int | bool]:
+        """Plain dictionary for reports."""
+        return asdict(self)

@@ -1,0 +1,824 @@
+"""The navigation filter: a 12-state (15 with accelerometer biases) unscented Kalman filter.
+
+State (SI units, angles in rad)::
+
+    0..2   position, local north-east-down, m
+    3..5   velocity NED, m/s
+    6..8   roll, pitch, yaw (Z-Y-X Euler angles of the body in NED)
+    9..11  gyro biases, rad/s (random walk)
+    12..14 accelerometer biases, m/s² (``NavConfig.accel_bias``; random walk)
+    last   ground level: the down coordinate of the flat ground under the vehicle, m (set
+           from the first valid range, correlated with the height as that sum is, so the
+           rangefinder's datum error stays in the covariance; a slow random walk)
+
+The study's filter has the first twelve; the ground level is the one state added, because a
+flat-ground datum fixed once would make the vertical covariance (and the GNSS height
+innovations) inconsistent.
+
+The process is the strapdown mechanisation of :mod:`aeromag.nav.mechanization` driven by
+the gyro and accelerometer at the IMU rate; the accelerometer error is white (as in the
+study) unless its biases are estimated.  Measurements are fused at their own rates with the
+models of :mod:`aeromag.nav.models`: optical flow, rangefinder, barometer, the gravity
+vector, magnetic north and GNSS position and velocity.
+
+How a run is organised (the speed of a Python filter is the number of numpy calls):
+
+* all ``2n + 1`` sigma points are propagated at once, and all IMU samples between two
+  measurement epochs in one call (:func:`aeromag.nav.mechanization.propagate`): the
+  unscented *predict* (sigma points -> mean and covariance, plus the process noise of the
+  whole interval) runs once per epoch, not once per IMU sample;
+* every measurement of one epoch (row) is fused in one joint update (block-diagonal noise;
+  each sensor gated on its own normalised innovation squared first).
+
+A measurement on a row between two IMU samples is fused at the state of the last IMU
+sample at or before it (at most one IMU interval early: 4 ms at 250 Hz).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.stats import chi2
+
+from .._core.rotations import dcm_body_to_ned
+from .config import NavConfig
+from .mechanization import GRAVITY, propagate
+from .models import (
+    h_baro,
+    h_flow,
+    h_gnss_pos,
+    h_gnss_vel,
+    h_gravity,
+    h_mag_heading,
+    h_range,
+    level_heading,
+)
+from .ukf import DivergenceError, FilterResult, InnovationStats, UnscentedKalmanFilter
+
+log = logging.getLogger(__name__)
+
+__all__ = ["ALL_SENSORS", "NavFilter", "NavInputs", "magnetic_reference_from_log"]
+
+STATE_NAMES = ("n_m", "e_m", "d_m", "vn_ms", "ve_ms", "vd_ms", "roll_rad", "pitch_rad",
+               "yaw_rad", "bgx_rads", "bgy_rads", "bgz_rads")
+ACCEL_BIAS_NAMES = ("bax_ms2", "bay_ms2", "baz_ms2")
+ANGLES = (6, 7, 8)
+#: Measurement models the filter knows (``NavFilter(sensors=...)``).
+ALL_SENSORS = ("gps_pos", "gps_vel", "range", "flow", "baro", "gravity", "mag")
+_RANGE_RECENT_S = 1.0
+
+
+@dataclass
+class NavInputs:
+    """Sensor arrays on the rows of one multi-rate log (NaN where a sensor has no sample).
+
+    Attributes
+    ----------
+    time_s : ndarray, shape (N,)
+        Strictly increasing time, s.
+    gyro : ndarray, shape (N, 3)
+        Body rate, mean over the interval ending at the row, rad/s.
+    acc : ndarray, shape (N, 3)
+        Specific force, body axes, m/s².
+    flow : ndarray, shape (N, 2), optional
+        Optical flow, rad/s (``OPTICAL_FLOW_RAD`` convention).
+    flow_quality : ndarray, shape (N,), optional
+        Flow quality 0..255 (0 invalid); all valid when absent.
+    range_m : ndarray, shape (N,), optional
+        Downward rangefinder distance, m.
+    baro_alt : ndarray, shape (N,), optional
+        Barometric altitude, m (any datum).
+    flux : ndarray, shape (N, 3), optional
+        Magnetometer, body axes, nT.
+    gps_ned : ndarray, shape (N, 3), optional
+        GNSS position in the local NED frame, m.
+    gps_vel : ndarray, shape (N, 3), optional
+        GNSS velocity NED, m/s.
+    gps_use : ndarray of bool, shape (N,), optional
+        Which GNSS rows may be fused (all when absent).
+    heading_deg : ndarray, shape (N,), optional
+        An INS heading, used only to start when there is no magnetometer.
+    """
+
+    time_s: np.ndarray
+    gyro: np.ndarray
+    acc: np.ndarray
+    flow: np.ndarray | None = None
+    flow_quality: np.ndarray | None = None
+    range_m: np.ndarray | None = None
+    baro_alt: np.ndarray | None = None
+    flux: np.ndarray | None = None
+    gps_ned: np.ndarray | None = None
+    gps_vel: np.ndarray | None = None
+    gps_use: np.ndarray | None = None
+    heading_deg: np.ndarray | None = None
+
+
+def _tilt_from_accel(f: np.ndarray) -> tuple[float, float]:
+    """Roll and pitch (rad) of a body whose specific force is ``f`` (at rest: -g down)."""
+    roll = float(np.arctan2(-f[1], -f[2]))
+    pitch = float(np.arctan2(f[0], np.hypot(f[1], f[2])))
+    return roll, pitch
+
+
+def magnetic_reference_from_log(time_s: np.ndarray, acc: np.ndarray, gyro: np.ndarray,
+                                flux: np.ndarray, window_s: float = 60.0
+                                ) -> tuple[np.ndarray, int]:
+    """The Earth field's strength and inclination from the log itself.
+
+    Uses the rows of the first ``window_s`` seconds that have the IMU and the magnetometer
+    and where the vehicle is close to rest or level uniform flight (norm of the specific force
+    within 0.3 m/s² of g, body rate below 0.2 rad/s): the inclination is the angle between
+    the field and the accelerometer's "down".  The declination is unknown (0: the yaw is then
+    magnetic).
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (N,)
+    acc, gyro, flux : ndarray, shape (N, 3)
+        Specific force (m/s²), body rate (rad/s), field (nT); NaN rows are skipped.
+    window_s : float
+        Length of the window from the first row, s.
+
+    Returns
+    -------
+    ned_nT : ndarray, shape (3,)
+        Reference field ``F (cos I, 0, sin I)``, nT.
+    n_used : int
+        Rows used (0: none qualified; ``ned_nT`` is NaN).
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    # The accelerometer and gyro at or before each row (forward fill).
+    ok_imu = np.isfinite(acc).all(axis=1) & np.isfinite(gyro).all(axis=1)
+    idx = np.maximum.accumulate(np.where(ok_imu, np.arange(len(t)), -1))
+    ok = (np.isfinite(flux).all(axis=1) & (idx >= 0) & (t <= t[0] + window_s))
+    rows = np.flatnonzero(ok)
+    if rows.size == 0:
+        return np.full(3, np.nan), 0
+    f = acc[idx[rows]]
+    w = gyro[idx[rows]]
+    m = flux[rows]
+    fn = np.linalg.norm(f, axis=1)
+    calm = (np.abs(fn - GRAVITY) < 0.3) & (np.linalg.norm(w, axis=1) < 0.2)
+    if calm.sum() < 5:
+        return np.full(3, np.nan), 0
+    f, m, fn = f[calm], m[calm], fn[calm]
+    mn = np.linalg.norm(m, axis=1)
+    sin_i = np.einsum("ij,ij->i", m, -f / fn[:, None]) / mn
+    F = float(np.median(mn))
+    inc = float(np.median(np.arcsin(np.clip(sin_i, -1, 1))))
+    return F * np.array([np.cos(inc), 0.0, np.sin(inc)]), int(calm.sum())
+
+
+def _decimate_rows(t: np.ndarray, rows: np.ndarray, interval_s: float) -> np.ndarray:
+    """The rows of ``rows`` kept when no two are closer than ``interval_s`` (greedy)."""
+    if interval_s <= 0 or rows.size == 0:
+        return rows
+    keep = []
+    last = -np.inf
+    for r, tr in zip(rows.tolist(), t[rows].tolist(), strict=True):
+        if tr - last >= interval_s - 1e-9:
+            keep.append(r)
+            last = tr
+    return np.asarray(keep, dtype=np.intp)
+
+
+@dataclass
+class _Epoch:
+    """What one row brings to fuse (filled by ``run`` in bulk or ``step`` online)."""
+
+    gps_pos: np.ndarray | None = None
+    gps_vel: np.ndarray | None = None
+    range_m: float | None = None
+    flow: np.ndarray | None = None
+    flow_gyro: np.ndarray | None = None
+    flow_interval_s: float = 0.1
+    flow_vel_lag: np.ndarray | None = None
+    baro: float | None = None
+    grav_acc: np.ndarray | None = None
+    grav_rate: np.ndarray | None = None
+    grav_interval_s: float = 0.1
+    flux: np.ndarray | None = None
+    extra: dict = field(default_factory=dict)
+
+
+class NavFilter:
+    """Inertial navigation aided by flow, range, barometer, gravity, magnetic north and GNSS.
+
+    Parameters
+    ----------
+    config : NavConfig, optional
+        Noise, gates, rates (defaults: the study's sensor table).
+    mag_reference_ned_nT : array_like, shape (3,), optional
+        Earth field in NED, nT (from IGRF or explicit); its direction gives the declination.
+        When absent, :func:`magnetic_reference_from_log` derives strength and inclination
+        from the log (declination 0: yaw magnetic).
+    sensors : sequence of str, optional
+        Measurement models to use (default :data:`ALL_SENSORS`); ``()`` runs the IMU alone.
+
+    Notes
+    -----
+    ``run`` processes a whole log (fast path); ``step`` processes one row online and gives
+    the same estimates to within rounding of the process-noise timing (tested).
+    """
+
+    def __init__(self, config: NavConfig | None = None,
+                 mag_reference_ned_nT: np.ndarray | None = None,
+                 sensors: Sequence[str] | None = None) -> None:
+        self.config = config or NavConfig()
+        self.sensors = tuple(ALL_SENSORS if sensors is None else sensors)
+        unknown = set(self.sensors) - set(ALL_SENSORS)
+        if unknown:
+            raise ValueError(f"unknown sensors {sorted(unknown)}; known: {ALL_SENSORS}")
+        self.mag_ref = (None if mag_reference_ned_nT is None
+                        else np.asarray(mag_reference_ned_nT, dtype=np.float64))
+        self.n = (15 if self.config.accel_bias else 12) + 1
+        self.ig = self.n - 1  # ground level (down coordinate of the flat ground), m
+        self.names = (STATE_NAMES + (ACCEL_BIAS_NAMES if self.config.accel_bias else ())
+                      + ("ground_d_m",))
+        self.ukf: UnscentedKalmanFilter | None = None
+        self.baro_offset: float | None = None
+        self.warnings: list[str] = []
+        self._dt_imu = 0.004
+        self._last_range_t = -np.inf
+        self._last_grav: tuple[float, np.ndarray] | None = None
+        self._online: dict = {}
+
+    # ------------------------------------------------------------------ set-up
+    def _noise_rates(self) -> np.ndarray:
+        """Diagonal process noise per second of flight."""
+        c = self.config
+        q = np.zeros(self.n)
+        q[3:6] = (c.accel_noise_g * GRAVITY) ** 2 * self._dt_imu
+        q[6:9] = np.deg2rad(c.gyro_noise_dps) ** 2 * self._dt_imu
+        q[9:12] = np.deg2rad(c.gyro_bias_walk_dps_rt_s) ** 2
+        if c.accel_bias:
+            q[12:15] = c.accel_bias_walk_ms2_rt_s ** 2
+        q[self.ig] = c.ground_walk_m_rt_s ** 2
+        return q
+
+    def start(self, t0: float, acc_mean: np.ndarray, flux_mean: np.ndarray | None = None,
+              heading_deg: float | None = None, vel_ned: np.ndarray | None = None,
+              imu_dt_s: float = 0.004, pos_std_m: tuple[float, float] | None = None) -> None:
+        """Initialise: level from the mean specific force, heading from the magnetometer.
+
+        Parameters
+        ----------
+        t0 : float
+            Start time, s.
+        acc_mean : ndarray, shape (3,)
+            Mean specific force over the start window, m/s².
+        flux_mean : ndarray, shape (3,), optional
+            Mean magnetometer vector over the window, nT (heading).
+        heading_deg : float, optional
+            Heading to use when there is no magnetometer, degrees true.
+        vel_ned : ndarray, shape (3,), optional
+            Initial velocity, m/s (default 0).
+        imu_dt_s : float
+            Typical IMU interval, s (turns per-sample noise into densities).
+        pos_std_m : (float, float), optional
+            Initial horizontal and vertical position sigma, m (default
+            ``init_pos_std_m``; ``run`` gives the GNSS accuracy when the local frame's origin
+            is a GNSS fix, whose own error is then the vehicle's position error).
+        """
+        c = self.config
+        self._dt_imu = float(imu_dt_s)
+        roll, pitch = _tilt_from_accel(np.asarray(acc_mean, dtype=np.float64))
+        yaw_std = np.deg2rad(c.init_yaw_std_deg)
+        if flux_mean is not None and np.all(np.isfinite(flux_mean)) and self.mag_ref is not None:
+            decl = self._declination()
+            yaw = float(level_heading(np.array([roll]), np.array([pitch]), flux_mean, decl)[0])
+        elif heading_deg is not None and np.isfinite(heading_deg):
+            yaw = float(np.deg2rad(heading_deg))
+        else:
+            yaw, yaw_std = 0.0, np.deg2rad(60.0)
+            self._warn("no magnetometer or heading to start from: initial yaw 0 with 60° "
+                       "uncertainty")
+        x0 = np.zeros(self.n)
+        x0[6:9] = roll, pitch, np.mod(yaw + np.pi, 2 * np.pi) - np.pi
+        if vel_ned is not None and np.all(np.isfinite(vel_ned)):
+            x0[3:6] = vel_ned
+        sd = np.zeros(self.n)
+        sd[0:3] = c.init_pos_std_m
+        if pos_std_m is not None:
+            sd[0:2], sd[2] = pos_std_m
+        sd[3:6] = c.init_vel_std_ms
+        sd[6:8] = np.deg2rad(c.init_tilt_std_deg)
+        sd[8] = yaw_std
+        sd[9:12] = np.deg2rad(c.gyro_bias_init_dps)
+        if c.accel_bias:
+            sd[12:15] = c.accel_bias_init_ms2
+        sd[self.ig] = 1.0  # set from the first valid range (see _init_ground)
+        self._ground_set = False
+        self.ukf = UnscentedKalmanFilter(x0, np.diag(np.maximum(sd, 1e-9) ** 2),
+                                         alpha=c.alpha, beta=c.beta, kappa=c.kappa,
+                                         angle_idx=ANGLES, state_names=self.names)
+        self.ukf.time_s = float(t0)
+        self._qrate = self._noise_rates()
+        self._last_grav = None
+        self._rejections: dict[str, int] = {}
+        self.innovations: dict[str, InnovationStats] = {
+            s: InnovationStats(dof={"gps_pos": 3, "gps_vel": 3, "range": 1, "flow": 2,
+                                    "baro": 1, "gravity": 3, "mag": 1}[s])
+            for s in self.sensors}
+
+    def _init_ground(self, height_m: float) -> None:
+        """Ground level from the first valid range: ``d_ground = p_d + h``, correlated with
+        ``p_d`` exactly as that sum is (so the datum error stays in the covariance)."""
+        ukf, ig = self.ukf, self.ig
+        ukf.x[ig] = ukf.x[2] + height_m
+        P = ukf.P
+        P[ig, :] = P[2, :]
+        P[:, ig] = P[:, 2]
+        P[ig, ig] = P[2, 2] + self.config.range_noise_m ** 2
+        ukf.P = P
+        self._ground_set = True
+
+    def _declination(self) -> float:
+        if self.mag_ref is None or not np.all(np.isfinite(self.mag_ref)):
+            return 0.0
+        return float(np.arctan2(self.mag_ref[1], self.mag_ref[0]))
+
+    def _warn(self, msg: str) -> None:
+        if msg not in self.warnings:
+            self.warnings.append(msg)
+            log.warning("%s", msg)
+
+    # ------------------------------------------------------------------ predict
+    def _propagate(self, gyro: np.ndarray, acc: np.ndarray, dt: np.ndarray,
+                   keep_path: bool) -> tuple[np.ndarray, np.ndarray] | None:
+        """Propagate through IMU samples; return per-sample (mean, std) when asked."""
+        ukf = self.ukf
+        X, Wm, Wc = ukf.sigma_points()
+        Xe, path = propagate(X, gyro, acc, dt, self.config.accel_bias, keep_path)
+        T = float(dt.sum())
+        out = None
+        if keep_path:
+            m = np.einsum("s,snk->nk", Wm, path)
+            a = path[..., 6:9]
+            m[:, 6:9] = np.arctan2(np.einsum("s,snk->nk", Wm, np.sin(a)),
+                                   np.einsum("s,snk->nk", Wm, np.cos(a)))
+            d = path - m[None]
+            d[..., 6:9] = np.mod(d[..., 6:9] + np.pi, 2 * np.pi) - np.pi
+            var = np.einsum("s,snk->nk", Wc, d * d)
+            var += np.cumsum(dt)[:, None] * self._qrate[None, :]
+            out = (m, np.sqrt(np.clip(var, 0.0, None)))
+        ukf.set_from_sigma(Xe, Wm, Wc, np.diag(self._qrate * T))
+        ukf.time_s += T
+        return out
+
+    # ------------------------------------------------------------------ update
+    def _fuse(self, t: float, e: _Epoch) -> None:
+        """Gate and fuse every measurement of one epoch in one joint update."""
+        c = self.config
+        ukf = self.ukf
+        x = ukf.x
+        C = dcm_body_to_ned(x[6], x[7], x[8])
+        cz = float(C[2, 2])
+        tilt_ok = cz >= np.cos(np.deg2rad(c.max_tilt_deg))
+        blocks: list[tuple[str, np.ndarray, object, np.ndarray, tuple[int, ...]]] = []
+        use = self.sensors
+        st = self.innovations
+        sh = c.gps_cep_m / 1.1774
+        if e.gps_pos is not None and "gps_pos" in use:
+            blocks.append(("gps_pos", e.gps_pos, h_gnss_pos,
+                           np.diag([sh**2, sh**2, c.gps_vert_noise_m**2]), ()))
+        if e.gps_vel is not None and "gps_vel" in use:
+            blocks.append(("gps_vel", e.gps_vel, h_gnss_vel,
+                           np.eye(3) * c.gps_vel_noise_ms**2, ()))
+        if e.range_m is not None and "range" in use:
+            r = e.range_m
+            if not (c.range_min_m <= r <= c.range_max_m) or not tilt_ok:
+                st["range"].n_gated += 1
+            elif not self._ground_set:
+                self._init_ground(r * cz)
+                self._last_range_t = t
+            else:
+                self._last_range_t = t
+                ig = self.ig
+                blocks.append(("range", np.array([r]), lambda X, ig=ig: h_range(X, ig),
+                               np.array([[c.range_noise_m**2]]), ()))
+        if e.flow is not None and "flow" in use:
+            dist = (x[self.ig] - x[2]) / max(cz, 1e-6) if self._ground_set else None
+            if not tilt_ok or dist is None or dist < c.flow_min_distance_m:
+                st["flow"].n_gated += 1
+            else:
+                dg, wm = self.ig, e.flow_gyro
+                lag = np.zeros(3) if e.flow_vel_lag is None else e.flow_vel_lag
+                var = ((c.flow_noise_ms / dist) ** 2
+                       + np.deg2rad(c.gyro_noise_dps) ** 2 * self._dt_imu
+                       / max(e.flow_interval_s, self._dt_imu))
+                blocks.append(("flow", e.flow,
+                               lambda X, dg=dg, wm=wm, lag=lag: h_flow(X, wm, dg, lag),
+                               np.eye(2) * var, ()))
+        if e.baro is not None and "baro" in use:
+            if not c.baro_with_range and t - self._last_range_t < _RANGE_RECENT_S:
+                st["baro"].n_gated += 1
+            elif self.baro_offset is None:
+                self.baro_offset = float(e.baro + x[2])
+            else:
+                off = self.baro_offset
+                blocks.append(("baro", np.array([e.baro]), lambda X, off=off: h_baro(X, off),
+                               np.array([[c.baro_noise_m**2]]), ()))
+        if e.grav_acc is not None and "gravity" in use:
+            v = x[3:6].copy()
+            prev, self._last_grav = self._last_grav, (t, v)
+            acc_est = (np.inf if prev is None or t <= prev[0]
+                       else float(np.linalg.norm(v - prev[1]) / (t - prev[0])))
+            if (abs(np.linalg.norm(e.grav_acc) - GRAVITY) > c.gravity_max_force_dev_ms2
+                    or np.linalg.norm(e.grav_rate) > np.deg2rad(c.gravity_max_rate_dps)
+                    or acc_est > c.gravity_max_accel_ms2):
+                st["gravity"].n_gated += 1
+            else:
+                var = ((c.accel_noise_g * GRAVITY) ** 2 * self._dt_imu
+                       / max(e.grav_interval_s, self._dt_imu) + c.gravity_noise_ms2**2)
+                ab = c.accel_bias
+                blocks.append(("gravity", e.grav_acc, lambda X, ab=ab: h_gravity(X, ab),
+                               np.eye(3) * var, ()))
+        if e.flux is not None and "mag" in use:
+            ref = self.mag_ref
+            mn = float(np.linalg.norm(e.flux))
+            fref = float(np.linalg.norm(ref)) if ref is not None else np.nan
+            ok = np.isfinite(fref) and abs(mn - fref) <= c.mag_field_tolerance * fref
+            if ok:
+                inc_ref = np.arcsin(ref[2] / fref)
+                inc = np.arcsin(np.clip((C @ e.flux)[2] / mn, -1, 1))
+                ok = abs(inc - inc_ref) <= np.deg2rad(c.mag_inclination_tolerance_deg)
+            if not ok:
+                st["mag"].n_gated += 1
+            else:
+                fl, decl = e.flux, self._declination()
+                blocks.append(("mag", np.zeros(1),
+                               lambda X, fl=fl, decl=decl: h_mag_heading(X, fl, decl),
+                               np.array([[np.deg2rad(c.mag_heading_noise_deg) ** 2]]), (0,)))
+        if blocks:
+            self._update_blocks(blocks)
+
+    def _update_blocks(self, blocks: list) -> None:
+        ukf = self.ukf
+        X, Wm, Wc = ukf.sigma_points()
+        preds = [np.asarray(h(X), dtype=np.float64) for _, _, h, _, _ in blocks]
+        keep = []
+        p_gate = self.config.innovation_gate_p
+        for b, Z in zip(blocks, preds, strict=True):
+            name, z, _, R, aidx = b
+            zp = Wm @ Z
+            dZ = Z - zp
+            nu = z - zp
+            if aidx:
+                ia = list(aidx)
+                zp[ia] = np.arctan2(Wm @ np.sin(Z[:, ia]), Wm @ np.cos(Z[:, ia]))
+                dZ = np.mod(Z - zp + np.pi, 2 * np.pi) - np.pi
+                nu = np.mod(z - zp + np.pi, 2 * np.pi) - np.pi
+            S = (Wc[:, None] * dZ).T @ dZ + R
+            nis = float(nu @ np.linalg.solve(S, nu))
+            if not np.isfinite(nis):
+                raise DivergenceError(f"filter diverged at t = {ukf.time_s:.3f} s: non-finite"
+                                      f" innovation of {name}")
+            stats = self.innovations[name]
+            n_rej = self._rejections.get(name, 0)
+            if nis > chi2.ppf(p_gate, z.size) and n_rej < self.config.max_rejections:
+                stats.n_rejected += 1
+                self._rejections[name] = n_rej + 1
+                continue
+            if n_rej >= self.config.max_rejections:
+                self._warn(f"{name}: {n_rej} measurements in a row failed the innovation gate;"
+                           " accepted the next one (the filter re-locks on it)")
+            self._rejections[name] = 0
+            stats.n_fused += 1
+            stats.nis_sum += nis
+            keep.append((z, Z, R, aidx))
+        if not keep:
+            return
+        z = np.concatenate([k[0] for k in keep])
+        Z = np.concatenate([k[1] for k in keep], axis=1)
+        R = np.zeros((z.size, z.size))
+        aidx: list[int] = []
+        o = 0
+        for zk, _, Rk, ak in keep:
+            m = zk.size
+            R[o:o + m, o:o + m] = Rk
+            aidx += [o + a for a in ak]
+            o += m
+        ukf.update_from_sigma(z, X, Z, Wm, Wc, R, tuple(aidx), name="_joint", gate=None)
+
+    def _check(self, t: float, row: int | None = None) -> None:
+        x, P = self.ukf.x, self.ukf.P
+        where = f"t = {t:.3f} s" + ("" if row is None else f" (row {row})")
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
+            raise DivergenceError(f"navigation filter diverged at {where}: the state is no "
+                                  "longer finite; check the IMU units and noise settings")
+        ps = float(np.sqrt(max(P[0, 0], P[1, 1], P[2, 2], 0.0)))
+        if ps > self.config.max_position_std_m or np.linalg.norm(x[3:6]) > 500.0:
+            raise DivergenceError(
+                f"navigation filter diverged at {where}: position sigma {ps:.3g} m, speed "
+                f"{np.linalg.norm(x[3:6]):.3g} m/s; check the IMU units (--units) and the "
+                "noise settings, or give GNSS")
+
+    # ------------------------------------------------------------------ online
+    def step(self, t: float, gyro: np.ndarray | None = None, acc: np.ndarray | None = None,
+             flow: np.ndarray | None = None, flow_quality: float | None = None,
+             range_m: float | None = None, baro_alt: float | None = None,
+             flux: np.ndarray | None = None, gps_ned: np.ndarray | None = None,
+             gps_vel: np.ndarray | None = None) -> np.ndarray:
+        """Process one row of the log (any sensor may be None).
+
+        The filter must have been started (:meth:`start`), or it starts itself on the first
+        IMU sample (level from that one sample).  Returns the state estimate after the row.
+        """
+        on = self._online
+        imu = (gyro is not None and acc is not None and np.all(np.isfinite(gyro))
+               and np.all(np.isfinite(acc)))
+        if self.ukf is None:
+            if not imu:
+                raise ValueError("the first row given to step must carry the IMU, or call "
+                                 "start() first")
+            self.start(t, np.asarray(acc, float), None if flux is None else np.asarray(flux))
+            on.clear()
+            on.update(t_imu=t, cum_ang=np.zeros(3), cum_acc=np.zeros(3), t_flow=None,
+                      ang_flow=np.zeros(3), t_grav=t, acc_grav=np.zeros(3),
+                      ang_grav=np.zeros(3), t_mag=-np.inf, t_baro=-np.inf, cum_v=np.zeros(3),
+                      v_flow=np.zeros(3))
+            return self.ukf.x.copy()
+        if not on:
+            t0 = self.ukf.time_s
+            on.update(t_imu=t0, cum_ang=np.zeros(3), cum_acc=np.zeros(3), t_flow=None,
+                      ang_flow=np.zeros(3), t_grav=t0, acc_grav=np.zeros(3),
+                      ang_grav=np.zeros(3), t_mag=-np.inf, t_baro=-np.inf, cum_v=np.zeros(3),
+                      v_flow=np.zeros(3))
+        c = self.config
+        if imu:
+            dt = t - on["t_imu"]
+            if dt > 0:
+                g, a = np.asarray(gyro, float), np.asarray(acc, float)
+                self._propagate(g[None], a[None], np.array([dt]), keep_path=False)
+                on["t_imu"] = t
+                on["cum_ang"] = on["cum_ang"] + g * dt
+                on["cum_acc"] = on["cum_acc"] + a * dt
+                on["cum_v"] = on["cum_v"] + self.ukf.x[3:6] * dt
+        e = _Epoch()
+        if gps_ned is not None and np.all(np.isfinite(gps_ned)):
+            e.gps_pos = np.asarray(gps_ned, float)
+        if gps_vel is not None and np.all(np.isfinite(gps_vel)):
+            e.gps_vel = np.asarray(gps_vel, float)
+        if range_m is not None and np.isfinite(range_m):
+            e.range_m = float(range_m)
+        if flow is not None and np.all(np.isfinite(flow)):
+            t_prev = on["t_flow"]
+            q_ok = flow_quality is None or (np.isfinite(flow_quality)
+                                            and flow_quality >= max(c.flow_min_quality, 1))
+            if t_prev is not None and q_ok:
+                T = on["t_imu"] - t_prev
+                e.flow_interval_s = max(t - t_prev, 1e-6)
+                e.flow_gyro = ((on["cum_ang"] - on["ang_flow"]) / T if T > 0
+                               else np.asarray(gyro if gyro is not None else np.zeros(3), float))
+                e.flow = np.asarray(flow, float)
+                if T > 0:
+                    e.flow_vel_lag = self.ukf.x[3:6] - (on["cum_v"] - on["v_flow"]) / T
+            elif not q_ok and "flow" in self.innovations:
+                self.innovations["flow"].n_gated += 1
+            on["t_flow"], on["ang_flow"] = on["t_imu"], on["cum_ang"].copy()
+            on["v_flow"] = on["cum_v"].copy()
+        if baro_alt is not None and np.isfinite(baro_alt) and t - on["t_baro"] >= (
+                c.baro_interval_s - 1e-9):
+            e.baro, on["t_baro"] = float(baro_alt), t
+        if flux is not None and np.all(np.isfinite(flux)) and t - on["t_mag"] >= (
+                c.mag_interval_s - 1e-9):
+            e.flux, on["t_mag"] = np.asarray(flux, float), t
+        if imu and on["t_imu"] - on["t_grav"] >= c.gravity_interval_s - 1e-9:
+            T = on["t_imu"] - on["t_grav"]
+            e.grav_acc = (on["cum_acc"] - on["acc_grav"]) / T
+            e.grav_rate = (on["cum_ang"] - on["ang_grav"]) / T
+            e.grav_interval_s = T
+            on["t_grav"], on["acc_grav"], on["ang_grav"] = (
+                on["t_imu"], on["cum_acc"].copy(), on["cum_ang"].copy())
+        self._fuse(t, e)
+        self._check(t)
+        return self.ukf.x.copy()
+
+    # ------------------------------------------------------------------ batch
+    def run(self, inputs: NavInputs, keep_cov: bool = False) -> FilterResult:
+        """Run the filter over a whole multi-rate log.
+
+        Parameters
+        ----------
+        inputs : NavInputs
+            The sensor arrays on the log's rows.
+        keep_cov : bool
+            Keep the full covariance after every measurement epoch (``result.cov``).
+
+        Returns
+        -------
+        FilterResult
+            Estimate and one-sigma at every row (rows before the first IMU sample carry the
+            initial state), per-sensor innovation statistics, and ``info`` (ground level,
+            barometer offset, reference field, warnings).
+
+        Raises
+        ------
+        ValueError
+            Fewer than two IMU samples.
+        DivergenceError
+            The estimate stopped being finite or plausible (one line, with the time).
+        """
+        c = self.config
+        t = np.asarray(inputs.time_s, dtype=np.float64)
+        N = t.size
+        gyro = np.asarray(inputs.gyro, dtype=np.float64)
+        acc = np.asarray(inputs.acc, dtype=np.float64)
+        imu = np.isfinite(gyro).all(axis=1) & np.isfinite(acc).all(axis=1)
+        imu_rows = np.flatnonzero(imu)
+        if imu_rows.size < 2:
+            raise ValueError("fewer than two IMU samples (gyro_x..z and acc_x..z on a row)")
+        dt = np.zeros(N)
+        dt[imu_rows[1:]] = np.diff(t[imu_rows])
+        dt_med = float(np.median(np.diff(t[imu_rows])))
+        i0 = int(imu_rows[0])
+        dt[i0] = dt_med
+        # Cumulative delta angle and delta velocity at the IMU rows (for interval means).
+        cum_ang = np.cumsum(np.where(imu[:, None], gyro, 0.0) * dt[:, None], axis=0)
+        cum_acc = np.cumsum(np.where(imu[:, None], acc, 0.0) * dt[:, None], axis=0)
+        last_imu = np.maximum.accumulate(np.where(imu, np.arange(N), -1))
+
+        flux = None if inputs.flux is None else np.asarray(inputs.flux, dtype=np.float64)
+        if flux is not None and "mag" in self.sensors and self.mag_ref is None:
+            ref, n_used = magnetic_reference_from_log(t, acc, gyro, flux)
+            if n_used:
+                self.mag_ref = ref
+                self._warn("no reference field given: strength and inclination from the log's"
+                           f" first minute ({n_used} calm samples), declination unknown (yaw"
+                           " is magnetic); give --date or --earth-field for a true yaw")
+            else:
+                self._warn("no calm samples in the first minute to find the Earth field: the"
+                           " magnetometer is not used; give --date or --earth-field")
+        win = imu_rows[t[imu_rows] <= t[i0] + c.init_seconds]
+        acc0 = acc[win].mean(axis=0)
+        flux0 = None
+        if flux is not None:
+            fr = np.flatnonzero(np.isfinite(flux).all(axis=1) & (t <= t[i0] + c.init_seconds))
+            if fr.size:
+                flux0 = flux[fr].mean(axis=0)
+        head0 = None
+        if inputs.heading_deg is not None:
+            hh = np.asarray(inputs.heading_deg, float)
+            fin = np.flatnonzero(np.isfinite(hh))
+            head0 = float(hh[fin[0]]) if fin.size else None
+        vel0 = None
+        if inputs.gps_vel is not None:
+            gv = np.asarray(inputs.gps_vel, float)
+            use0 = (np.ones(N, bool) if inputs.gps_use is None else
+                    np.asarray(inputs.gps_use, bool))
+            fin = np.flatnonzero(np.isfinite(gv).all(axis=1) & use0 & (t <= t[i0] + 1.0))
+            vel0 = gv[fin[0]] if fin.size and "gps_vel" in self.sensors else None
+        has_fix = inputs.gps_ned is not None and bool(
+            np.isfinite(np.asarray(inputs.gps_ned, float)).all(axis=1).any())
+        pos_std = (c.gps_cep_m / 1.1774, c.gps_vert_noise_m) if has_fix else None
+        self.start(t[i0], acc0, flux0, head0, vel0, imu_dt_s=dt_med, pos_std_m=pos_std)
+
+        # Measurement rows, per sensor.
+        def rows_of(arr: np.ndarray | None, ncol: int) -> np.ndarray:
+            if arr is None:
+                return np.zeros(0, dtype=np.intp)
+            a = np.asarray(arr, dtype=np.float64).reshape(N, ncol)
+            return np.flatnonzero(np.isfinite(a).all(axis=1) & (np.arange(N) > i0))
+
+        gps_use = (np.ones(N, bool) if inputs.gps_use is None
+                   else np.asarray(inputs.gps_use, bool))
+        r_gpsp = rows_of(inputs.gps_ned, 3)
+        r_gpsp = r_gpsp[gps_use[r_gpsp]]
+        r_gpsv = rows_of(inputs.gps_vel, 3)
+        r_gpsv = r_gpsv[gps_use[r_gpsv]]
+        r_range = rows_of(inputs.range_m, 1)
+        r_flow_all = rows_of(inputs.flow, 2)
+        if inputs.flow_quality is not None and r_flow_all.size:
+            q = np.asarray(inputs.flow_quality, float)[r_flow_all]
+            qok = np.isfinite(q) & (q >= max(c.flow_min_quality, 1))
+        else:
+            qok = np.ones(r_flow_all.size, bool)
+        r_baro = _decimate_rows(t, rows_of(inputs.baro_alt, 1), c.baro_interval_s)
+        r_mag = _decimate_rows(t, rows_of(flux, 3), c.mag_interval_s)
+        r_grav = _decimate_rows(t, imu_rows[imu_rows > i0], c.gravity_interval_s)
+        # Flow: body rate averaged over the interval since the previous flow sample.
+        flow_gyro = np.zeros((r_flow_all.size, 3))
+        flow_T = np.full(r_flow_all.size, 0.1)
+        if r_flow_all.size:
+            li = last_imu[r_flow_all]
+            prev_li = np.r_[li[0], li[:-1]]
+            T = t[li] - t[prev_li]
+            ang = cum_ang[li] - cum_ang[prev_li]
+            good = T > 0
+            flow_gyro[good] = ang[good] / T[good, None]
+            flow_gyro[~good] = gyro[li[~good]]
+            flow_T = np.r_[0.1, np.diff(t[r_flow_all])]
+            qok[0] = False  # the first sample has no known interval
+        self.innovations.get("flow", InnovationStats(2)).n_gated += int((~qok).sum())
+        flow_prev = np.r_[i0, r_flow_all[:-1]][qok] if r_flow_all.size else r_flow_all
+        r_flow = r_flow_all[qok]
+        flow_gyro, flow_T = flow_gyro[qok], flow_T[qok]
+        # Gravity: mean specific force and rate over the interval since the previous epoch.
+        prev_g = np.r_[i0, r_grav[:-1]]
+        Tg = t[r_grav] - t[prev_g]
+        grav_acc = (cum_acc[r_grav] - cum_acc[prev_g]) / np.where(Tg > 0, Tg, 1.0)[:, None]
+        grav_rate = (cum_ang[r_grav] - cum_ang[prev_g]) / np.where(Tg > 0, Tg, 1.0)[:, None]
+
+        use = set(self.sensors)
+        per: dict[str, np.ndarray] = {
+            "gps_pos": r_gpsp if "gps_pos" in use else r_gpsp[:0],
+            "gps_vel": r_gpsv if "gps_vel" in use else r_gpsv[:0],
+            "range": r_range if "range" in use else r_range[:0],
+            "flow": r_flow if "flow" in use else r_flow[:0],
+            "baro": r_baro if "baro" in use else r_baro[:0],
+            "gravity": r_grav if "gravity" in use else r_grav[:0],
+            "mag": r_mag if "mag" in use and self.mag_ref is not None else r_mag[:0],
+        }
+        epochs = np.unique(np.concatenate(list(per.values()) + [np.zeros(0, np.intp)]))
+        lookup = {k: {int(r): j for j, r in enumerate(v)} for k, v in per.items()}
+        flow_arr = None if inputs.flow is None else np.asarray(inputs.flow, float)
+        gps_ned = None if inputs.gps_ned is None else np.asarray(inputs.gps_ned, float)
+        gps_vel = None if inputs.gps_vel is None else np.asarray(inputs.gps_vel, float)
+        rng = None if inputs.range_m is None else np.asarray(inputs.range_m, float)
+        baro = None if inputs.baro_alt is None else np.asarray(inputs.baro_alt, float)
+
+        xs = np.full((N, self.n), np.nan)
+        sds = np.full((N, self.n), np.nan)
+        recorded = np.zeros(N, dtype=bool)
+        xs[i0], sds[i0], recorded[i0] = self.ukf.x, np.sqrt(np.diag(self.ukf.P)), True
+        covs: list[np.ndarray] = []
+        cov_rows: list[int] = []
+        pos = 1  # next IMU row (index into imu_rows) to propagate
+        step_n = max(1, int(round(c.max_imu_step_s / dt_med))) if c.max_imu_step_s > 0 else 1
+
+        def advance(upto_row: int) -> None:
+            nonlocal pos
+            hi = int(np.searchsorted(imu_rows, upto_row, side="right"))
+            if hi <= pos:
+                return
+            rows = imu_rows[pos:hi]
+            pos = hi
+            if step_n > 1 and rows.size > 1:
+                groups = np.arange(rows.size) // step_n
+                ends = np.r_[np.flatnonzero(np.diff(groups)), rows.size - 1]
+                starts = np.r_[0, ends[:-1] + 1]
+                dtg = np.add.reduceat(dt[rows], starts)
+                g = np.add.reduceat(gyro[rows] * dt[rows, None], starts) / dtg[:, None]
+                a = np.add.reduceat(acc[rows] * dt[rows, None], starts) / dtg[:, None]
+                m, s = self._propagate(g, a, dtg, keep_path=True)
+                xs[rows], sds[rows] = m[groups], s[groups]
+            else:
+                m, s = self._propagate(gyro[rows], acc[rows], dt[rows], keep_path=True)
+                xs[rows], sds[rows] = m, s
+            recorded[rows] = True
+
+        for r in epochs.tolist():
+            advance(r)
+            te = t[r]
+            e = _Epoch()
+            j = lookup["gps_pos"].get(r)
+            if j is not None:
+                e.gps_pos = gps_ned[r]
+            if lookup["gps_vel"].get(r) is not None:
+                e.gps_vel = gps_vel[r]
+            if lookup["range"].get(r) is not None:
+                e.range_m = float(rng[r])
+            j = lookup["flow"].get(r)
+            if j is not None:
+                e.flow, e.flow_gyro, e.flow_interval_s = flow_arr[r], flow_gyro[j], flow_T[j]
+                lo = int(np.searchsorted(imu_rows, flow_prev[j], side="right"))
+                hi = int(np.searchsorted(imu_rows, r, side="right"))
+                if hi > lo:
+                    e.flow_vel_lag = self.ukf.x[3:6] - xs[imu_rows[lo:hi], 3:6].mean(axis=0)
+            if lookup["baro"].get(r) is not None:
+                e.baro = float(baro[r])
+            j = lookup["gravity"].get(r)
+            if j is not None:
+                e.grav_acc, e.grav_rate, e.grav_interval_s = grav_acc[j], grav_rate[j], Tg[j]
+            if lookup["mag"].get(r) is not None:
+                e.flux = flux[r]
+            self._fuse(te, e)
+            self._check(te, r)
+            xs[r], sds[r], recorded[r] = self.ukf.x, np.sqrt(np.clip(np.diag(self.ukf.P), 0,
+                                                                      None)), True
+            if keep_cov:
+                covs.append(self.ukf.P.copy())
+                cov_rows.append(r)
+        advance(N - 1)
+        self._check(t[-1], N - 1)
+        # Rows without their own estimate take the last one before them (or the first).
+        src = np.maximum.accumulate(np.where(recorded, np.arange(N), -1))
+        src = np.where(src < 0, i0, src)
+        xs, sds = xs[src], sds[src]
+        info = {"d_ground_m": float(self.ukf.x[self.ig]) if self._ground_set else None,
+                "baro_offset_m": self.baro_offset,
+                "mag_reference_ned_nT": None if self.mag_ref is None else self.mag_ref.tolist(),
+                "declination_deg": float(np.rad2deg(self._declination())),
+                "imu_interval_s": dt_med, "warnings": list(self.warnings),
+                "start_time_s": float(t[i0]), "sensors": list(self.sensors),
+                "gps_rows": per["gps_pos"]}
+        return FilterResult(time_s=t, x=xs, std=sds, state_names=self.names,
+                            innovations=dict(self.innovations),
+                            cov=np.array(covs) if keep_cov else None,
+                            cov_index=np.array(cov_rows, dtype=np.intp) if keep_cov else None,
+                            info=info)
