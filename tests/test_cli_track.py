@@ -103,11 +103,11 @@ def test_cli_subprocess(mission, tmp_path):
     assert len(bad.stderr.strip().splitlines()) == 1
 
 
-def test_cli_waypoint_radius_default_matches_the_library():
+def test_cli_sigma_floor_default_matches_the_library():
     from aeromag.cli import track as cli_track
-    from aeromag.track import DEFAULT_WAYPOINT_RADIUS_M
+    from aeromag.detection.heading import DEFAULT_SIGMA_FLOOR_DEG
 
-    assert cli_track.DEFAULT_WAYPOINT_RADIUS_M == DEFAULT_WAYPOINT_RADIUS_M
+    assert cli_track.DEFAULT_SIGMA_FLOOR_DEG == DEFAULT_SIGMA_FLOOR_DEG
 
 
 def test_plan_errors_say_what_a_plan_needs(mission, tmp_path):

@@ -9,9 +9,9 @@ import typer
 
 from .app import app, column_options, setup_logging, user_errors
 
-# Same as aeromag.track.DEFAULT_WAYPOINT_RADIUS_M (a test checks it); literal here so that
-# 'aeromag --help' does not import the geodesy stack.
-DEFAULT_WAYPOINT_RADIUS_M = 5.0
+# Same as aeromag.detection.heading.DEFAULT_SIGMA_FLOOR_DEG (a test checks it); literal here
+# so that 'aeromag --help' does not import the numerics.
+DEFAULT_SIGMA_FLOOR_DEG = 0.5
 
 
 @app.command()
@@ -19,7 +19,9 @@ def track(
     survey: Annotated[Path, typer.Argument(metavar="SURVEY.csv", help="Survey log (CSV) with "
                                            "time, lat, lon, alt.", show_default=False)],
     plan: Annotated[Path, typer.Option("--plan", metavar="PLAN.csv",
-                                       help="Mission plan: waypoints lat, lon, alt in order.")],
+                                       help="Mission plan: a CSV of waypoints lat, lon, alt in "
+                                       "order, a QGroundControl .plan or a Mission Planner "
+                                       ".waypoints file.")],
     output: Annotated[Path, typer.Option("-o", metavar="OUT.csv", help="Output CSV (the "
                                          "per-leg report goes to OUT.json).")],
     threshold: Annotated[float, typer.Option("--threshold", metavar="M",
@@ -32,15 +34,26 @@ def track(
                            "the start, or a time range T0:T1.")] = "30",
     heading_sigmas: Annotated[float, typer.Option("--heading-sigmas", metavar="K",
                               help="Heading alarm above K sigma of the calm window.")] = 5.0,
+    heading_sigma_floor: Annotated[float, typer.Option(
+        "--heading-sigma-floor", metavar="DEG",
+        help="Smallest heading sigma used, degrees (compass noise; a calm window can be "
+        "quieter than the flight).")] = DEFAULT_SIGMA_FLOOR_DEG,
     declination: Annotated[float, typer.Option("--declination", metavar="DEG",
                            help="Declination for a fluxgate-derived heading, degrees east.")]
     = 0.0,
     combine: Annotated[str, typer.Option("--combine", metavar="or|and",
                        help="Combined verdict: either detector (or) or confirmed by both (and).")]
     = "or",
-    waypoint_radius: Annotated[float, typer.Option("--waypoint-radius", metavar="M",
-                               help="Waypoint radius for leg assignment when the log has no "
-                               "'leg' column, m.")] = DEFAULT_WAYPOINT_RADIUS_M,
+    horizontal: Annotated[bool, typer.Option(
+        "--horizontal", help="Horizontal distance only (xtrack_m = |xtrack_h_m|); altitude "
+        "left out of the leg assignment (logs whose altitude cannot be trusted).")] = False,
+    altitude_offset: Annotated[str, typer.Option(
+        "--altitude-offset", metavar="auto|none|M",
+        help="Constant height of the log above the plan to remove: detected (auto: a different "
+        "altitude reference, reported), never (none) or given in metres.")] = "auto",
+    waypoint_radius: Annotated[float | None, typer.Option(
+        "--waypoint-radius", metavar="M", hidden=True,
+        help="Ignored (the old waypoint-sphere leg rule).")] = None,
     plot: Annotated[Path | None, typer.Option("--plot", metavar="DIR",
                     help="Write track and time-series plots (PNG) to DIR.")] = None,
     col: Annotated[list[str] | None, typer.Option("--col", metavar="NAME=SOURCE",
@@ -61,16 +74,23 @@ def track(
     alarm) and OUT.json ({"legs": [...]}, one object per leg).
     """
     setup_logging(verbose)
+    import logging
+
     from ..io import json_path_for
     from ..workflows.track import track_file
 
+    if waypoint_radius is not None:
+        logging.getLogger(__name__).warning(
+            "--waypoint-radius is ignored: legs are assigned from what the vehicle does"
+            " (see docs/track.md)")
     with user_errors():
         columns, unit_map = column_options(col, map_file, units)
         res = track_file(
             survey, plan, output, threshold_m=threshold, min_duration_s=min_duration,
-            calm_window=calm_window, heading_sigmas=heading_sigmas, declination_deg=declination,
-            combine=combine, waypoint_radius_m=waypoint_radius, columns=columns, units=unit_map,
-            plot_dir=plot,
+            calm_window=calm_window, heading_sigmas=heading_sigmas,
+            heading_sigma_floor_deg=heading_sigma_floor, declination_deg=declination,
+            combine=combine, horizontal=horizontal, altitude_offset=altitude_offset,
+            columns=columns, units=unit_map, plot_dir=plot,
         )
     rep = res.report
     flagged = rep.get("flagged_legs", [])
@@ -80,4 +100,6 @@ def track(
         line += f" ({', '.join(map(str, flagged))})"
     if not rep.get("heading_detector", {}).get("available"):
         line += "; heading detector skipped (no heading columns)"
+    if rep.get("warnings"):
+        line += f"; {len(rep['warnings'])} warning(s) in {json_path_for(output).name}"
     typer.echo(line)

@@ -27,18 +27,28 @@ from .._core.angles import wrap_deg
 from ..errors import InputError
 from .alarms import Alarms
 
-__all__ = ["CalmWindow", "DEFAULT_CALM_SECONDS", "HeadingResult", "calm_mask",
-           "heading_columns_available", "heading_detector", "heading_difference",
-           "mag_heading_from_flux", "parse_calm_window"]
+__all__ = ["CalmWindow", "DEFAULT_CALM_SECONDS", "DEFAULT_SIGMA_FLOOR_DEG", "HeadingResult",
+           "MIN_CALM_SAMPLES", "SIGMA_FLOOR_DEG", "calm_mask", "heading_columns_available",
+           "heading_detector", "heading_difference", "mag_heading_from_flux",
+           "parse_calm_window"]
 
 log = logging.getLogger(__name__)
 
 #: Default length of the calm reference window, s (from the start of the log).
 DEFAULT_CALM_SECONDS = 30.0
 
-#: Smallest sigma used, degrees (a perfectly noise-free reference would otherwise alarm on
-#: rounding errors).
+#: Smallest sigma used whatever the options, degrees (a perfectly noise-free reference would
+#: otherwise alarm on rounding errors).
 SIGMA_FLOOR_DEG = 1e-3
+
+#: Default floor of the calm-window sigma, degrees (``--heading-sigma-floor``).  A calm window
+#: can be quieter than the compass really is over a flight (a short window, a vehicle at rest,
+#: a smoothed or quantised heading): a sigma of 0.005 deg made a clean survey line raise 173
+#: alarms.  0.5 deg is the heading noise of a good MEMS compass in flight (0.1-0.3 deg rms at
+#: rest, more with motor currents) and half the 1 deg accuracy of the HMC5983 of methods M4, so
+#: with k = 5 nothing below 2.5 deg alarms; the study's disturbances bend the heading by tens
+#: of degrees.
+DEFAULT_SIGMA_FLOOR_DEG = 0.5
 
 #: Fewest finite samples accepted in the calm window.
 MIN_CALM_SAMPLES = 5
@@ -182,6 +192,10 @@ class HeadingResult(Alarms):
         Attitude heading minus magnetometer heading, degrees in [-180, 180).
     mean_deg, sigma_deg : float
         Statistics of the calm window, degrees (``sigma_deg`` after the floor).
+    sigma_raw_deg : float
+        Standard deviation of the calm window before the floor, degrees.
+    sigma_floor_deg : float
+        The floor applied, degrees.
     n_calm : int
         Samples in the calm window.
     source : str
@@ -191,6 +205,8 @@ class HeadingResult(Alarms):
     diff_deg: np.ndarray = field(default_factory=lambda: np.zeros(0))
     mean_deg: float = 0.0
     sigma_deg: float = 0.0
+    sigma_raw_deg: float = 0.0
+    sigma_floor_deg: float = 0.0
     n_calm: int = 0
     source: str = ""
 
@@ -224,6 +240,7 @@ def heading_detector(
     calm_window: CalmWindow = None,
     sigmas: float = 5.0,
     declination_deg: float = 0.0,
+    sigma_floor_deg: float = DEFAULT_SIGMA_FLOOR_DEG,
     source: str = "<log>",
 ) -> HeadingResult:
     """Run the heading-difference detector on a log.
@@ -239,6 +256,8 @@ def heading_detector(
         Alarm factor ``k`` (alarm when the deviation from the calm mean exceeds ``k`` sigma).
     declination_deg : float
         Declination added to a fluxgate-derived heading, degrees east.
+    sigma_floor_deg : float
+        Floor of the calm-window sigma, degrees (see :data:`DEFAULT_SIGMA_FLOOR_DEG`).
     source : str
         File name quoted in errors.
 
@@ -248,6 +267,8 @@ def heading_detector(
     """
     if not np.isfinite(sigmas) or sigmas <= 0:
         raise InputError(f"--heading-sigmas {sigmas!r}: must be a positive number")
+    if not np.isfinite(sigma_floor_deg) or sigma_floor_deg < 0:
+        raise InputError(f"--heading-sigma-floor {sigma_floor_deg!r}: must be >= 0 degrees")
     kind = heading_columns_available(df)
     if kind is None:
         raise InputError(
@@ -274,7 +295,11 @@ def heading_detector(
     centre = float(np.median(ref))
     dev = wrap_deg(ref - centre)
     mean = float(wrap_deg(centre + dev.mean()))
-    sigma = max(float(dev.std(ddof=1)), SIGMA_FLOOR_DEG)
+    sigma_raw = float(dev.std(ddof=1))
+    sigma = max(sigma_raw, float(sigma_floor_deg), SIGMA_FLOOR_DEG)
+    if sigma_raw < sigma_floor_deg:
+        log.info("%s: calm-window heading sigma %.4f deg is below the floor; using %.3f deg",
+                 source, sigma_raw, sigma)
     excess = np.abs(wrap_deg(diff - mean))
     with np.errstate(invalid="ignore"):
         alarm = excess > sigmas * sigma
@@ -283,4 +308,5 @@ def heading_detector(
               source, kind, mean, sigma, n_calm)
     return HeadingResult(name="heading", time_s=t, stat=excess, alarm=alarm,
                          threshold=sigmas * sigma, diff_deg=diff, mean_deg=mean,
-                         sigma_deg=sigma, n_calm=n_calm, source=kind)
+                         sigma_deg=sigma, sigma_raw_deg=sigma_raw,
+                         sigma_floor_deg=float(sigma_floor_deg), n_calm=n_calm, source=kind)

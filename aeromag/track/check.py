@@ -21,37 +21,26 @@ from ``A``.
 Leg assignment
 --------------
 When the log has a ``leg`` column (the autopilot's own leg index) it is used as is (empty or
-negative values mean "no leg").  Otherwise legs are assigned by this rule, with a waypoint
-radius ``R`` (default 5 m, enlarged to 1.5 times the 95th percentile of the distance between
-successive samples when the log is sparse):
-
-1. *Leg start.*  Leg ``k`` (``A = W_k`` to ``B = W_k+1``) starts at the first sample at which
-   the vehicle leaves the sphere of radius ``R`` around ``A`` towards ``B``: the previous sample
-   was inside the sphere, this one is outside, and it lies within 45 degrees of the leg's
-   direction (cross-track distance <= along-track distance).  A vehicle that has not reached
-   ``A`` yet, is climbing to it, or is turning around inside it is therefore not on the leg.
-2. *Leg end.*  The leg ends (exclusive) at the first later sample inside the sphere around
-   ``B`` or past the plane through ``B`` perpendicular to the leg, or when the vehicle leaves
-   ``A`` towards ``B`` again (the leg is being re-flown).
-3. *Sequence.*  Starting from the beginning of the log, the next leg is the one whose start
-   event comes first after the current leg's end; on a tie the next leg in the plan is
-   preferred, then the same leg again (re-flown), then the nearest leg number.
-4. Samples on no leg -- take-off, climb to the first waypoint, turns and hovering inside the
-   waypoint spheres, transit back to re-fly a leg, landing -- get an empty ``leg``, no
-   ``xtrack_*`` values and never alarm.
-
-Turns therefore never count as deviations; the price is that the first and last ``R`` metres
-of each leg are not checked.
+negative values mean "no leg").  Otherwise a hidden Markov model over "on leg k / off plan"
+decoded with Viterbi follows what the vehicle does (:mod:`aeromag.track.legs`): progress along
+the leg, motion along it, distance to its line and altitude near the planned one.  Take-off,
+climb, hovering and turning at waypoints, transits not in the plan, landing and ground time
+belong to no leg: empty ``leg``, no ``xtrack_*`` values, never an alarm.  A leg flown twice gets
+both passes.  A constant vertical offset (a different altitude datum) is detected, reported and
+removed (:mod:`aeromag.track.diagnose`); ``horizontal=True`` uses the horizontal distance only.
 
 Per-leg summary: ``leg``, ``n_samples``, ``t_start``/``t_end`` [s], ``max_xtrack_m``,
 ``max_abs_xtrack_h_m``, ``max_abs_xtrack_v_m``, ``first_alarm_time`` (combined verdict; null
 when none), ``first_track_alarm_time``, ``first_heading_alarm_time``, ``time_above_threshold_s``,
-``flagged`` and ``first_detector`` (``"track"``, ``"heading"``, ``"both"`` or null).
+``flagged``, ``first_detector`` (``"track"``, ``"heading"``, ``"both"`` or null), ``n_passes``
+and ``passes`` (the same keys per pass, with its own start and end).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -59,12 +48,26 @@ import numpy as np
 import pandas as pd
 
 from .._core.geodesy import geodetic_to_ned
+from ..detection.alarms import Alarms
 from ..detection.combine import combine_alarms
-from ..detection.heading import CalmWindow, heading_columns_available, heading_detector
+from ..detection.heading import (
+    DEFAULT_SIGMA_FLOOR_DEG,
+    CalmWindow,
+    heading_columns_available,
+    heading_detector,
+)
 from ..errors import InputError
+from . import diagnose
 from .deviation import leg_summary, track_alarm
 from .geometry import cross_track
-from .legs import DEFAULT_WAYPOINT_RADIUS_M, assign_legs, labels_from_column
+from .legs import (
+    LegModel,
+    labels_from_column,
+    leg_evidence,
+    leg_passes,
+    motion_velocity,
+    viterbi,
+)
 from .plan import validate_plan
 
 __all__ = ["ADDED_COLUMNS", "TrackResult", "check_track"]
@@ -105,10 +108,17 @@ def check_track(
     min_duration_s: float = 0.0,
     calm_window: CalmWindow = None,
     heading_sigmas: float = 5.0,
+    heading_sigma_floor_deg: float = DEFAULT_SIGMA_FLOOR_DEG,
     declination_deg: float = 0.0,
     combine: str = "or",
-    waypoint_radius_m: float = DEFAULT_WAYPOINT_RADIUS_M,
+    horizontal: bool = False,
+    altitude_offset: str | float = "auto",
+    leg_model: LegModel | None = None,
+    position: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    heading_deg: np.ndarray | None = None,
+    detectors: Sequence[Alarms] = (),
     source: str | None = None,
+    waypoint_radius_m: float | None = None,
 ) -> TrackResult:
     """Flag DGPS track deviations per leg, run the heading detector and combine them.
 
@@ -129,67 +139,105 @@ def check_track(
         an absolute time range (``"t0:t1"``), s.
     heading_sigmas : float
         Heading alarm factor ``k`` (alarm above ``k`` sigma of the calm window).
+    heading_sigma_floor_deg : float
+        Floor of the heading detector's calm sigma, degrees.
     declination_deg : float
         Declination for a fluxgate-derived magnetometer heading, degrees east.
     combine : {"or", "and"}
-        How the two detectors make the verdict ``alarm`` (see
+        How the detectors make the verdict ``alarm`` (see
         :func:`aeromag.detection.combine.combine_alarms`).
-    waypoint_radius_m : float
-        Waypoint radius of the leg-assignment rule, m (unused when the log has ``leg``).
+    horizontal : bool
+        Use the horizontal distance only (``xtrack_m = abs(xtrack_h_m)``) and leave altitude out
+        of the leg assignment.
+    altitude_offset : "auto", "none" or float
+        Constant height of the log above the plan to remove: estimated (``auto``), never
+        (``none``) or given, m (see :mod:`aeromag.track.diagnose`).
+    leg_model : LegModel, optional
+        Parameters of the leg assignment (default :class:`~aeromag.track.legs.LegModel`).
+    position : (lat, lon, alt) arrays, optional
+        Antenna position per row, degrees, degrees, m (default the log's ``lat``, ``lon``,
+        ``alt``), e.g. a navigated position where the GNSS has gaps.
+    heading_deg : ndarray, optional
+        Attitude heading per row for the heading detector, degrees (default the log's
+        ``heading``), e.g. a navigation filter's yaw.
+    detectors : sequence of Alarms
+        Further detectors' results on the same rows (e.g. the particle filter, name ``pf``):
+        each adds ``<name>_alarm`` (on legs only), enters ``alarm`` and the per-leg summary.
     source : str, optional
         Name of the log quoted in errors (default ``log_df.attrs["source"]``).
+    waypoint_radius_m : float, optional
+        Ignored (the old waypoint-sphere rule); kept so that old calls run.
 
     Returns
     -------
     TrackResult
     """
+    del waypoint_radius_m
     src = source or str(log_df.attrs.get("source", "<log>"))
     if not np.isfinite(threshold_m) or threshold_m <= 0:
         raise InputError(f"--threshold {threshold_m!r}: must be a positive number of metres")
     if not np.isfinite(min_duration_s) or min_duration_s < 0:
         raise InputError(f"--min-duration {min_duration_s!r}: must be >= 0 seconds")
-    if not np.isfinite(waypoint_radius_m) or waypoint_radius_m <= 0:
-        raise InputError(f"--waypoint-radius {waypoint_radius_m!r}: must be positive metres")
     if str(combine).lower() not in ("or", "and"):
         raise InputError(f"--combine {combine!r}: use 'or' or 'and'")
-    missing = [c for c in ("time", "lat", "lon", "alt") if c not in log_df.columns]
+    offset_spec = _offset_spec(altitude_offset)
+    need = ("time",) if position is not None else ("time", "lat", "lon", "alt")
+    missing = [c for c in need if c not in log_df.columns]
     if missing:
         raise InputError(
             f"{src}: missing column(s) {', '.join(missing)}; the track check needs time, lat, lon"
             " and alt (DGPS position); map them with --col NAME=SOURCE"
         )
-    plan = validate_plan(plan, str(plan.attrs.get("source", "<plan>")))
+    plan_src = str(plan.attrs.get("source", "<plan>"))
+    plan = validate_plan(plan, plan_src)
     wp_geo = plan[["lat", "lon", "alt"]].to_numpy(dtype=np.float64)
     origin = (float(wp_geo[0, 0]), float(wp_geo[0, 1]), float(wp_geo[0, 2]))
     wps = geodetic_to_ned(wp_geo[:, 0], wp_geo[:, 1], wp_geo[:, 2], origin)
     n_legs = len(wps) - 1
+    model = leg_model or LegModel(horizontal_only=horizontal)
+    if horizontal and not model.horizontal_only:
+        model = dataclasses.replace(model, horizontal_only=True)
 
     data = log_df.copy()
-    pos = data[["lat", "lon", "alt"]].apply(pd.to_numeric, errors="coerce")
-    lat, lon, alt = (pos[c].to_numpy(dtype=np.float64) for c in ("lat", "lon", "alt"))
+    n = len(data)
+    if position is None:
+        pos = data[["lat", "lon", "alt"]].apply(pd.to_numeric, errors="coerce")
+        lat, lon, alt = (pos[c].to_numpy(dtype=np.float64) for c in ("lat", "lon", "alt"))
+    else:
+        lat, lon, alt = (np.asarray(c, dtype=np.float64) for c in position)
+        if not (len(lat) == len(lon) == len(alt) == n):
+            raise InputError(f"{src}: the position arrays must have one value per row ({n})")
     ok = np.isfinite(lat) & np.isfinite(lon) & np.isfinite(alt)
     if not ok.any():
         raise InputError(f"{src}: no row has a finite lat, lon and alt; the track check needs"
                          " DGPS positions")
-    ned = np.full((len(data), 3), np.nan)
+    ned = np.full((n, 3), np.nan)
     ned[ok] = geodetic_to_ned(lat[ok], lon[ok], alt[ok], origin)
+    t = data["time"].to_numpy(dtype=np.float64)
+    vel = motion_velocity(t, ned, model.velocity_window_s)
+
+    warnings: list[str] = []
+    applied, alt_info, w = diagnose.altitude_offset(ned, vel, wps, model, offset_spec)
+    warnings += w
+    if applied:
+        ned[:, 2] += applied   # the log's height above the plan removed (down is positive)
 
     if "leg" in data.columns:
         labels = labels_from_column(data, n_legs, src)
         how = "log column"
     else:
-        labels = assign_legs(ned, wps, waypoint_radius_m=waypoint_radius_m)
+        labels = viterbi(leg_evidence(ned, vel, wps, model), model.switch_cost)
         how = "assigned"
+        warnings += diagnose.plan_warnings(ned, vel, wps, labels, model, plan_src)
     labels[~ok] = -1
 
-    n = len(data)
     xt, xh, xv, al = (np.full(n, np.nan) for _ in range(4))
     for k in np.unique(labels[labels >= 0]):
         m = labels == k
         d, h, v, a = cross_track(ned[m], wps[k], wps[k + 1])
-        xt[m], xh[m], xv[m], al[m] = d, h, v, a
-    t = data["time"].to_numpy(dtype=np.float64)
-    tr = track_alarm(xt, labels, t, threshold_m=threshold_m, min_duration_s=min_duration_s)
+        xt[m], xh[m], xv[m], al[m] = (np.abs(h) if horizontal else d), h, v, a
+    pass_id, passes = leg_passes(labels, t, al)
+    tr = track_alarm(xt, pass_id, t, threshold_m=threshold_m, min_duration_s=min_duration_s)
 
     data["leg"] = pd.array(np.where(labels >= 0, labels, 0), dtype="Int64")
     data.loc[labels < 0, "leg"] = pd.NA
@@ -201,20 +249,36 @@ def check_track(
 
     heading_info: dict[str, Any] = {"available": False}
     hd_alarm = None
-    if heading_columns_available(data) is not None:
-        hres = heading_detector(data, calm_window=calm_window, sigmas=heading_sigmas,
-                                declination_deg=declination_deg, source=src)
+    if heading_deg is not None or heading_columns_available(data) is not None:
+        hdf = data if heading_deg is None else data.assign(
+            heading=np.asarray(heading_deg, dtype=np.float64))
+        hres = heading_detector(hdf, calm_window=calm_window, sigmas=heading_sigmas,
+                                declination_deg=declination_deg,
+                                sigma_floor_deg=heading_sigma_floor_deg, source=src)
         hd_alarm = hres.alarm & (labels >= 0)
         data["heading_diff_deg"] = hres.diff_deg
         data["heading_alarm"] = hd_alarm
         heading_info = {"available": True, "source": hres.source, "mean_deg": hres.mean_deg,
-                        "sigma_deg": hres.sigma_deg, "n_calm": hres.n_calm,
-                        "sigmas": heading_sigmas, "declination_deg": declination_deg}
+                        "sigma_deg": hres.sigma_deg, "sigma_raw_deg": hres.sigma_raw_deg,
+                        "sigma_floor_deg": hres.sigma_floor_deg,
+                        "floored": hres.sigma_raw_deg < hres.sigma_floor_deg,
+                        "n_calm": hres.n_calm, "sigmas": heading_sigmas,
+                        "declination_deg": declination_deg,
+                        "heading_input": "log" if heading_deg is None else "given"}
     else:
         log.info("%s: no heading columns; heading detector skipped", src)
-    data["alarm"] = combine_alarms([tr, hd_alarm], labels, combine)
+    dets: dict[str, np.ndarray | None] = {"track": tr, "heading": hd_alarm}
+    for extra in detectors:
+        if len(extra.alarm) != n:
+            raise InputError(f"{src}: detector {extra.name!r} has {len(extra.alarm)} rows,"
+                             f" the log {n}")
+        dets[extra.name] = extra.alarm & (labels >= 0)
+        data[f"{extra.name}_alarm"] = dets[extra.name]
+    data["alarm"] = combine_alarms(list(dets.values()), pass_id, combine)
 
-    legs = leg_summary(data, n_legs, threshold_m, {"track": tr, "heading": hd_alarm})
+    legs = leg_summary(data, n_legs, threshold_m, dets, pass_id)
+    for msg in warnings:
+        log.warning("%s: %s", src, msg)
     report = {
         "legs": legs,
         "n_legs": n_legs,
@@ -223,12 +287,35 @@ def check_track(
         "threshold_m": threshold_m,
         "min_duration_s": min_duration_s,
         "combine": str(combine).lower(),
+        "distance": "horizontal" if horizontal else "3d",
         "leg_source": how,
-        "waypoint_radius_m": waypoint_radius_m,
+        "leg_model": model.to_dict() if how == "assigned" else None,
+        "n_passes": int(len(passes)),
+        "altitude_offset": alt_info,
         "origin": {"lat": origin[0], "lon": origin[1], "alt": origin[2]},
+        "position_input": "log" if position is None else "given",
         "heading_detector": heading_info,
+        "detectors": [{"detector": name, "ran": a is not None,
+                       "n_alarms": None if a is None else int(np.asarray(a).sum())}
+                      for name, a in dets.items()],
         "n_samples": n,
         "n_on_leg": int((labels >= 0).sum()),
+        "warnings": warnings,
     }
     log.info("%s: %d/%d legs flagged", src, report["n_flagged"], n_legs)
     return TrackResult(data=data, legs=legs, report=report)
+
+
+def _offset_spec(spec: str | float) -> str | float:
+    """Check an ``--altitude-offset`` value: auto, none or a number of metres."""
+    text = str(spec).strip().lower()
+    if text in ("auto", "none"):
+        return text
+    try:
+        val = float(text)
+    except ValueError:
+        raise InputError(f"--altitude-offset {spec!r}: use auto, none or metres (the log's"
+                         " height above the plan)") from None
+    if not np.isfinite(val):
+        raise InputError(f"--altitude-offset {spec!r}: must be a finite number of metres")
+    return "none" if val == 0 else val

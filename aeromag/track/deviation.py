@@ -97,13 +97,42 @@ def _alarm_array(a: Alarms | np.ndarray) -> np.ndarray:
     return np.asarray(a.alarm if isinstance(a, Alarms) else a, dtype=bool)
 
 
+def _summary(t: np.ndarray, dt: np.ndarray, m: np.ndarray, cols: dict[str, np.ndarray],
+             det: dict[str, np.ndarray | None], threshold_m: float) -> dict[str, Any]:
+    """Summary of the samples ``m`` (a leg or one pass over it)."""
+    x, h, v, al = cols["x"], cols["h"], cols["v"], cols["alarm"]
+    row: dict[str, Any] = {"n_samples": int(m.sum())}
+    if not m.any():
+        row.update(t_start=None, t_end=None, max_xtrack_m=None, max_abs_xtrack_h_m=None,
+                   max_abs_xtrack_v_m=None, first_alarm_time=None)
+        row.update({f"first_{name}_alarm_time": None for name in det})
+        row.update(time_above_threshold_s=0.0, flagged=False, first_detector=None)
+        return row
+    tt = t[m]
+    with np.errstate(invalid="ignore"):
+        above = x[m] > threshold_m
+    firsts = {name: (None if a is None else _first_time(tt, a[m])) for name, a in det.items()}
+
+    def peak(a: np.ndarray) -> float | None:
+        return float(np.nanmax(a[m])) if np.isfinite(a[m]).any() else None
+
+    row.update(t_start=float(tt[0]), t_end=float(tt[-1]), max_xtrack_m=peak(x),
+               max_abs_xtrack_h_m=peak(h), max_abs_xtrack_v_m=peak(v),
+               first_alarm_time=_first_time(tt, al[m]))
+    row.update({f"first_{name}_alarm_time": ft for name, ft in firsts.items()})
+    row.update(time_above_threshold_s=float(dt[m][above].sum()), flagged=bool(al[m].any()),
+               first_detector=first_detector(firsts))
+    return row
+
+
 def leg_summary(
     data: pd.DataFrame,
     n_legs: int,
     threshold_m: float,
     detectors: Mapping[str, Alarms | np.ndarray | None],
+    pass_id: np.ndarray | None = None,
 ) -> list[dict[str, Any]]:
-    """Per-leg summary of a checked log, for any number of detectors.
+    """Per-leg summary of a checked log, with every pass, for any number of detectors.
 
     Parameters
     ----------
@@ -118,6 +147,9 @@ def leg_summary(
         Detector name -> its :class:`~aeromag.detection.Alarms` (or per-sample alarm array),
         in report order, or None when the detector did not run (its first-alarm time is then
         null).  Each gets ``first_<name>_alarm_time`` and may be ``first_detector``.
+    pass_id : ndarray of int, optional
+        Pass of each sample (-1 for none, see :func:`aeromag.track.legs.leg_passes`); when
+        given each leg lists its passes under ``passes`` with their own start and end.
 
     Returns
     -------
@@ -127,38 +159,19 @@ def leg_summary(
     t = data["time"].to_numpy(dtype=np.float64)
     dt = _sample_dt(t)
     lab = data["leg"].fillna(-1).to_numpy(dtype=np.int64)
-    x = data["xtrack_m"].to_numpy(dtype=np.float64)
-    h = np.abs(data["xtrack_h_m"].to_numpy(dtype=np.float64))
-    v = np.abs(data["xtrack_v_m"].to_numpy(dtype=np.float64))
-    al = data["alarm"].to_numpy(dtype=bool)
+    cols = {"x": data["xtrack_m"].to_numpy(dtype=np.float64),
+            "h": np.abs(data["xtrack_h_m"].to_numpy(dtype=np.float64)),
+            "v": np.abs(data["xtrack_v_m"].to_numpy(dtype=np.float64)),
+            "alarm": data["alarm"].to_numpy(dtype=bool)}
     det = {name: (None if a is None else _alarm_array(a)) for name, a in detectors.items()}
     out: list[dict[str, Any]] = []
     for k in range(n_legs):
         m = lab == k
-        row: dict[str, Any] = {"leg": k, "n_samples": int(m.sum())}
-        if not m.any():
-            row.update(t_start=None, t_end=None, max_xtrack_m=None, max_abs_xtrack_h_m=None,
-                       max_abs_xtrack_v_m=None, first_alarm_time=None)
-            row.update({f"first_{name}_alarm_time": None for name in det})
-            row.update(time_above_threshold_s=0.0, flagged=False, first_detector=None)
-            out.append(row)
-            continue
-        tt = t[m]
-        with np.errstate(invalid="ignore"):
-            above = x[m] > threshold_m
-        firsts = {name: (None if a is None else _first_time(tt, a[m])) for name, a in det.items()}
-        row.update(
-            t_start=float(tt[0]), t_end=float(tt[-1]),
-            max_xtrack_m=float(np.nanmax(x[m])) if np.isfinite(x[m]).any() else None,
-            max_abs_xtrack_h_m=float(np.nanmax(h[m])) if np.isfinite(h[m]).any() else None,
-            max_abs_xtrack_v_m=float(np.nanmax(v[m])) if np.isfinite(v[m]).any() else None,
-            first_alarm_time=_first_time(tt, al[m]),
-        )
-        row.update({f"first_{name}_alarm_time": ft for name, ft in firsts.items()})
-        row.update(
-            time_above_threshold_s=float(dt[m][above].sum()),
-            flagged=bool(al[m].any()),
-            first_detector=first_detector(firsts),
-        )
+        row = {"leg": k, **_summary(t, dt, m, cols, det, threshold_m)}
+        if pass_id is not None:
+            ids = np.unique(pass_id[m & (pass_id >= 0)])
+            row["n_passes"] = int(ids.size)
+            row["passes"] = [{"pass": int(p), **_summary(t, dt, pass_id == p, cols, det,
+                                                         threshold_m)} for p in ids]
         out.append(row)
     return out

@@ -1,8 +1,37 @@
-"""Which mission leg each sample belongs to."""
+"""Which mission leg each sample belongs to: a hidden Markov model decoded with Viterbi.
+
+The vehicle is, at every sample, either *on leg k* (flying from waypoint ``W_k`` towards
+``W_k+1``) or *off plan* (on the ground, taking off, climbing, hovering or turning at a
+waypoint, in transit, landing).  Each sample's evidence for leg ``k`` against "off plan" is a
+log-likelihood ratio built from what the vehicle does (all vectorised over samples and legs):
+
+``e_k = bonus (2 g - 1)``               moving along the leg: ``g = sigmoid((v_a - min_speed_m_s)
+                                        / speed_softness_m_s) sigmoid((v_a - v_p) /
+                                        direction_softness_m_s)``
+    ``- 0.5 (d_h / s_h)^2``               horizontal distance to the leg's line
+    ``- 0.5 (d_v / s_v)^2``               vertical distance (altitude near the planned one)
+    ``- 0.5 (out / end_margin_m)^2``      progress: how far before ``W_k`` or past ``W_k+1``
+
+clipped to ``[floor, bonus]`` so that one bad fix cannot cut a pass.  ``s_h`` and ``s_v`` are
+chosen so that ``e_k = 0`` (no better than off plan) at ``tolerance_m`` horizontally and at
+``vertical_tolerance_m`` vertically: ``s = tolerance / sqrt(2 bonus)``.  ``v_a`` is the velocity
+along the leg and ``v_p`` across it (3-D), from the positions over ``velocity_window_s``;
+hovering (no speed), climbing or descending, crossing a leg and flying the line backwards (the
+transit back to re-fly a leg) are off plan.  "Off plan" has evidence 0.
+
+Transitions cost ``switch_cost`` (log-probability) to enter or leave a leg or to go from leg
+``k`` straight to leg ``k+1`` (a waypoint passed without stopping), and twice that between any
+other two legs; staying costs nothing.  The Viterbi path is the most likely labelling.  A leg
+flown twice is two runs of its label (two *passes*).
+
+With ``horizontal_only`` the vertical term is left out (logs whose altitude cannot be trusted);
+take-off, landing and ground time are then off plan by their lack of motion along the leg.
+"""
 
 from __future__ import annotations
 
 import logging
+from dataclasses import asdict, dataclass
 
 import numpy as np
 import pandas as pd
@@ -10,91 +39,384 @@ import pandas as pd
 from ..errors import InputError
 from .geometry import cross_track
 
-__all__ = ["DEFAULT_WAYPOINT_RADIUS_M", "assign_legs", "labels_from_column"]
+__all__ = ["DEFAULT_WAYPOINT_RADIUS_M", "LegModel", "assign_legs", "estimate_altitude_offset",
+           "leg_evidence", "labels_from_column", "leg_passes", "motion_velocity", "viterbi"]
 
 log = logging.getLogger(__name__)
 
-#: Default waypoint radius, m (see the leg-assignment rule).
+#: Kept for callers of the old rule; the HMM uses no waypoint sphere.
 DEFAULT_WAYPOINT_RADIUS_M = 5.0
 
 
-def _effective_radius(ned: np.ndarray, radius: float) -> float:
-    """Waypoint radius, enlarged when successive samples are far apart."""
-    if len(ned) < 2:
-        return radius
-    steps = np.linalg.norm(np.diff(ned, axis=0), axis=1)
-    steps = steps[np.isfinite(steps)]
-    if steps.size == 0:
-        return radius
-    eff = max(radius, 1.5 * float(np.percentile(steps, 95)))
-    if eff > radius:
-        log.info("waypoint radius enlarged from %.2f m to %.2f m (sparse samples)", radius, eff)
-    return eff
+@dataclass(frozen=True)
+class LegModel:
+    """Parameters of the leg-assignment model (see the module docstring).
+
+    Attributes
+    ----------
+    tolerance_m : float
+        Horizontal distance to a leg's line at which the evidence for the leg is nil, m.
+    vertical_tolerance_m : float
+        Vertical distance at which the evidence is nil, m.
+    end_margin_m : float
+        Scale of the progress penalty before the first and past the last waypoint, m.
+    min_speed_m_s : float
+        Speed along the leg at which the motion term is half-way, m/s.
+    speed_softness_m_s : float
+        Width of the motion term's speed sigmoid, m/s.
+    direction_softness_m_s : float
+        Width of the motion term's direction sigmoid (speed along the leg against speed
+        across it: half-way at 45 degrees), m/s.
+    velocity_window_s : float
+        Time window of the velocity from positions, s (at least the two neighbours).
+    bonus : float
+        Evidence of a sample flown on the leg (log-likelihood ratio, nats).
+    floor : float
+        Lowest evidence of one sample, nats.
+    switch_cost : float
+        Cost of a change of state, nats.
+    horizontal_only : bool
+        Leave out the vertical term.
+    """
+
+    tolerance_m: float = 10.0
+    vertical_tolerance_m: float = 10.0
+    end_margin_m: float = 2.0
+    min_speed_m_s: float = 0.5
+    speed_softness_m_s: float = 0.15
+    direction_softness_m_s: float = 0.25
+    velocity_window_s: float = 1.0
+    bonus: float = 4.0
+    floor: float = -10.0
+    switch_cost: float = 8.0
+    horizontal_only: bool = False
+
+    def __post_init__(self) -> None:
+        for name in ("tolerance_m", "vertical_tolerance_m", "end_margin_m", "speed_softness_m_s",
+                     "direction_softness_m_s", "velocity_window_s", "bonus", "switch_cost"):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v <= 0:
+                raise InputError(f"leg model: {name} = {v!r} must be a positive number")
+        if not np.isfinite(self.min_speed_m_s) or self.min_speed_m_s < 0:
+            raise InputError(f"leg model: min_speed_m_s = {self.min_speed_m_s!r} must be >= 0")
+        if not np.isfinite(self.floor) or self.floor >= 0:
+            raise InputError(f"leg model: floor = {self.floor!r} must be negative")
+
+    def to_dict(self) -> dict[str, float | bool]:
+        """JSON-ready parameters."""
+        return asdict(self)
 
 
-def assign_legs(
-    ned: np.ndarray, waypoints: np.ndarray, *, waypoint_radius_m: float = DEFAULT_WAYPOINT_RADIUS_M
-) -> np.ndarray:
-    """Assign each sample to a mission leg (see the module docstring for the rule).
+def motion_velocity(time_s: np.ndarray, ned: np.ndarray, window_s: float = 1.0) -> np.ndarray:
+    """Velocity from positions: the mean over a centred time window.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,)
+        Sample times, s (increasing).
+    ned : ndarray, shape (n, 3)
+        Positions, m (NaN rows are skipped; their velocity is NaN).
+    window_s : float
+        Window length, s; at least the two neighbours of each sample are used.
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+        Velocity, m/s.
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    p = np.asarray(ned, dtype=np.float64)
+    out = np.full(p.shape, np.nan)
+    ok = np.flatnonzero(np.isfinite(p).all(axis=1) & np.isfinite(t))
+    if ok.size < 2:
+        return out
+    tt, pp = t[ok], p[ok]
+    idx = np.arange(ok.size)
+    lo = np.minimum(np.searchsorted(tt, tt - 0.5 * window_s, side="left"), np.maximum(idx - 1, 0))
+    hi = np.maximum(np.searchsorted(tt, tt + 0.5 * window_s, side="right") - 1,
+                    np.minimum(idx + 1, ok.size - 1))
+    dt = tt[hi] - tt[lo]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        v = (pp[hi] - pp[lo]) / dt[:, None]
+    v[~(dt > 0)] = np.nan
+    out[ok] = v
+    return out
+
+
+def _sigmoid(x: np.ndarray) -> np.ndarray:
+    return 0.5 * (1.0 + np.tanh(0.5 * x))
+
+
+def leg_evidence(ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray,
+                 model: LegModel = LegModel(), *, horizontal_only: bool | None = None
+                 ) -> np.ndarray:
+    """Per-sample evidence for each leg against "off plan" (log-likelihood ratios).
 
     Parameters
     ----------
     ned : ndarray, shape (n, 3)
         Antenna positions, NED, m.
+    vel : ndarray, shape (n, 3)
+        Velocities, m/s (see :func:`motion_velocity`).
     waypoints : ndarray, shape (m, 3)
         Plan waypoints, NED, m.
-    waypoint_radius_m : float
-        Radius of the sphere around each waypoint inside which the vehicle is turning, m.
+    model : LegModel
+        Parameters.
+    horizontal_only : bool, optional
+        Override ``model.horizontal_only``.
+
+    Returns
+    -------
+    ndarray, shape (n, m - 1), float32
+        Evidence per sample and leg, nats; ``floor`` where a position or velocity is missing.
+    """
+    horiz = model.horizontal_only if horizontal_only is None else horizontal_only
+    n, n_legs = len(ned), len(waypoints) - 1
+    ev = np.full((n, n_legs), model.floor, dtype=np.float32)
+    ok = np.isfinite(ned).all(axis=1) & np.isfinite(vel).all(axis=1)
+    if not ok.any():
+        return ev
+    p, v = ned[ok], vel[ok]
+    b = model.bonus
+    kh = 0.5 * 2.0 * b / model.tolerance_m ** 2   # 0.5 / s_h^2 with s_h = tol / sqrt(2 b)
+    kv = 0.5 * 2.0 * b / model.vertical_tolerance_m ** 2
+    ks = 0.5 / model.end_margin_m ** 2
+    for k in range(n_legs):
+        a, bb = waypoints[k], waypoints[k + 1]
+        length = float(np.linalg.norm(bb - a))
+        u = (bb - a) / length
+        _, h, vv, along = cross_track(p, a, bb)
+        out = np.maximum(-along, 0.0) + np.maximum(along - length, 0.0)
+        va = v @ u
+        vp = np.linalg.norm(v - va[:, None] * u, axis=1)
+        m = (_sigmoid((va - model.min_speed_m_s) / model.speed_softness_m_s)
+             * _sigmoid((va - vp) / model.direction_softness_m_s))
+        e = b * (2.0 * m - 1.0) - kh * h * h - ks * out * out
+        if not horiz:
+            e -= kv * vv * vv
+        ev[ok, k] = np.clip(e, model.floor, b)
+    return ev
+
+
+def viterbi(evidence: np.ndarray, switch_cost: float = 8.0) -> np.ndarray:
+    """Most likely state sequence of the "off plan / on leg k" model.
+
+    State 0 is "off plan" (evidence 0), state ``k + 1`` is leg ``k``.  Entering or leaving a
+    leg, and going from leg ``k`` to leg ``k + 1``, cost ``switch_cost``; any other change of
+    leg costs twice that.  The path starts off plan or on any leg (at the entering cost).
+
+    Parameters
+    ----------
+    evidence : ndarray, shape (n, K)
+        Per-sample evidence for each leg, nats (see :func:`leg_evidence`).
+    switch_cost : float
+        Cost of a change of state, nats.
+
+    Returns
+    -------
+    ndarray of int, shape (n,)
+        Leg per sample, -1 for off plan.
+    """
+    e = np.asarray(evidence, dtype=np.float64)
+    n, n_legs = e.shape
+    if n == 0 or n_legs == 0:
+        return np.full(n, -1, dtype=np.int64)
+    c = float(switch_cost)
+    legs = np.arange(1, n_legs + 1)
+    back = np.empty((n, n_legs + 1), dtype=np.int16 if n_legs < 32000 else np.int32)
+    score = np.r_[0.0, np.full(n_legs, -c)]
+    score[1:] += e[0]
+    back[0] = 0
+    neg = np.array([-np.inf])
+    for i in range(1, n):
+        prev_off = score[0]
+        prev_legs = score[1:]
+        j = int(np.argmax(prev_legs))
+        best_leg = prev_legs[j]
+        # off plan: stay, or leave the best leg
+        if prev_off >= best_leg - c:
+            off, off_from = prev_off, 0
+        else:
+            off, off_from = best_leg - c, j + 1
+        # legs: stay / from off / from the previous leg / from the best other leg
+        cand_stay = prev_legs
+        cand_next = np.concatenate((neg, prev_legs[:-1])) - c
+        best = cand_stay
+        src = legs.copy()
+        m = cand_next > best
+        best = np.where(m, cand_next, best)
+        src = np.where(m, legs - 1, src)
+        from_off = prev_off - c
+        m = from_off > best
+        best = np.where(m, from_off, best)
+        src[m] = 0
+        from_any = best_leg - 2.0 * c
+        m = from_any > best
+        best = np.where(m, from_any, best)
+        src[m] = j + 1
+        score = np.concatenate(([off], best + e[i]))
+        back[i, 0] = off_from
+        back[i, 1:] = src
+    state = np.empty(n, dtype=np.int64)
+    s = int(np.argmax(score))
+    for i in range(n - 1, -1, -1):
+        state[i] = s
+        s = int(back[i, s])
+    return state - 1
+
+
+def assign_legs(
+    ned: np.ndarray,
+    waypoints: np.ndarray,
+    *,
+    time_s: np.ndarray | None = None,
+    model: LegModel | None = None,
+    waypoint_radius_m: float | None = None,
+) -> np.ndarray:
+    """Assign each sample to a mission leg (HMM + Viterbi, see the module docstring).
+
+    Parameters
+    ----------
+    ned : ndarray, shape (n, 3)
+        Antenna positions, NED, m (NaN rows: no leg).
+    waypoints : ndarray, shape (m, 3)
+        Plan waypoints, NED, m.
+    time_s : ndarray, shape (n,), optional
+        Sample times, s (default: 10 Hz from 0).
+    model : LegModel, optional
+        Parameters (default :class:`LegModel`).
+    waypoint_radius_m : float, optional
+        Ignored (the old rule's waypoint sphere); kept so that old calls still run.
 
     Returns
     -------
     ndarray of int, shape (n,)
         Leg index per sample, -1 for none.
     """
-    n = len(ned)
-    n_legs = len(waypoints) - 1
-    labels = np.full(n, -1, dtype=np.int64)
-    if n < 2 or n_legs < 1:
-        return labels
-    r = _effective_radius(ned, waypoint_radius_m)
-    finite = np.isfinite(ned).all(axis=1)
-    starts: list[np.ndarray] = []
-    ends: list[np.ndarray] = []
-    for k in range(n_legs):
-        a, b = waypoints[k], waypoints[k + 1]
-        d, _, _, along = cross_track(ned, a, b)
-        length = float(np.linalg.norm(b - a))
-        in_a = (np.linalg.norm(ned - a, axis=1) <= r) & finite
-        in_b = (np.linalg.norm(ned - b, axis=1) <= r) & finite
-        leave = np.r_[False, in_a[:-1] & ~in_a[1:]] & finite & (d <= along)
-        starts.append(np.flatnonzero(leave))
-        ends.append(np.flatnonzero(in_b | (along >= length)))
-    pos, cur = 0, -1
-    while True:
-        best: tuple[int, int, int] | None = None
-        for k in range(n_legs):
-            j = int(np.searchsorted(starts[k], pos))
-            if j == len(starts[k]):
+    del waypoint_radius_m
+    model = model or LegModel()
+    p = np.asarray(ned, dtype=np.float64)
+    t = np.arange(len(p)) / 10.0 if time_s is None else np.asarray(time_s, dtype=np.float64)
+    vel = motion_velocity(t, p, model.velocity_window_s)
+    ev = leg_evidence(p, vel, np.asarray(waypoints, dtype=np.float64), model)
+    lab = viterbi(ev, model.switch_cost)
+    lab[~np.isfinite(p).all(axis=1)] = -1
+    return lab
+
+
+def estimate_altitude_offset(
+    ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray, model: LegModel = LegModel()
+) -> tuple[float, float, int]:
+    """Constant vertical offset of the log against the plan, from the samples flown on legs.
+
+    Samples whose horizontal evidence (motion along a leg, close to its line, within its
+    ends) is strong are taken as flown on that leg; the offset is the median of their height
+    above the leg's line and the spread is 1.4826 times the median absolute deviation.
+
+    Parameters
+    ----------
+    ned : ndarray, shape (n, 3)
+        Positions, NED, m.
+    vel : ndarray, shape (n, 3)
+        Velocities, m/s.
+    waypoints : ndarray, shape (m, 3)
+        Plan waypoints, NED, m.
+    model : LegModel
+        Parameters.
+
+    Returns
+    -------
+    offset_m, spread_m : float
+        Median height of the log above the plan's lines and its robust spread, m (NaN when
+        no sample qualifies).
+    n : int
+        Samples used.
+    """
+    ev = leg_evidence(ned, vel, waypoints, model, horizontal_only=True)
+    if ev.shape[1] == 0:
+        return float("nan"), float("nan"), 0
+    k = np.argmax(ev, axis=1)
+    strong = ev[np.arange(len(ev)), k] > 0.5 * model.bonus
+    if strong.sum() < 3:
+        return float("nan"), float("nan"), int(strong.sum())
+    up = np.empty(int(strong.sum()))
+    idx = np.flatnonzero(strong)
+    for leg in np.unique(k[idx]):
+        sel = k[idx] == leg
+        _, _, v, _ = cross_track(ned[idx[sel]], waypoints[leg], waypoints[leg + 1])
+        up[sel] = v
+    med = float(np.median(up))
+    spread = 1.4826 * float(np.median(np.abs(up - med)))
+    return med, spread, int(up.size)
+
+
+def leg_passes(labels: np.ndarray, time_s: np.ndarray, along_m: np.ndarray | None = None,
+               merge_gap_s: float = 5.0) -> tuple[np.ndarray, pd.DataFrame]:
+    """Passes over legs: runs of one leg label, joined across short interruptions.
+
+    Two runs of the same leg separated by less than ``merge_gap_s`` with no other leg between
+    them, and (when ``along_m`` is given) with the second starting no further back along the
+    leg than where the first ended (minus 5 m), are one pass; otherwise every run is a pass.
+
+    Parameters
+    ----------
+    labels : ndarray of int, shape (n,)
+        Leg per sample, -1 for none.
+    time_s : ndarray, shape (n,)
+        Sample times, s.
+    along_m : ndarray, shape (n,), optional
+        Position along the sample's leg, m.
+    merge_gap_s : float
+        Longest interruption inside one pass, s.
+
+    Returns
+    -------
+    pass_id : ndarray of int, shape (n,)
+        Pass of each sample (numbered from 0 in time order), -1 for none.
+    passes : DataFrame
+        One row per pass: ``pass``, ``leg``, ``start``, ``stop`` (sample range, half-open).
+    """
+    lab = np.asarray(labels)
+    t = np.asarray(time_s, dtype=np.float64)
+    on = np.flatnonzero(lab >= 0)
+    pid = np.full(len(lab), -1, dtype=np.int64)
+    if on.size == 0:
+        return pid, pd.DataFrame(columns=["pass", "leg", "start", "stop"], dtype=np.int64)
+    brk = np.r_[True, (np.diff(on) > 1) | (lab[on[1:]] != lab[on[:-1]])]
+    starts = on[brk]
+    stops = np.r_[on[np.flatnonzero(brk)[1:] - 1], on[-1]] + 1
+    rows: list[list[int]] = []
+    for s, e in zip(starts, stops, strict=True):
+        leg = int(lab[s])
+        if rows and rows[-1][1] == leg and t[s] - t[rows[-1][3] - 1] < merge_gap_s:
+            prev_end = rows[-1][3] - 1
+            if along_m is None or along_m[s] >= along_m[prev_end] - 5.0:
+                rows[-1][3] = int(e)
                 continue
-            prio = 0 if k == cur + 1 else (1 if k == cur else 2 + abs(k - cur))
-            cand = (int(starts[k][j]), prio, k)
-            if best is None or cand < best:
-                best = cand
-        if best is None:
-            break
-        s, _, k = best
-        j = int(np.searchsorted(ends[k], s + 1))
-        e = int(ends[k][j]) if j < len(ends[k]) else n
-        j = int(np.searchsorted(starts[k], s + 1))
-        if j < len(starts[k]):
-            e = min(e, int(starts[k][j]))
-        labels[s:e] = k
-        pos, cur = e, k
-    return labels
+        rows.append([len(rows), leg, int(s), int(e)])
+    for r in rows:
+        seg = slice(r[2], r[3])
+        pid[seg] = np.where(lab[seg] == r[1], r[0], -1)
+    return pid, pd.DataFrame(rows, columns=["pass", "leg", "start", "stop"])
 
 
 def labels_from_column(log_df: pd.DataFrame, n_legs: int, source: str) -> np.ndarray:
-    """Leg labels from the log's own ``leg`` column (empty or negative: no leg)."""
+    """Leg labels from the log's own ``leg`` column (empty or negative: no leg).
+
+    Parameters
+    ----------
+    log_df : DataFrame
+        Log with a ``leg`` column.
+    n_legs : int
+        Legs in the plan.
+    source : str
+        File name quoted in errors.
+
+    Returns
+    -------
+    ndarray of int
+        Leg per sample, -1 for none.
+    """
     vals = pd.to_numeric(log_df["leg"], errors="coerce").to_numpy(dtype=np.float64)
     ok = np.isfinite(vals) & (vals >= 0)
     frac = ok & (vals != np.round(vals))

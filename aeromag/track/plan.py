@@ -33,7 +33,17 @@ def validate_plan(plan: pd.DataFrame, source: str = "<plan>") -> pd.DataFrame:
     -------
     DataFrame
         ``lat``, ``lon``, ``alt`` as float64 (other columns kept), index reset.
+
+    Notes
+    -----
+    Errors name the file line of the waypoint: ``plan.attrs["lines"]`` when the reader gave
+    them (ground-station mission files), otherwise row + 2 (a CSV with its header on line 1).
     """
+    lines = plan.attrs.get("lines")
+
+    def line(i: int) -> int:
+        return int(lines[i]) if lines is not None and i < len(lines) else i + 2
+
     missing = [c for c in ("lat", "lon", "alt") if c not in plan.columns]
     if missing:
         avail = ", ".join(map(str, plan.columns[:20])) or "(none)"
@@ -48,7 +58,7 @@ def validate_plan(plan: pd.DataFrame, source: str = "<plan>") -> pd.DataFrame:
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
             raise InputError(
-                f"{source}: column {c!r}, line {i + 2}: value {str(out[c].iloc[i])!r} is not a"
+                f"{source}: column {c!r}, line {line(i)}: value {str(out[c].iloc[i])!r} is not a"
                 " finite number; fix the waypoint"
             )
         out[c] = conv.astype(np.float64)
@@ -60,15 +70,21 @@ def validate_plan(plan: pd.DataFrame, source: str = "<plan>") -> pd.DataFrame:
     bad = np.abs(lat) > 90
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise InputError(f"{source}: column 'lat', line {i + 2}: latitude {lat[i]:g} outside"
+        raise InputError(f"{source}: column 'lat', line {line(i)}: latitude {lat[i]:g} outside"
                          " [-90, 90] degrees; check the column order")
+    lon = out["lon"].to_numpy()
+    bad = np.abs(lon) > 360
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(f"{source}: column 'lon', line {line(i)}: longitude {lon[i]:g} outside"
+                         " [-180, 360] degrees; check the column order and units")
     ned = plan_ned(out)
     lengths = np.linalg.norm(np.diff(ned, axis=0), axis=1)
     short = lengths < MIN_LEG_LENGTH_M
     if short.any():
         k = int(np.flatnonzero(short)[0])
         raise InputError(
-            f"{source}: lines {k + 2} and {k + 3}: repeated waypoint makes leg {k} zero-length"
-            f" ({lengths[k]:.3g} m); remove the duplicate waypoint"
+            f"{source}: lines {line(k)} and {line(k + 1)}: repeated waypoint makes leg {k}"
+            f" zero-length ({lengths[k]:.3g} m); remove the duplicate waypoint"
         )
     return out

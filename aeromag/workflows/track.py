@@ -4,14 +4,17 @@ and OUT.json."""
 from __future__ import annotations
 
 import os
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from ..detection.heading import CalmWindow
+import pandas as pd
+
+from ..detection.alarms import Alarms
+from ..detection.heading import DEFAULT_SIGMA_FLOOR_DEG, CalmWindow
 from ..io import atomic_path, json_path_for, read_log, write_csv, write_json
 from ..io.plans import read_plan
 from ..plot.track import plot_track
 from ..track.check import TrackResult, check_track
-from ..track.legs import DEFAULT_WAYPOINT_RADIUS_M
 from .compensate import check_outputs
 
 __all__ = ["track_file", "write_outputs"]
@@ -26,15 +29,19 @@ def track_file(
     min_duration_s: float = 0.0,
     calm_window: CalmWindow = None,
     heading_sigmas: float = 5.0,
+    heading_sigma_floor_deg: float = DEFAULT_SIGMA_FLOOR_DEG,
     declination_deg: float = 0.0,
     combine: str = "or",
-    waypoint_radius_m: float = DEFAULT_WAYPOINT_RADIUS_M,
+    horizontal: bool = False,
+    altitude_offset: str | float = "auto",
+    extra_detectors: Sequence[Callable[[pd.DataFrame], Alarms]] = (),
     columns: dict[str, str] | None = None,
     units: dict[str, str] | None = None,
     plot_dir: str | os.PathLike[str] | None = None,
     fmt: str | None = None,
+    waypoint_radius_m: float | None = None,
 ) -> TrackResult:
-    """Read a log and a plan, check the track, write OUT.csv and OUT.json atomically.
+    """Read a log and a plan, check the track, write OUT.csv and OUT.json as a set.
 
     Outputs that would overwrite the log or the plan are refused before anything is read.
 
@@ -43,39 +50,50 @@ def track_file(
     log_path : path-like
         Survey log (needs ``time``, ``lat``, ``lon``, ``alt``).
     plan_path : path-like
-        Mission plan CSV (``lat``, ``lon``, ``alt`` per waypoint).
+        Mission plan: CSV (``lat``, ``lon``, ``alt`` per waypoint), QGroundControl ``.plan`` or
+        Mission Planner ``.waypoints`` (see :func:`aeromag.io.plans.read_plan`).
     out_path : path-like
         Output CSV; the report goes to the same path with suffix ``.json``.
-    threshold_m, min_duration_s, calm_window, heading_sigmas, declination_deg, combine,
-    waypoint_radius_m
-        See :func:`check_track` (m, s, s, -, degrees, -, m).
+    threshold_m, min_duration_s, calm_window, heading_sigmas, heading_sigma_floor_deg,
+    declination_deg, combine, horizontal, altitude_offset
+        See :func:`aeromag.track.check_track` (m, s, s, -, degrees, degrees, -, -, m).
+    extra_detectors : sequence of callables
+        Each takes the log (canonical columns) and returns an
+        :class:`~aeromag.detection.Alarms` on its rows (e.g. the particle filter): passed to
+        :func:`~aeromag.track.check_track` as ``detectors``.
     columns : dict, optional
         Column map ``{canonical: source}``.
     units : dict, optional
         Unit conversions for field columns.
     plot_dir : path-like, optional
-        Folder for the track plots (PNG); none when omitted.
+        Folder for the track plots (PNG); none when omitted.  Their paths are in OUT.json.
     fmt : str, optional
         Log format (default from the extension).
+    waypoint_radius_m : float, optional
+        Ignored (the old waypoint-sphere rule).
 
     Returns
     -------
     TrackResult
     """
+    del waypoint_radius_m
     out = Path(out_path)
     out_json = json_path_for(out)
     check_outputs(log_path, out, out_json)  # not OUT.json, never over the log or the plan
     check_outputs(plan_path, out, out_json, kind="plan")
     plan = read_plan(plan_path)
-    plan.attrs["source"] = str(plan_path)
     df = read_log(log_path, columns=columns, units=units,
                   required=("time", "lat", "lon", "alt"), fmt=fmt)
+    detectors = [make(df) for make in extra_detectors]
     res = check_track(df, plan, threshold_m=threshold_m, min_duration_s=min_duration_s,
                       calm_window=calm_window, heading_sigmas=heading_sigmas,
+                      heading_sigma_floor_deg=heading_sigma_floor_deg,
                       declination_deg=declination_deg, combine=combine,
-                      waypoint_radius_m=waypoint_radius_m, source=str(log_path))
+                      horizontal=horizontal, altitude_offset=altitude_offset,
+                      detectors=detectors, source=str(log_path))
     res.report["input"] = str(log_path)
     res.report["plan"] = str(plan_path)
+    res.report["plan_format"] = plan.attrs.get("format", "csv")
     if plot_dir is not None:
         res.report["plots"] = [str(p) for p in plot_track(res, plan, plot_dir,
                                                           threshold_m=threshold_m)]
