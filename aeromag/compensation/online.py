@@ -1,0 +1,316 @@
+"""Online Tolles-Lawson compensation: the TL model estimated sample by sample, causally.
+
+For interference that changes during a flight (thrust, a payload switched on, a battery
+swap), the coefficients are re-estimated at every sample by recursive least squares with a
+forgetting factor (:mod:`aeromag._core.rls`), the same terms and term order as the batch fit
+(:mod:`aeromag.compensation.terms`).  Everything that feeds the estimate is causal:
+
+- the derivatives of the direction cosines never cross a time gap.  Two choices
+  (``derivative``): ``"central"`` (default) is the batch fit's own derivative
+  (:func:`aeromag.compensation.terms.time_derivative`, central differences), so sample k's
+  row is complete when sample k+1 arrives: the estimate at any time uses only the samples
+  received so far, and the interference of sample k is known one sample later (a latency of
+  one sample, 0.1 s at 10 Hz).  ``"backward"`` is strictly causal with no latency
+  (``(c_k - c_(k-1)) / (t_k - t_(k-1))``), but a backward difference lags by half a sample:
+  at 0.8 Hz and 10 Hz its eddy terms are off by a quarter, which biases the coefficients
+  (measured in ``docs/online.md``: about 4x the batch residual on the simulator);
+- the target ``mag`` and every term are band-passed by the same causal Butterworth filter
+  (``sosfilt``, not the zero-phase ``sosfiltfilt`` of the batch fit), started in steady
+  state on the first sample of each stretch, so that the Earth field's level gives no
+  transient; the filter's phase lag is the same on both sides of ``mag = A theta``, so the
+  coefficients are not biased by it;
+- the interference of sample k is ``mag_tl_k = A_k theta_s(k-1)``: unfiltered terms times
+  the estimate from the samples before k (a-priori), low-passed causally
+  (``coef_lowpass_hz``, a second-order Butterworth): the unfiltered terms carry the large
+  level of the direction cosines, and the sample-to-sample jitter of the estimate in its
+  poorly determined directions would otherwise come back into the band as noise.
+
+Only the final low-pass of ``mag_comp`` (the pipeline's zero-phase filter, off with
+``--no-filter``) and the reported band-pass metrics (the batch pipeline's zero-phase
+definition, for comparison with it) look at both sides of a sample; neither feeds the
+estimate.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._core.filters import butter_sos
+from .._core.rls import RecursiveLeastSquares, check_forgetting
+from ..errors import InputError
+from .terms import (
+    FIELD_SCALE_NT,
+    direction_cosines,
+    parse_terms,
+    terms_from_cosines,
+    time_derivative,
+)
+
+log = logging.getLogger(__name__)
+
+__all__ = ["OnlineTL", "OnlineTLResult", "causal_derivative", "new_stretch_starts"]
+
+
+def causal_derivative(values: np.ndarray, time_s: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Backward-difference time derivative, never across a stretch start.
+
+    Parameters
+    ----------
+    values : ndarray, shape (n,) or (n, m)
+        Samples.
+    time_s : ndarray, shape (n,)
+        Strictly increasing times [s].
+    starts : ndarray of bool, shape (n,)
+        True where a stretch starts (its derivative is 0).
+
+    Returns
+    -------
+    ndarray
+        ``(v_k - v_(k-1)) / (t_k - t_(k-1))`` [unit of values per second].
+    """
+    v = np.asarray(values, dtype=np.float64)
+    t = np.asarray(time_s, dtype=np.float64)
+    out = np.zeros_like(v)
+    if len(t) > 1:
+        dt = np.diff(t)
+        d = np.diff(v, axis=0)
+        out[1:] = d / (dt if v.ndim == 1 else dt[:, None])
+    out[np.asarray(starts, dtype=bool)] = 0.0
+    return out
+
+
+def new_stretch_starts(time_s: np.ndarray, valid: np.ndarray, max_gap_s: float) -> np.ndarray:
+    """Where a stretch starts: the first valid sample after an invalid one or a time gap.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,)
+        Times [s].
+    valid : ndarray of bool, shape (n,)
+        Usable samples.
+    max_gap_s : float
+        Longest time step inside a stretch [s].
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    v = np.asarray(valid, dtype=bool)
+    starts = np.zeros(len(t), dtype=bool)
+    if not len(t):
+        return starts
+    prev_ok = np.r_[False, v[:-1]]
+    gap = np.r_[True, np.diff(t) > max_gap_s]
+    starts = v & (~prev_ok | gap)
+    return starts
+
+
+@dataclass
+class OnlineTLResult:
+    """What :meth:`OnlineTL.run` returns.
+
+    Attributes
+    ----------
+    mag_tl : ndarray, shape (N,)
+        Interference of each sample with the estimate before it [nT] (NaN where the sample
+        is not usable).
+    coef_history : ndarray, shape (N, p)
+        Estimate after each sample [nT; eddy nT*s].
+    coef : ndarray, shape (p,)
+        Final estimate.
+    terms : tuple of str
+    skipped : ndarray of bool, shape (N,)
+        Samples not used.
+    forgetting : float
+    """
+
+    mag_tl: np.ndarray
+    coef_history: np.ndarray
+    coef: np.ndarray
+    terms: tuple[str, ...]
+    skipped: np.ndarray
+    forgetting: float
+
+
+class OnlineTL:
+    """Tolles-Lawson coefficients estimated online (causal RLS with forgetting).
+
+    Parameters
+    ----------
+    fs_hz : float
+        Sampling rate [Hz] (for the band-pass design).
+    terms : str or sequence of str
+        Term set (:func:`parse_terms`), default the 16 terms.
+    forgetting : float
+        lambda, 0 < lambda <= 1; the memory is about ``1 / (1 - lambda)`` samples (0.999 at
+        10 Hz: 100 s).
+    band_hz : (float, float)
+        Causal band-pass before the estimate [Hz].
+    order : int
+        Butterworth order.
+    alpha : float
+        Prior covariance scale ``P_0 = alpha I`` [nT^2]; its inverse is the constant ridge
+        weight that bounds the covariance (see :mod:`aeromag._core.rls`).
+    max_gap_s : float, optional
+        Longest time step inside a stretch [s]; default 5 sample intervals.
+    derivative : {"central", "backward"}
+        Derivative of the direction cosines (see the module docstring).
+    coef_lowpass_hz : float or None
+        Cut-off of the causal low-pass on the coefficients used for ``mag_tl`` [Hz];
+        default a fifth of the band's lower edge; None: the raw estimate.
+
+    Notes
+    -----
+    State carried between calls of :meth:`run` / :meth:`step`: the estimator, the filter
+    states of ``mag`` and of every term, and the last direction cosines and time, so that
+    feeding a log in pieces gives exactly the result of feeding it whole.
+    """
+
+    def __init__(self, fs_hz: float, terms: str | Sequence[str] = "16", *,
+                 forgetting: float = 0.999, band_hz: tuple[float, float] = (0.1, 0.9),
+                 order: int = 4, alpha: float = 1e4, max_gap_s: float | None = None,
+                 derivative: str = "central", coef_lowpass_hz: float | None = -1.0) -> None:
+        self.fs_hz = float(fs_hz)
+        if not (np.isfinite(self.fs_hz) and self.fs_hz > 0):
+            raise InputError(f"sampling rate must be positive, got {fs_hz!r} Hz")
+        self.terms = parse_terms(terms)
+        self.forgetting = check_forgetting(forgetting)
+        self.band_hz = (float(band_hz[0]), float(band_hz[1]))
+        self.order = int(order)
+        self.alpha = float(alpha)
+        self.max_gap_s = 5.0 / self.fs_hz if max_gap_s is None else float(max_gap_s)
+        if derivative not in ("central", "backward"):
+            raise InputError(f"derivative must be 'central' or 'backward', got {derivative!r}")
+        self.derivative = derivative
+        self.sos = butter_sos("bandpass", self.band_hz, self.fs_hz, self.order)
+        from scipy.signal import sosfilt_zi
+
+        self._zi_unit = sosfilt_zi(self.sos)  # (sections, 2): steady state for input 1
+        if coef_lowpass_hz is not None and coef_lowpass_hz < 0:
+            coef_lowpass_hz = self.band_hz[0] / 5.0
+        self.coef_lowpass_hz = coef_lowpass_hz
+        self._sos_coef = None if coef_lowpass_hz is None else butter_sos(
+            "lowpass", coef_lowpass_hz, self.fs_hz, 2, option="coef_lowpass_hz")
+        self._zi_coef: np.ndarray | None = None
+        self.rls = RecursiveLeastSquares(len(self.terms), 1, forgetting=self.forgetting,
+                                         alpha=self.alpha)
+        self._zi: np.ndarray | None = None  # (sections, 2, p + 1)
+        self._last_cos: np.ndarray | None = None
+        self._last_t: float | None = None
+        self._ended_valid = False  # the previous call's last sample was usable
+
+    @property
+    def coef(self) -> np.ndarray:
+        """Current coefficients [nT; eddy nT*s]."""
+        return self.rls.theta[:, 0].copy()
+
+    def _design(self, flux: np.ndarray, t: np.ndarray, starts: np.ndarray) -> np.ndarray:
+        cos, bt = direction_cosines(flux)
+        cont = bool(len(t) and not starts[0] and self._last_cos is not None)
+        if cont:
+            # Continue the previous call's stretch: its last sample is the predecessor.
+            c_ext = np.vstack([self._last_cos[None, :], cos])
+            t_ext = np.r_[self._last_t, t]
+            s_ext = np.r_[False, starts]
+        else:
+            c_ext, t_ext, s_ext = cos, t, starts
+        if self.derivative == "central":
+            dcos = time_derivative(c_ext, t_ext, np.cumsum(s_ext))
+        else:
+            dcos = causal_derivative(c_ext, t_ext, s_ext)
+        if cont:
+            dcos = dcos[1:]
+        return terms_from_cosines(cos, dcos, bt / FIELD_SCALE_NT, self.terms)
+
+    def run(self, time_s: np.ndarray, flux_nT: np.ndarray, mag_nT: np.ndarray
+            ) -> OnlineTLResult:
+        """Process many samples (vectorised; continues from the current state).
+
+        Parameters
+        ----------
+        time_s : ndarray, shape (N,)
+            Strictly increasing times [s].
+        flux_nT : ndarray, shape (N, 3)
+            Body-frame fluxgate [nT].
+        mag_nT : ndarray, shape (N,)
+            Scalar magnetometer [nT].
+
+        Returns
+        -------
+        OnlineTLResult
+        """
+        from scipy.signal import sosfilt
+
+        t = np.asarray(time_s, dtype=np.float64)
+        flux = np.asarray(flux_nT, dtype=np.float64).reshape(len(t), 3)
+        mag = np.asarray(mag_nT, dtype=np.float64).reshape(len(t))
+        p = len(self.terms)
+        n = len(t)
+        bt2 = np.einsum("ij,ij->i", flux, flux)
+        valid = np.isfinite(bt2) & (bt2 > 0) & np.isfinite(mag) & np.isfinite(t)
+        starts = new_stretch_starts(t, valid, self.max_gap_s)
+        if n and valid[0] and self._ended_valid and self._zi is not None \
+                and 0 < t[0] - self._last_t <= self.max_gap_s:
+            starts[0] = False  # continues the previous call's stretch
+        A = np.full((n, p), np.nan)
+        idx = np.flatnonzero(valid)
+        A[idx] = self._design(flux[idx], t[idx], starts[idx])
+        # Causal band-pass per stretch, started in steady state (or carried over).
+        X = np.column_stack([A, mag])  # (n, p + 1)
+        Xf = np.full_like(X, np.nan)
+        bounds = np.flatnonzero(starts[idx]) if idx.size else np.zeros(0, dtype=int)
+        pieces = np.split(idx, bounds[bounds > 0]) if idx.size else []
+        zi = self._zi
+        for k, rows in enumerate(pieces):
+            x = X[rows]
+            if k > 0 or starts[rows[0]] or zi is None:
+                zi = self._zi_unit[:, :, None] * x[0][None, None, :]
+            y, zi = sosfilt(self.sos, x, axis=0, zi=zi)
+            Xf[rows] = y
+        self._zi = zi
+        if idx.size:
+            self._last_cos = direction_cosines(flux[idx[-1]][None, :])[0][0]
+            self._last_t = float(t[idx[-1]])
+        if n:
+            self._ended_valid = bool(valid[-1])
+        before = self.rls.theta[:, 0].copy()
+        res = self.rls.run(Xf[:, :p], Xf[:, p])
+        hist = res.theta[:, :, 0]
+        prior = np.vstack([before[None, :], hist[:-1]]) if n else hist
+        if self._sos_coef is not None and n:
+            from scipy.signal import sosfilt_zi
+
+            if self._zi_coef is None:
+                self._zi_coef = sosfilt_zi(self._sos_coef)[:, :, None] * prior[0][None, None, :]
+            prior, self._zi_coef = sosfilt(self._sos_coef, prior, axis=0, zi=self._zi_coef)
+        mag_tl = np.einsum("ij,ij->i", np.where(valid[:, None], A, 0.0), prior)
+        mag_tl[~valid] = np.nan
+        return OnlineTLResult(mag_tl=mag_tl, coef_history=hist, coef=self.coef,
+                              terms=self.terms, skipped=res.skipped,
+                              forgetting=self.forgetting)
+
+    def step(self, time_s: float, flux_nT: np.ndarray, mag_nT: float) -> float:
+        """Process one sample; return its interference with the estimate before it [nT].
+
+        Parameters
+        ----------
+        time_s : float
+            Time [s].
+        flux_nT : ndarray, shape (3,)
+            Fluxgate [nT].
+        mag_nT : float
+            Scalar magnetometer [nT].
+
+        Returns
+        -------
+        float
+            ``mag_tl`` [nT] (NaN if the sample is not usable).
+        """
+        r = self.run(np.array([time_s], dtype=float), np.asarray(flux_nT, float)[None, :],
+                     np.array([mag_nT], dtype=float))
+        return float(r.mag_tl[0])

@@ -1,0 +1,161 @@
+"""``aeromag compensate --online``: the Tolles-Lawson model estimated sample by sample.
+
+File in, files out, with the same columns as ``compensate`` (``mag_tl``, ``mag_comp``,
+``segment``, ``segment_kept``) and the same report keys (``terms``, ``coef``, ``segments``,
+``metrics``), plus the coefficient history at a coarse step.  No screening: every segment is
+kept (an online estimator has no second pass).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from .. import __version__
+from .._core.filters import bandpass_stretches, lowpass_stretches
+from .._core.rls import check_forgetting
+from ..compensation.config import CompensationConfig
+from ..compensation.metrics import compensation_metrics
+from ..compensation.online import OnlineTL, OnlineTLResult
+from ..compensation.prepare import prepare
+from ..errors import InputError
+from ..io import atomic_path, json_path_for, read_log, write_csv, write_json
+from .compensate import check_outputs
+
+log = logging.getLogger(__name__)
+
+__all__ = ["compensate_online_file", "compensate_online_frame", "DEFAULT_FORGETTING"]
+
+#: Default forgetting factor of the online TL fit (memory about 1000 samples: 100 s at 10 Hz).
+DEFAULT_FORGETTING = 0.999
+#: Rows of the coefficient history kept in OUT.json.
+HISTORY_POINTS = 200
+
+
+def compensate_online_frame(df: pd.DataFrame, cfg: CompensationConfig | None = None, *,
+                            forgetting: float = DEFAULT_FORGETTING,
+                            derivative: str = "central", source: str | None = None,
+                            ) -> tuple[pd.DataFrame, dict[str, Any], OnlineTLResult]:
+    """Compensate a log in memory with the online TL fit.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Log with ``time``, ``flux_x/y/z`` [nT] and ``mag`` [nT] (the fluxgate magnitude when
+        absent).
+    cfg : CompensationConfig, optional
+        Band, terms, order, final low-pass, gap handling (screening options are not used).
+    forgetting : float
+        lambda, 0 < lambda <= 1.
+    derivative : {"central", "backward"}
+        See :class:`aeromag.compensation.online.OnlineTL`.
+    source : str, optional
+        File name for messages.
+
+    Returns
+    -------
+    data : DataFrame
+        ``df`` plus ``mag_tl``, ``mag_comp``, ``segment``, ``segment_kept``.
+    report : dict
+        The OUT.json content.
+    result : OnlineTLResult
+    """
+    cfg = cfg or CompensationConfig()
+    src = source or str(df.attrs.get("source", "<log>"))
+    lam = check_forgetting(forgetting)
+    prep = prepare(df, cfg, source=src)
+    est = OnlineTL(prep.fs, cfg.terms, forgetting=lam, band_hz=cfg.band_hz, order=cfg.order,
+                   max_gap_s=cfg.max_gap_s, derivative=derivative)
+    p = len(est.terms)
+    if int(prep.valid.sum()) <= p:
+        raise InputError(f"{src}: only {int(prep.valid.sum())} usable samples for {p} terms; "
+                         "the online fit needs many more than the number of terms")
+    mag = np.where(prep.valid, prep.mag, np.nan)
+    res = est.run(prep.time, prep.flux, mag)
+    t = prep.time
+    comp = prep.mag - res.mag_tl
+    if cfg.filter_output:
+        cut = cfg.lowpass_hz if cfg.lowpass_hz is not None else cfg.band_hz[1]
+        comp_out = lowpass_stretches(comp, t, prep.stretch, cut, cfg.order, fs_hz=prep.fs)
+    else:
+        comp_out = comp
+    out = df.copy(deep=False)
+    out["mag_tl"] = res.mag_tl
+    out["mag_comp"] = comp_out
+    seg = prep.segment
+    missing = seg < 0
+    out["segment"] = pd.arrays.IntegerArray(np.where(missing, 0, seg), missing)
+    out["segment_kept"] = np.ones(len(seg), dtype=bool)
+    metrics = compensation_metrics(prep.mag, comp_out, t, prep.stretch, cfg)
+    comp_bp = bandpass_stretches(comp_out, t, prep.stretch, cfg.band_hz, cfg.order)
+    segments = []
+    for s in np.unique(seg[seg >= 0]):
+        m = (seg == s) & np.isfinite(comp_bp)
+        segments.append({"id": int(s), "n": int((seg == s).sum()), "kept": True,
+                         "scores": None,
+                         "residual_std": float(np.std(comp_bp[m])) if m.sum() > 1 else None})
+    n = len(t)
+    step = max(1, n // HISTORY_POINTS)
+    idx = np.arange(0, n, step)
+    if idx[-1] != n - 1:
+        idx = np.r_[idx, n - 1]
+    report: dict[str, Any] = {
+        "aeromag_version": __version__,
+        "input": src,
+        "online": True,
+        "terms": list(est.terms),
+        "coef": res.coef.tolist(),
+        "forgetting": lam,
+        "derivative": derivative,
+        "latency_samples": 1 if derivative == "central" else 0,
+        "coef_lowpass_hz": est.coef_lowpass_hz,
+        "band_hz": list(cfg.band_hz),
+        "segments": segments,
+        "metrics": {**metrics, "n_skipped": int(res.skipped.sum())},
+        "history": {"time": t[idx].tolist(), "coef": res.coef_history[idx].tolist()},
+    }
+    return out, report, res
+
+
+def compensate_online_file(log_path: str | os.PathLike[str], out_path: str | os.PathLike[str],
+                           cfg: CompensationConfig | None = None, *,
+                           forgetting: float = DEFAULT_FORGETTING, derivative: str = "central",
+                           columns: dict[str, str] | None = None,
+                           units: dict[str, str] | None = None, fmt: str | None = None,
+                           ) -> dict[str, Any]:
+    """Read a log, compensate it online, write OUT.csv and OUT.json (both or neither).
+
+    Parameters
+    ----------
+    log_path, out_path : path-like
+        Input log and output CSV (the report goes to OUT.json).
+    cfg : CompensationConfig, optional
+        Band, terms, filter options.
+    forgetting, derivative
+        See :func:`compensate_online_frame`.
+    columns, units : dict, optional
+        Column map and unit conversions.
+    fmt : str, optional
+        Log format.
+
+    Returns
+    -------
+    dict
+        The report.
+    """
+    out = Path(out_path)
+    out_json = json_path_for(out)
+    check_outputs(log_path, out, out_json)
+    check_forgetting(forgetting)
+    df = read_log(log_path, columns=columns, units=units, required=("time",), fmt=fmt)
+    data, report, _ = compensate_online_frame(df, cfg, forgetting=forgetting,
+                                              derivative=derivative, source=str(log_path))
+    with atomic_path(out) as tmp_csv, atomic_path(out_json) as tmp_json:
+        write_csv(data, tmp_csv)
+        write_json(report, tmp_json)
+    return report
