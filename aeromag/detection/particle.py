@@ -1,0 +1,456 @@
+"""Particle-filter detector of magnetic interference: heading from the gyro vs the compass.
+
+Model (one state, the magnetic heading ``psi`` in rad, kept unwrapped):
+
+    psi_k = psi_{k-1} + dpsi_k + w_k,     w_k ~ N(0, sigma_w^2 dt)        (gyro propagation)
+    y_k   = wrap(psi_k + v_k),            v_k ~ N(0, sigma_y^2)           (compass heading)
+
+``dpsi_k`` is the heading increment measured by the gyro over the interval ending at row
+``k``: the Euler yaw rate ``(q sin(phi) + r cos(phi)) / cos(theta)`` from ``gyro_x/y/z`` and
+the attitude ``pitch``/``roll``, or ``gyro_z`` alone (level), or, without a gyro, the change of
+the attitude ``heading`` column (an AHRS heading partly follows the compass, so detection is
+slower).  Multi-rate logs: the gyro's integrated angle is interpolated to every row; rows
+without a compass sample are prediction-only.  The compass heading is ``mag_heading`` or the
+tilt-compensated fluxgate heading (:func:`aeromag.detection.heading.mag_heading_from_flux`).
+
+The random walk ``sigma_w`` (default 0.15 deg/sqrt(s)) lets the filter follow a gyro bias and
+slow changes of the compass offset; a magnetic disturbance moves the compass heading faster
+than that, the innovations grow and the statistic ``S_k`` (sum over the last ``window``
+compass samples of ``-ln`` of the mean particle likelihood) crosses the threshold.
+
+Noise and threshold come from the log:
+
+* ``sigma_y`` is the largest of a robust scale of the compass-minus-gyro residual (its
+  deviation from a 2 s running median, 1.4826 MAD) over the whole log and over the calm
+  window, and ``sigma_floor_deg``: a quiet stretch (a landed vehicle, motors off) cannot make
+  the filter over-confident for the rest of the flight;
+* the threshold is the calm window's largest ``S_k`` plus ``margin``, unless given.  The
+  default margin is how far ``S_k`` of a correct model rises by chance -- half the excess of
+  the ``chi^2_M`` quantile at 1e-6 over its mean -- times the ratio of the calm window's
+  standard deviation of ``S_k`` to the chi-square's ``sqrt(M/2)`` when above one (compass
+  noise correlated in time makes ``S_k`` wander more than independent noise would).
+
+Gaps longer than ``gap_s`` (default 1 s, or 20 median intervals if that is longer) restart the
+filter: the statistic is NaN (no alarm) until the window is full again, so a gap never
+produces an alarm storm and NaN never propagates.
+"""
+
+from __future__ import annotations
+
+import logging
+import time as _time
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy import stats as _stats
+from scipy.ndimage import median_filter
+
+from .._core.angles import wrap_rad
+from .._core.particles import ParticleFilter, StateSpaceModel, threshold_from_calm
+from ..errors import InputError
+from .alarms import Alarms
+from .heading import CalmWindow, calm_mask, mag_heading_from_flux
+
+log = logging.getLogger(__name__)
+
+__all__ = [
+    "DEFAULT_PARTICLES",
+    "DEFAULT_WINDOW",
+    "PFDetectorInputs",
+    "heading_model",
+    "particle_detector",
+    "pf_columns_available",
+    "prepare_pf_inputs",
+]
+
+#: Default number of particles.
+DEFAULT_PARTICLES = 500
+#: Default window ``M`` of ``S_k``, compass samples.
+DEFAULT_WINDOW = 20
+#: Default heading random walk, deg / sqrt(s).
+DEFAULT_WALK_DEG = 0.15
+#: Default floor of the compass noise, deg.
+DEFAULT_SIGMA_FLOOR_DEG = 0.2
+#: Fewest compass samples with a full window in the calm window.
+MIN_CALM_STATS = 5
+_LOG2PI = float(np.log(2.0 * np.pi))
+
+
+def pf_columns_available(df: pd.DataFrame) -> tuple[str, str] | None:
+    """Say whether the detector can run on ``df`` and from which columns.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Log with canonical columns.
+
+    Returns
+    -------
+    (str, str) or None
+        ``(rate_source, compass_source)``: ``"gyro_xyz"``, ``"gyro_z"`` or ``"heading"``;
+        ``"mag_heading"`` or ``"flux"``; None when either is missing.
+    """
+    cols = set(df.columns)
+    tilt = {"pitch", "roll"} <= cols
+    if {"gyro_x", "gyro_y", "gyro_z"} <= cols and tilt:
+        rate = "gyro_xyz"
+    elif "gyro_z" in cols:
+        rate = "gyro_z"
+    elif "heading" in cols:
+        rate = "heading"
+    else:
+        return None
+    if "mag_heading" in cols:
+        comp = "mag_heading"
+    elif {"flux_x", "flux_y", "flux_z"} <= cols and tilt:
+        comp = "flux"
+    else:
+        return None
+    return rate, comp
+
+
+@dataclass
+class PFDetectorInputs:
+    """What the detector filters, per row of the log.
+
+    Attributes
+    ----------
+    time_s : ndarray
+        Row times, s.
+    dpsi_rad : ndarray
+        Gyro heading increment over the interval ending at the row, rad (finite).
+    y_rad : ndarray
+        Compass heading, rad in [-pi, pi) (NaN where the row has no compass sample).
+    segment : ndarray of int
+        Stretch id (a gap starts a new stretch).
+    rate_source, compass_source : str
+        Columns used (see :func:`pf_columns_available`).
+    """
+
+    time_s: np.ndarray
+    dpsi_rad: np.ndarray
+    y_rad: np.ndarray
+    segment: np.ndarray
+    rate_source: str
+    compass_source: str
+
+
+def _integrated_angle(t: np.ndarray, rate: np.ndarray) -> np.ndarray:
+    """Integral of a rate logged as interval means, interpolated to every row, rad."""
+    ok = np.isfinite(rate)
+    if ok.sum() < 2:
+        return np.zeros_like(t)
+    tg, rg = t[ok], rate[ok]
+    ang = np.concatenate([[0.0], np.cumsum(rg[1:] * np.diff(tg))])
+    return np.interp(t, tg, ang)
+
+
+def prepare_pf_inputs(df: pd.DataFrame, *, declination_deg: float = 0.0,
+                      gap_s: float | None = None, source: str = "<log>") -> PFDetectorInputs:
+    """Gyro heading increments, compass headings and stretches of a log.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Log with ``time`` [s], a rate source (``gyro_x/y/z`` [rad/s] with ``pitch``/``roll``
+        [deg], or ``gyro_z``, or ``heading`` [deg]) and a compass (``mag_heading`` [deg] or
+        ``flux_x/y/z`` [nT] with ``pitch``/``roll``).
+    declination_deg : float
+        Declination added to a fluxgate heading, degrees east (a constant offset: it does
+        not change the statistic).
+    gap_s : float, optional
+        Time step that starts a new stretch, s (default ``max(1 s, 20 median steps)``).
+    source : str
+        File name quoted in errors.
+
+    Returns
+    -------
+    PFDetectorInputs
+    """
+    kinds = pf_columns_available(df)
+    if kinds is None:
+        raise InputError(
+            f"{source}: the particle-filter detector needs a gyro (gyro_z, or gyro_x/y/z with "
+            "pitch and roll; or an attitude 'heading') and a compass ('mag_heading', or "
+            "flux_x/y/z with pitch and roll); map them with --col"
+        )
+    rate_src, comp_src = kinds
+    t = df["time"].to_numpy(dtype=np.float64)
+    if t.size < 3:
+        raise InputError(f"{source}: only {t.size} row(s); the detector needs more samples")
+    if np.any(np.diff(t) <= 0):
+        i = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1
+        raise InputError(f"{source}: column 'time' is not strictly increasing at data row {i}"
+                         " (sort the log or remove duplicated rows)")
+    col = {c: df[c].to_numpy(dtype=np.float64) for c in df.columns
+           if c in ("gyro_x", "gyro_y", "gyro_z", "pitch", "roll", "heading", "mag_heading",
+                    "flux_x", "flux_y", "flux_z")}
+    if rate_src == "gyro_xyz":
+        ph, th = np.deg2rad(col["roll"]), np.deg2rad(col["pitch"])
+        # attitude columns may be on other rows than the gyro: interpolate them
+        ph, th = (_fill_interp(t, a) for a in (ph, th))
+        rate = (col["gyro_y"] * np.sin(ph) + col["gyro_z"] * np.cos(ph)) / np.maximum(
+            np.cos(th), 0.1)
+        ang = _integrated_angle(t, rate)
+    elif rate_src == "gyro_z":
+        ang = _integrated_angle(t, col["gyro_z"])
+    else:
+        hd = np.deg2rad(col["heading"])
+        ok = np.isfinite(hd)
+        if ok.sum() < 2:
+            raise InputError(f"{source}: column 'heading' has fewer than 2 values")
+        ang = np.interp(t, t[ok], np.unwrap(hd[ok]))
+    dpsi = np.diff(ang, prepend=ang[0])
+    if comp_src == "mag_heading":
+        y = np.deg2rad(col["mag_heading"])
+    else:
+        y = np.deg2rad(mag_heading_from_flux(col["flux_x"], col["flux_y"], col["flux_z"],
+                                             _fill_interp(t, col["pitch"]),
+                                             _fill_interp(t, col["roll"]), declination_deg))
+    y = np.where(np.isfinite(y), wrap_rad(np.where(np.isfinite(y), y, 0.0)), np.nan)
+    if np.isfinite(y).sum() < 3:
+        raise InputError(f"{source}: fewer than 3 compass headings ({comp_src}); check the "
+                         "magnetometer columns")
+    dt = np.diff(t)
+    gap = max(1.0, 20.0 * float(np.median(dt))) if gap_s is None else float(gap_s)
+    seg = np.concatenate([[0], np.cumsum(dt > gap)])
+    dpsi[np.concatenate([[True], dt > gap])] = 0.0
+    return PFDetectorInputs(time_s=t, dpsi_rad=dpsi, y_rad=y, segment=seg,
+                            rate_source=rate_src, compass_source=comp_src)
+
+
+def _fill_interp(t: np.ndarray, a: np.ndarray) -> np.ndarray:
+    ok = np.isfinite(a)
+    if ok.all() or not ok.any():
+        return np.where(ok, a, 0.0)
+    return np.interp(t, t[ok], a[ok])
+
+
+def _robust_sigma(inp: PFDetectorInputs, mask: np.ndarray | None = None) -> float:
+    """Robust scale of the compass-minus-gyro residual around a 2 s running median, rad."""
+    scales = []
+    for s in np.unique(inp.segment):
+        m = (inp.segment == s) & np.isfinite(inp.y_rad)
+        if mask is not None:
+            m &= mask
+        if m.sum() < 5:
+            continue
+        ang = np.cumsum(inp.dpsi_rad[inp.segment == s])
+        sel = m[inp.segment == s]
+        r = np.unwrap(inp.y_rad[m] - ang[sel])
+        dt = np.median(np.diff(inp.time_s[m])) if m.sum() > 1 else 1.0
+        width = int(max(3, min(len(r), round(2.0 / max(dt, 1e-6))) | 1))
+        dev = r - median_filter(r, size=width, mode="nearest")
+        scales.append((np.abs(dev - np.median(dev)), len(dev)))
+    if not scales:
+        return 0.0
+    allv = np.concatenate([v for v, _ in scales])
+    return float(1.4826 * np.median(allv))
+
+
+def heading_model(sigma_y_rad: float, walk_rad: float, y0: float,
+                  dt_s: float) -> StateSpaceModel:
+    """The heading model as a :class:`~aeromag._core.particles.StateSpaceModel`.
+
+    Parameters
+    ----------
+    sigma_y_rad : float
+        Compass noise, rad.
+    walk_rad : float
+        Heading random walk, rad / sqrt(s).
+    y0 : float
+        First compass heading (the prior mean), rad.
+    dt_s : float
+        Typical step, s (the random walk's variance per step is ``walk^2 dt``).
+
+    Returns
+    -------
+    StateSpaceModel
+        Control ``u = [dpsi]`` (rad); measurement ``y = [heading]`` (rad, an angle).
+    """
+    r = float(sigma_y_rad) ** 2
+    c = -0.5 * (np.log(r) + _LOG2PI)
+
+    def f(x, k, u):
+        return x + u[..., :1]
+
+    def h(x, k):
+        return x
+
+    def loglik(y, x, k):
+        d = wrap_rad(y[..., 0] - x[..., 0])
+        return c - 0.5 * d * d / r
+
+    q = max(float(walk_rad) ** 2 * float(dt_s), 1e-14)
+    return StateSpaceModel(f=f, Q=[[q]], loglik=loglik, x0=[y0], P0=[[4.0 * r]], h=h, R=[[r]],
+                           angle_y=(0,))
+
+
+def particle_detector(
+    df: pd.DataFrame,
+    *,
+    n_particles: int = DEFAULT_PARTICLES,
+    window: int = DEFAULT_WINDOW,
+    threshold: float | None = None,
+    calm_window: CalmWindow = None,
+    margin: float | None = None,
+    walk_deg: float = DEFAULT_WALK_DEG,
+    sigma_floor_deg: float = DEFAULT_SIGMA_FLOOR_DEG,
+    proposal: str = "unscented",
+    scheme: str = "genetic",
+    declination_deg: float = 0.0,
+    gap_s: float | None = None,
+    reset_sigmas: float = 5.0,
+    reset_after: int | None = None,
+    seed: int = 0,
+    source: str = "<log>",
+) -> Alarms:
+    """Run the particle-filter detector on a log.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Log (see :func:`prepare_pf_inputs`).
+    n_particles : int
+        Number of particles.
+    window : int
+        ``M``: compass samples summed in ``S_k``.
+    threshold : float, optional
+        Threshold on ``S_k``; default from the calm window.
+    calm_window : float, (float, float), str or None
+        Calm reference window (see :func:`aeromag.detection.heading.parse_calm_window`);
+        default the first 30 s.
+    margin : float, optional
+        Added to the calm window's largest ``S_k`` (default ``(chi2_M(1 - 1e-6) - M) / 2``
+        times the calm spread ratio, see the module text).
+    walk_deg : float
+        Heading random walk, deg / sqrt(s).
+    sigma_floor_deg : float
+        Floor of the compass noise, deg.
+    proposal, scheme : str
+        Particle-filter proposal (``"unscented"`` or ``"bootstrap"``) and renewal
+        (``"genetic"``, ``"systematic"``, ``"multinomial"``).
+    declination_deg : float
+        Declination for a fluxgate heading, degrees east.
+    gap_s : float, optional
+        Gap that restarts the filter, s.
+    reset_sigmas, reset_after : float, int
+        The filter restarts at the compass heading when the compass has stayed more than
+        ``reset_sigmas`` compass sigmas from the filter's heading for ``reset_after``
+        compass samples (default ``window``): after a disturbance has moved the compass
+        for good (or has been removed) the filter re-locks instead of alarming for ever.
+    seed : int
+        Random seed (results are reproducible).
+    source : str
+        File name quoted in errors.
+
+    Returns
+    -------
+    Alarms
+        ``name="pf"``, ``stat`` = ``S_k`` per row (carried over rows without a compass sample;
+        NaN until a stretch's window is full), ``info`` with the settings, the noise estimate
+        and the threshold's origin.
+    """
+    t_start = _time.perf_counter()
+    if int(n_particles) < 2:
+        raise InputError(f"--particles {n_particles!r}: need at least 2 particles")
+    if int(window) < 1:
+        raise InputError(f"--window {window!r}: need at least 1 sample")
+    if threshold is not None and not np.isfinite(threshold):
+        raise InputError(f"--threshold {threshold!r}: must be a finite number")
+    if not (np.isfinite(walk_deg) and walk_deg > 0):
+        raise InputError(f"--walk {walk_deg!r}: the heading random walk must be positive")
+    inp = prepare_pf_inputs(df, declination_deg=declination_deg, gap_s=gap_s, source=source)
+    t = inp.time_s
+    calm = calm_mask(t, calm_window)
+    sig_all = _robust_sigma(inp)
+    sig_calm = _robust_sigma(inp, calm)
+    sigma_y = max(sig_all, sig_calm, np.deg2rad(sigma_floor_deg))
+    walk = np.deg2rad(walk_deg)
+    dt = float(np.median(np.diff(t)))
+    stat = np.full(t.size, np.nan)
+    rng = np.random.default_rng(seed)
+    n_steps = 0
+    n_resets = 0
+    reset_n = int(window) if reset_after is None else int(reset_after)
+    lim = float(reset_sigmas) * sigma_y
+    for s in np.unique(inp.segment):
+        rows = np.flatnonzero(inp.segment == s)
+        yy = inp.y_rad[rows]
+        du = inp.dpsi_rad[rows]
+        fin = np.isfinite(yy)
+        if fin.sum() < int(window):
+            continue
+        md = heading_model(sigma_y, walk, float(yy[fin][0]), dt)
+        pf = ParticleFilter(md, int(n_particles), proposal=proposal, scheme=scheme,
+                            window=int(window), seed=rng)
+        out = np.full(rows.size, np.nan)
+        far = 0
+        last = np.nan
+        for j in range(rows.size):
+            yj = yy[j]
+            if not np.isfinite(yj):
+                pf.step(None, du[j:j + 1])
+                out[j] = last
+                continue
+            r = pf.step(yj, du[j:j + 1])
+            last = r.stat
+            out[j] = last
+            far = far + 1 if abs(wrap_rad(yj - r.mean[0])) > lim else 0
+            if far >= reset_n:
+                # The compass has left the filter for good (a disturbance that holds, or
+                # its removal): start again at the compass heading; S_k is NaN (no alarm)
+                # until the window is full again.
+                md.x0 = np.array([yj])
+                pf.reset()
+                far, last = 0, np.nan
+                n_resets += 1
+        stat[rows] = out
+        n_steps += rows.size
+    calm_ok = calm & np.isfinite(stat)
+    info: dict = {
+        "particles": int(n_particles), "window": int(window), "proposal": proposal,
+        "scheme": scheme, "rate_source": inp.rate_source, "compass_source": inp.compass_source,
+        "sigma_y_deg": float(np.rad2deg(sigma_y)),
+        "sigma_y_log_deg": float(np.rad2deg(sig_all)),
+        "sigma_y_calm_deg": float(np.rad2deg(sig_calm)), "walk_deg_sqrt_s": float(walk_deg),
+        "n_stretches": int(np.unique(inp.segment).size), "n_resets": int(n_resets),
+        "seed": int(seed),
+    }
+    if threshold is None:
+        if calm_ok.sum() < MIN_CALM_STATS:
+            raise InputError(
+                f"{source}: only {int(calm_ok.sum())} sample(s) with a full window in the calm"
+                f" window {calm_window!r} (need {MIN_CALM_STATS}; the window is {window} compass"
+                " samples); choose a longer --calm-window or give --threshold"
+            )
+        if margin is None:
+            # How far S_k of a correct model rises by chance (chi-square excess at 1e-6),
+            # inflated by the calm window's spread of S_k over the chi-square's (compass
+            # noise is correlated in time: S_k then wanders more than a chi-square sum).
+            base = 0.5 * (float(_stats.chi2.ppf(1.0 - 1e-6, int(window))) - int(window))
+            spread = float(np.std(stat[calm_ok])) / np.sqrt(0.5 * int(window))
+            info["calm_spread_ratio"] = spread
+            margin = base * max(1.0, spread)
+        th = threshold_from_calm(stat, calm_ok, percentile=100.0, margin=float(margin))
+        thr = th.value
+        info["threshold_source"] = "calm"
+        info["calm_window"] = calm_window if calm_window is None else str(calm_window)
+        info["calm_samples"] = th.n
+        info["calm_max_stat"] = th.info["calm_percentile_value"]
+        info["margin"] = float(margin)
+        info["calm_false_alarm_rate"] = th.false_alarm_rate
+    else:
+        thr = float(threshold)
+        info["threshold_source"] = "given"
+    with np.errstate(invalid="ignore"):
+        alarm = stat > thr
+    # Carry S_k over rows without a compass sample (already done by window_sum within a
+    # stretch); rows of a stretch too short for a window stay NaN and never alarm.
+    info["elapsed_s"] = float(_time.perf_counter() - t_start)
+    info["particle_steps_per_s"] = float(n_steps * int(n_particles) /
+                                         max(info["elapsed_s"], 1e-9))
+    log.debug("%s: pf detector sigma_y %.3f deg, threshold %.2f, %d alarms",
+              source, info["sigma_y_deg"], thr, int(np.sum(alarm)))
+    return Alarms(name="pf", time_s=t, stat=stat, alarm=alarm, threshold=float(thr), info=info)
