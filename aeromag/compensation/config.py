@@ -87,6 +87,11 @@ class CompensationConfig:
         the band and still be undetermined at low frequency (e.g. survey lines on two headings
         only: cz against a constant, cx*cx and cy*cy), and then the unfiltered model returns
         tens of thousands of nT.  A saved model that does so only draws a warning.
+    decimate : bool
+        Fit a high-rate log on a copy decimated per stretch to at least 40 times the band's
+        upper edge (:mod:`aeromag._core.decimate`; a 1 kHz log is fitted at 37 Hz, a 10 Hz log
+        is never decimated); the coefficients are applied to every original sample.
+        ``--no-decimate`` fits every sample.
     """
 
     band_hz: tuple[float, float] = (0.1, 0.9)
@@ -114,6 +119,7 @@ class CompensationConfig:
     gross_excess: float = 10.0
     inlier_excess: float = 2.5
     inlier_own_excess: float = 4.0
+    decimate: bool = True
 
     def __post_init__(self) -> None:
         self.band_hz = (float(self.band_hz[0]), float(self.band_hz[1]))

@@ -18,6 +18,7 @@ from .._core.fit_diagnostics import diagnostics_from_stats
 from .._core.lstsq import scaled_condition, solve_normal
 from ..errors import FitError, InputError
 from .config import CompensationConfig
+from .decimation import fit_arrays
 from .model import TLModel
 from .normal import SegmentStats, _residual_std, segment_normal_equations
 from .prepare import Prepared, prepare
@@ -138,6 +139,9 @@ class FitOutcome:
         Per segment: CV residual, in-sample residual [nT], scaled condition number.
     sse : float
         Band-passed residual sum of squares of the kept segments [nT^2].
+    decimation : int
+        Factor by which the log was decimated for the fit (1 = none;
+        :func:`aeromag.compensation.decimation.fit_arrays`); ``stats`` count decimated samples.
     """
 
     prep: Prepared
@@ -154,6 +158,7 @@ class FitOutcome:
     residual: np.ndarray
     segment_condition: np.ndarray
     sse: float
+    decimation: int = 1
 
 
 def fit_outcome(prep: Prepared, cfg: CompensationConfig) -> FitOutcome:
@@ -174,7 +179,10 @@ def fit_outcome(prep: Prepared, cfg: CompensationConfig) -> FitOutcome:
     fit_terms = tuple(t for t in terms if t != "bias")
     if not fit_terms:
         raise InputError("--terms: the bias alone cannot be fitted in a band; add terms")
-    stats = segment_normal_equations(prep, fit_terms, cfg)
+    # A high-rate log is fitted on its decimated copy (the band kept exact); the
+    # coefficients are applied to every original sample (docs/compensation.md).
+    fit_prep, q = fit_arrays(prep, cfg)
+    stats = segment_normal_equations(fit_prep, fit_terms, cfg)
     if len(stats.ids) == 0:
         raise FitError(
             f"{prep.source}: every segment is too short to fit ({len(stats.too_short)} segment(s));"
@@ -201,7 +209,7 @@ def fit_outcome(prep: Prepared, cfg: CompensationConfig) -> FitOutcome:
     sse = float(stats.yy[kept].sum() - 2 * coef_fit @ b + coef_fit @ G @ coef_fit)
     return FitOutcome(prep, cfg, terms, fit_terms, coef, stats, out, cond, cond_s, diag,
                       cv_segs["cv_residual_std_nT"].to_numpy(), _residual_std(stats, coef_fit),
-                      scaled_condition(stats.gram), sse)
+                      scaled_condition(stats.gram), sse, q)
 
 
 def fit_model(

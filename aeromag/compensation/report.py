@@ -196,6 +196,7 @@ def fit_report(fit: FitOutcome) -> dict[str, Any]:
         "mag_from_fluxgate": prep.mag_from_flux,
         "fit": {
             "n_samples": n_fit,
+            "decimation_factor": fit.decimation,
             "n_segments_fitted": int(fit.screening.kept.sum()),
             "condition_number": fit.cond,
             "condition_number_scaled": fit.cond_scaled,
