@@ -136,7 +136,12 @@ def test_magdrone_sample_canonical_columns():
     assert detect_format(p) == "magdrone"
     df = read_log(p, required=("time", "flux_x", "flux_y", "flux_z", "lat", "lon"))
     assert len(df) == 41
-    np.testing.assert_allclose(df["time"].iloc[:3], [0.060, 0.065, 0.070])  # ms -> s, 200 Hz
+    np.testing.assert_allclose(df["time_logger"].iloc[:3], [0.060, 0.065, 0.070])  # ms -> s
+    # UTC from the two GPS fixes (10:10:36.398 at 60 ms, 10:10:36.602 at 260 ms): the logger
+    # clock plus the median offset, 36.340 s past 10:10 (item 15 of issue 15)
+    t0 = pd.Timestamp("2020-10-23T10:10:36.400Z").timestamp()
+    np.testing.assert_allclose(df["time"].iloc[:3], t0 + np.array([0.0, 0.005, 0.010]),
+                               rtol=0, atol=1e-6)
     assert df["flux_x"].iloc[0] == 10195.42 and df["flux_z"].iloc[0] == 48024.38  # B1, nT
     assert df["B2x"].iloc[0] == 7772.00
     bt = np.linalg.norm(df[["flux_x", "flux_y", "flux_z"]].to_numpy(), axis=1)

@@ -166,8 +166,11 @@ def test_passthrough_only_when_every_row_has_the_header_fields(tmp_path):
     counts match the header; a short row turns it off (it would shift the new columns)."""
     good = read_log(_write(tmp_path, "a.csv", "time,mag,note\n0,1,x\n1,2,y\n"))
     assert "passthrough_csv" in good.attrs
-    short = read_log(_write(tmp_path, "b.csv", "time,mag,note\n0,1,x\n1,2\n"))
-    assert "passthrough_csv" not in short.attrs
+    with pytest.raises(InputError, match=r"b.csv: line 4: the last row has 2 of the header's 3"
+                       r" fields.*--allow-truncated"):
+        read_log(_write(tmp_path, "b.csv", "time,mag,note\n0,1,x\n1,2,y\n2,3\n"))
+    short = read_log(tmp_path / "b.csv", allow_truncated=True)
+    assert "passthrough_csv" not in short.attrs and len(short) == 2
 
 
 _FLOATS = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)
@@ -382,7 +385,8 @@ def test_magdrone_garbage_is_an_error_naming_column_and_line(tmp_path):
 @pytest.mark.parametrize("unit,factor", [("[s]", 1.0), ("[min]", 60.0), ("[us]", 1e-6)])
 def test_magdrone_time_units_are_converted(tmp_path, unit, factor):
     df = read_log(_magdrone(tmp_path, "Timestamp [ms]", f"Timestamp {unit}"))
-    np.testing.assert_allclose(df["time"].iloc[:2], np.array([60.0, 65.0]) * factor)
+    clock = df["time_logger"] if "time_logger" in df.columns else df["time"]  # UTC when GPS fits
+    np.testing.assert_allclose(clock.iloc[:2], np.array([60.0, 65.0]) * factor)
 
 
 @pytest.mark.parametrize("header,match", [("Timestamp [fortnight]", "unknown unit 'fortnight'"),

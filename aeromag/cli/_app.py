@@ -62,13 +62,17 @@ def user_errors() -> Iterator[None]:
     An operating-system error (an output folder that cannot be written, a full disk, a path
     that is a directory) is the user's to fix too: one line naming the path, no traceback.
     """
+    from ..io.messages import clean
+    from ..io.outputs import output_set
+
     try:
-        yield
+        with output_set():  # all outputs of the command appear together, or none does
+            yield
     except AeromagError as exc:
-        typer.echo(f"error: {exc}", err=True)
+        typer.echo(f"error: {clean(exc)}", err=True)
         raise typer.Exit(EXIT_USER_ERROR) from None
     except OSError as exc:
-        typer.echo(f"error: {os_error_message(exc)}", err=True)
+        typer.echo(f"error: {clean(os_error_message(exc))}", err=True)
         raise typer.Exit(EXIT_USER_ERROR) from None
 
 

@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
+from .messages import clean
 from .rows import row_location
 
 log = logging.getLogger(__name__)
@@ -165,6 +166,22 @@ def plain_number(x: Any) -> str:
     return str(int(v)) if v.is_integer() and abs(v) < 1e15 else repr(v)
 
 
+_BOOL_WORDS = frozenset({"true", "false"})
+
+
+def _boolean_cells(s: pd.Series) -> np.ndarray | None:
+    """Cells that are booleans (bool dtype, or the words true/false), or None when none is."""
+    if pd.api.types.is_bool_dtype(s.dtype):
+        mask = s.notna().to_numpy()
+        return mask if mask.any() else None
+    if s.dtype.kind != "O" and not pd.api.types.is_string_dtype(s.dtype):
+        return None
+    vals = s.to_numpy()
+    mask = np.fromiter((isinstance(v, bool | np.bool_) or (isinstance(v, str) and v.strip()
+                        .lower() in _BOOL_WORDS) for v in vals), dtype=bool, count=len(vals))
+    return mask if mask.any() else None
+
+
 def numeric_values(s: pd.Series, source: str, column: str, rows: Mapping[str, Any] | None,
                    remedy: str = "fix the value or map another column with --col") -> np.ndarray:
     """float64 values of a column; empty cells are NaN, any other unparseable cell an error.
@@ -188,6 +205,15 @@ def numeric_values(s: pd.Series, source: str, column: str, rows: Mapping[str, An
     """
     if pd.api.types.is_numeric_dtype(s.dtype) and not pd.api.types.is_bool_dtype(s.dtype):
         return s.to_numpy(dtype=np.float64, na_value=np.nan)
+    flags = _boolean_cells(s)
+    if flags is not None:
+        i = int(np.flatnonzero(flags)[0])
+        raise InputError(
+            f"{clean(source)}: column {clean(column)!r}, {row_location(rows, i)}: value"
+            f" {clean(s.iloc[i])!r} is true/false, not a number; {remedy}")
+    if s.dtype.kind in "SO" and len(s) and isinstance(s.iloc[int(s.notna().argmax())], bytes):
+        raise InputError(f"{clean(source)}: column {clean(column)!r} holds binary data, not"
+                         f" numbers; {remedy}")
     conv = pd.to_numeric(s, errors="coerce")
     bad = (conv.isna() & s.notna()).to_numpy()
     if bad.any():
@@ -195,8 +221,8 @@ def numeric_values(s: pd.Series, source: str, column: str, rows: Mapping[str, An
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise InputError(
-            f"{source}: column {column!r}, {row_location(rows, i)}: value {str(s.iloc[i])!r}"
-            f" is not a number; {remedy}"
+            f"{clean(source)}: column {clean(column)!r}, {row_location(rows, i)}: value"
+            f" {clean(s.iloc[i])!r} is not a number; {remedy}"
         )
     return conv.to_numpy(dtype=np.float64, na_value=np.nan)
 
@@ -287,9 +313,37 @@ def to_numeric(df: pd.DataFrame, cols: Sequence[str], source: str,
         if pd.api.types.is_numeric_dtype(s.dtype) and not pd.api.types.is_bool_dtype(s.dtype):
             if s.dtype != np.float64 and c not in ("line", "leg"):
                 df[c] = s.astype(np.float64)
-            continue
-        df[c] = numeric_values(s, source, c, rows)
+        else:
+            df[c] = numeric_values(s, source, c, rows)
+        _check_magnitudes(df[c], source, c, rows)
     return df
+
+
+#: Largest line / leg id accepted (integers exact in float64).
+MAX_ID = 10**15
+
+
+def _check_magnitudes(s: pd.Series, source: str, column: str,
+                      rows: Mapping[str, Any] | None) -> None:
+    """Infinite values (a number beyond float range) and absurd line / leg ids are errors."""
+    if s.dtype.kind not in "fiu":
+        return
+    v = s.to_numpy()
+    if v.dtype.kind == "f":
+        bad = np.isinf(v)
+        if column in ("line", "leg"):
+            fin = np.isfinite(v)
+            bad |= fin & (np.abs(v) > MAX_ID)
+    elif column in ("line", "leg"):
+        bad = np.abs(v.astype(np.float64)) > MAX_ID
+    else:
+        return
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        what = ("is infinite (beyond the range of numbers)" if np.isinf(v[i]) else
+                f"is beyond {MAX_ID:.0e}: not a {column} id")
+        raise InputError(f"{clean(source)}: column {clean(column)!r}, {row_location(rows, i)}:"
+                         f" value {v[i]!r} {what}; fix the value")
 
 
 #: ISO 8601 date and time at the start of a text value (``2024-01-01T00:00:00``, with a space too).

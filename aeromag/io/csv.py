@@ -21,12 +21,139 @@ import pandas as pd
 
 from ..errors import InputError
 from .columns import check_unique_names, filled_cells
+from .messages import clean
 from .outputs import atomic_path
 from .rows import ROWS_ATTR, row_location, rows_after_header, text_lines
 
 log = logging.getLogger(__name__)
 
 # --------------------------------------------------------------------------- reading
+#: Bytes of the head of a file checked for binary data (NUL bytes).
+TEXT_CHECK_BYTES = 1 << 16
+
+
+def check_text_file(path: Path, what: str = "CSV log") -> None:
+    """Refuse a file that is binary (NUL bytes in its first 64 kB) or empty.
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    what : str
+        What it should be, for the message.
+    """
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(TEXT_CHECK_BYTES)
+    except OSError as exc:
+        raise InputError(f"{clean(path)}: cannot read ({exc.strerror or exc})") from None
+    if not head.strip(b" \t\r\n\x00"):
+        raise InputError(f"{clean(path)}: the file is empty; expected a {what} with a header row")
+    nul = head.find(b"\x00")
+    if nul >= 0:
+        ln = head.count(b"\n", 0, nul) + 1
+        raise InputError(
+            f"{clean(path)}: line {ln}: binary data (a NUL byte at byte {nul}), not a text"
+            f" {what}; is it the right file? (other formats are chosen by the extension:"
+            " .parquet, .h5, .xyz)")
+
+
+def first_undecodable_line(path: Path, encoding: str = "utf-8") -> tuple[int, bytes] | None:
+    """1-based number and bytes of the first line of ``path`` that is not valid ``encoding``."""
+    import codecs
+
+    dec = codecs.getincrementaldecoder(encoding)()
+    try:
+        with open(path, "rb") as fh:
+            for ln, raw in enumerate(fh, start=1):
+                try:
+                    dec.decode(raw)
+                except UnicodeDecodeError as exc:
+                    return ln, raw[max(0, exc.start - 10): exc.end + 10]
+    except OSError:
+        return None
+    return None
+
+
+def not_utf8_message(path: Path) -> str:
+    """The error for a text file with bytes that are not UTF-8, naming the first such line."""
+    bad = first_undecodable_line(path)
+    where = f"line {bad[0]}: " if bad else ""
+    near = f" (near {bad[1]!r})" if bad else ""
+    return (f"{clean(path)}: {where}bytes that are not UTF-8 text{near}; save the file as UTF-8"
+            " (e.g. iconv -f latin1 -t utf-8 IN > OUT) or fix that line")
+
+
+def truncated_row_message(path: Path, line: int, fields: int, n_header: int, last: bool) -> str:
+    """The error for a row with fewer fields than the header."""
+    if last:
+        return (f"{clean(path)}: line {line}: the last row has {fields} of the header's"
+                f" {n_header} fields: the log is cut short in the middle of a row; restore the"
+                " complete file, or pass --allow-truncated to drop that row (a warning is"
+                " recorded in the report)")
+    return (f"{clean(path)}: line {line}: {fields} fields but the header names {n_header}"
+            " columns; fix that row (or check the delimiter)")
+
+
+def short_row(path: Path, header_line: int, n_fields: int, delimiter: str = ","
+              ) -> tuple[int, int, bool] | None:
+    """The first data line with fewer than ``n_fields`` fields (``delimiter``-separated).
+
+    Blank lines are skipped (as the readers skip them); quoted fields are honoured.
+
+    Returns
+    -------
+    (line, fields, is_last) or None
+        1-based line number, its field count, and whether it is the last data line.
+    """
+    import csv
+    import io as _io
+
+    first: tuple[int, int] | None = None
+    last_data = 0
+    ln0 = 0  # lines before the current block
+    try:
+        with open(path, "rb") as fh:
+            for block in _line_blocks(fh):
+                raw = np.frombuffer(block, dtype=np.uint8)
+                nl = np.flatnonzero(raw == 10)
+                starts = np.r_[0, nl[:-1] + 1]
+                numbers = ln0 + 1 + np.arange(len(nl))
+                ln0 += len(nl)
+                blank = _blank_lines(block, starts, nl)
+                data = (numbers > header_line) & ~blank
+                if not data.any():
+                    continue
+                last_data = int(numbers[data][-1])
+                if first is not None:
+                    continue
+                if 34 in raw:  # quotes: let the csv module count
+                    text = block.decode("utf-8", errors="replace")
+                    counts = np.array([len(r) for r in csv.reader(_io.StringIO(text),
+                                                                   delimiter=delimiter)])
+                    if len(counts) != len(nl):
+                        continue  # a quoted newline: cannot count per line, trust the parser
+                else:
+                    commas = np.flatnonzero(raw == ord(delimiter))
+                    counts = np.diff(np.r_[0, np.searchsorted(commas, nl)]) + 1
+                bad = np.flatnonzero(data & (counts < n_fields))
+                if bad.size:
+                    first = int(numbers[bad[0]]), int(counts[bad[0]])
+    except OSError:
+        return None
+    if first is None:
+        return None
+    return first[0], first[1], first[0] == last_data
+
+
+def _blank_lines(block: bytes, starts: np.ndarray, nl: np.ndarray) -> np.ndarray:
+    """Lines made only of blanks (and a carriage return)."""
+    raw = np.frombuffer(block, dtype=np.uint8)
+    nonblank = ~np.isin(raw, (32, 9, 13, 10))
+    cum = np.r_[0, np.cumsum(nonblank)]
+    return (cum[nl] - cum[starts]) == 0
+
+
 #: Name given to the field after the last header column while reading (a trailing delimiter).
 _EXTRA_FIELD = "\x00extra"
 #: Prefix of the names given to header cells that are empty.
@@ -70,18 +197,40 @@ def _first_fields(path: Path, after: int) -> tuple[list[str], int] | None:
     return None
 
 
-def read_csv(path: Path, spare_fields: int = 1) -> pd.DataFrame:
+def read_csv(path: Path, spare_fields: int = 1, *, allow_truncated: bool = False
+             ) -> pd.DataFrame:
     """Read a CSV table (pyarrow's multi-threaded reader when available, else pandas).
 
-    The header is checked first (a name used twice is an error).  A row may end with up to
-    ``spare_fields`` empty fields more than the header (loggers that end every row with the
-    delimiter): they are dropped; a value there is an error naming the line.  An empty header
-    cell is accepted only for an empty column.  Both readers give the same table.
+    The file must be UTF-8 text (a binary file, or bytes that are not UTF-8, are an error
+    naming the line: never replaced by placeholder characters).  The header is checked first
+    (a name used twice is an error).  A row may end with up to ``spare_fields`` empty fields
+    more than the header (loggers that end every row with the delimiter): they are dropped; a
+    value there is an error naming the line.  A row with fewer fields than the header is an
+    error naming the line; the last row of a log cut short in the middle of a row is dropped
+    instead when ``allow_truncated`` (a warning says so).  An empty header cell is accepted
+    only for an empty column.  Both readers give the same table.
+
+    Parameters
+    ----------
+    path : Path
+        The CSV file.
+    spare_fields : int
+        Empty fields a row may have after the header's last column.
+    allow_truncated : bool
+        Drop a last row that is cut short (with a warning) instead of refusing the file.
+
+    Returns
+    -------
+    DataFrame
+        The raw table (source column names); ``df.attrs[ROWS_ATTR]`` tells where its rows
+        are in the file.
     """
+    path = Path(path)
     if path.is_dir():
         raise InputError(f"{path}: is a folder, not a log file")
     if not path.exists():
         raise InputError(f"{path}: file not found")
+    check_text_file(path)
     head = _csv_header_fields(path)
     names, header_line = head if head is not None else (None, 1)
     if names is not None:
@@ -92,7 +241,7 @@ def read_csv(path: Path, spare_fields: int = 1) -> pd.DataFrame:
         df = _read_csv_arrow(path)
         plain = df is not None  # pyarrow checked that every row has the header's field count
     if df is None:
-        df, plain = _read_csv_other(path, names, header_line, spare_fields)
+        df, plain = _read_csv_other(path, names, header_line, spare_fields, allow_truncated)
     raw_names = [str(c) for c in df.columns]
     df.columns = [c.strip() for c in raw_names]
     if plain and raw_names == list(df.columns):
@@ -102,7 +251,8 @@ def read_csv(path: Path, spare_fields: int = 1) -> pd.DataFrame:
 
 
 def _read_csv_other(path: Path, names: list[str] | None, header_line: int,
-                    spare_fields: int = 1) -> tuple[pd.DataFrame, bool]:
+                    spare_fields: int = 1, allow_truncated: bool = False
+                    ) -> tuple[pd.DataFrame, bool]:
     """Read a CSV that pyarrow's plain read could not take; returns (table, plain).
 
     Rows never shift: the table is read with ``spare_fields`` more columns than the header
@@ -148,6 +298,15 @@ def _read_csv_other(path: Path, names: list[str] | None, header_line: int,
             f"{path}: column {j + 1} has no name in the header but holds values ({where}:"
             f" {value!r}); give it a name in the header")
     df = df.drop(columns=spare)
+    short = short_row(path, header_line, n)
+    if short is not None:
+        ln, k, last = short
+        if not (last and allow_truncated):
+            raise InputError(truncated_row_message(path, ln, k, n, last))
+        df = df.iloc[:-1].reset_index(drop=True)
+        log.warning("%s: line %d: the last row is cut short (%d of %d fields: the log ended"
+                    " in the middle of a row); dropped it", path, ln, k, n)
+        return df, False
     plain = header_line == 1 and all(names) and _rows_have_fields(path, n)
     return df, plain
 
@@ -179,7 +338,9 @@ def _read_csv_pandas(path: Path, cols: list[str] | None, n_header: int = 0,
             return pd.DataFrame({c: pd.Series(dtype=np.float64) for c in cols})
         raise InputError(
             f"{path}: the file is empty; expected a CSV log with a header row") from None
-    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError:
+        raise InputError(not_utf8_message(path)) from None
+    except (pd.errors.ParserError, ValueError, OverflowError) as exc:
         msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
         m = re.search(r"Expected \d+ fields in line (\d+), saw (\d+)", msg)
         if m and n_header:

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from .outputs import atomic_path
+from .outputs import atomic_path, recorded_warnings
 
 
 def _json_default(obj: Any) -> Any:
@@ -49,6 +49,10 @@ def _jsonable(obj: Any) -> Any:
 def write_json(obj: Any, path: str | os.PathLike[str]) -> Path:
     """Write a JSON document atomically (NaN and inf written as ``null``).
 
+    A report (a dict with a ``source``) written inside an output set (every command) gets
+    the warnings logged so far by the command in a ``warnings`` list (added to ``obj`` too):
+    what a user was told on the terminal is recorded beside the results.
+
     Parameters
     ----------
     obj : object
@@ -62,6 +66,10 @@ def write_json(obj: Any, path: str | os.PathLike[str]) -> Path:
         The written path.
     """
     target = Path(path)
+    if isinstance(obj, dict) and "source" in obj:
+        extra = [w for w in recorded_warnings() if w not in (obj.get("warnings") or [])]
+        if extra:
+            obj["warnings"] = [*(obj.get("warnings") or []), *extra]
     text = json.dumps(_jsonable(obj), indent=2, default=_json_default, allow_nan=False)
     with atomic_path(target) as tmp:
         tmp.write_text(text + "\n", encoding="utf-8")

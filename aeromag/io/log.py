@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
-from collections.abc import Mapping, Sequence
+import threading
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -21,9 +23,42 @@ from .columns import (
     to_numeric,
 )
 from .formats import read_table_rows
+from .messages import clean
+from .outputs import register_input
 from .rows import ROWS_ATTR, row_location
 
 log = logging.getLogger(__name__)
+
+_options = threading.local()
+
+#: Largest ``|time|`` accepted [s]: about the year 5100 in seconds since 1970.
+MAX_TIME_S = 1e11
+
+
+@contextlib.contextmanager
+def reading_options(*, allow_truncated: bool = False) -> Iterator[None]:
+    """Defaults of :func:`read_log` (and the chunked reader) inside the block.
+
+    The command line sets ``--allow-truncated`` this way for whatever the command reads.
+
+    Parameters
+    ----------
+    allow_truncated : bool
+        Drop a last row cut short (a log that ended in the middle of a row) with a warning,
+        instead of refusing the file.
+    """
+    old = getattr(_options, "allow_truncated", False)
+    _options.allow_truncated = allow_truncated
+    try:
+        yield
+    finally:
+        _options.allow_truncated = old
+
+
+def allow_truncated_default(value: bool | None = None) -> bool:
+    """``value``, or the default set by :func:`reading_options` when None."""
+    return bool(getattr(_options, "allow_truncated", False)) if value is None else value
+
 
 def read_log(
     path: str | os.PathLike[str],
@@ -33,6 +68,7 @@ def read_log(
     required: Sequence[str] = ("time",),
     fmt: str | None = None,
     min_rows: int = 2,
+    allow_truncated: bool | None = None,
 ) -> pd.DataFrame:
     """Read a survey log into canonical columns and validate it.
 
@@ -57,6 +93,10 @@ def read_log(
         Format name; inferred from the extension when omitted.
     min_rows : int
         Fewest data rows accepted.
+    allow_truncated : bool, optional
+        Drop a last row that is cut short (a log that ended in the middle of a row), with a
+        warning (recorded in the report of a command), instead of refusing the file; default
+        False (see :func:`reading_options`).  A shorter row anywhere else is always an error.
 
     Returns
     -------
@@ -66,8 +106,9 @@ def read_log(
     p = Path(path)
     source = str(p)
     if not p.exists():
-        raise InputError(f"{source}: file not found")
-    df = read_table_rows(p, fmt)
+        raise InputError(f"{clean(source)}: file not found")
+    register_input(p, "input log")
+    df = read_table_rows(p, fmt, allow_truncated=allow_truncated_default(allow_truncated))
     rows = df.attrs.pop(ROWS_ATTR, None)
     check_unique_names([str(c) for c in df.columns], source, what="table")
     df = apply_column_map(df, columns, source=source)
@@ -108,6 +149,13 @@ def _clean_time(df: pd.DataFrame, source: str,
         i = int(np.flatnonzero(bad)[0])
         raise InputError(f"{source}: column 'time', {row_location(rows, i)}: empty or"
                          " non-finite time; fix or remove the row")
+    huge = np.abs(t) > MAX_TIME_S
+    if huge.any():
+        i = int(np.flatnonzero(huge)[0])
+        raise InputError(
+            f"{source}: column 'time', {row_location(rows, i)}: time {plain_number(t[i])} s is"
+            f" beyond {MAX_TIME_S:.0e} s (the year 5000): fix the value, or if time is in ms, us"
+            " or ns convert it to seconds")
     dup = np.zeros(len(df), dtype=bool)
     same_t = np.r_[False, t[1:] == t[:-1]]
     if same_t.any():
@@ -116,7 +164,10 @@ def _clean_time(df: pd.DataFrame, source: str,
         eq = (df.eq(prev) | (df.isna() & prev.isna())).all(axis=1).to_numpy()
         dup = same_t & eq
         if dup.any():
-            log.warning("%s: dropped %d exact duplicate row(s)", source, int(dup.sum()))
+            first = int(np.flatnonzero(dup)[0])
+            log.warning("%s: dropped %d exact duplicate row(s) (the first at %s: a copy of the"
+                        " row before it); check the logger if you did not expect copies",
+                        source, int(dup.sum()), row_location(rows, first))
             df = df.loc[~dup].reset_index(drop=True)
             t = t[~dup]
     dt = np.diff(t)

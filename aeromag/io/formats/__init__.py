@@ -70,6 +70,8 @@ class Format:
     sniff : callable or None
         ``sniff(head) -> bool`` on the first 4 kB (text) of a ``.csv`` file: True when the
         file is in this native layout.
+    options : tuple of str
+        Keyword options ``read`` takes (``"allow_truncated"`` for text formats).
     """
 
     name: str
@@ -77,6 +79,7 @@ class Format:
     read: Callable[[Path], pd.DataFrame] | None = None
     write: Callable[[pd.DataFrame, Path], Path] | None = None
     sniff: Callable[[str], bool] | None = None
+    options: tuple[str, ...] = ()
 
 
 #: The registry, in sniffing order.
@@ -101,31 +104,39 @@ def register(fmt: Format) -> Format:
 
 
 def _sniff_magarrow(head: str) -> bool:
-    first = head.lstrip("\ufeff").split("\n", 1)[0]
-    cells = [c.strip() for c in first.split(",")]
+    import csv
+
+    first = head.lstrip("\ufeff").lstrip("\r\n").split("\n", 1)[0]
+    try:
+        cells = [c.strip() for c in next(csv.reader([first]))]
+    except (csv.Error, StopIteration):
+        return False
     return {"Counter", "Date", "Time", "Mag"} <= set(cells)
 
 
 def _sniff_magdrone(head: str) -> bool:
-    return bool(re.search(r"^MagDrone", head, re.MULTILINE)
-                or re.search(r"^Timestamp \[ms\];", head, re.MULTILINE))
+    return bool(re.search(r"^\ufeff?MagDrone", head, re.MULTILINE)
+                or re.search(r'^\ufeff?\s*"?Timestamp\s*\[[^\]\n]*\]"?\s*;', head,
+                             re.MULTILINE))
 
 
-def _read_xyz(path: Path) -> pd.DataFrame:
-    return apply_preset(read_xyz(path), MAGNAV_PRESET, MAGNAV_FLUXGATES)
+def _read_xyz(path: Path, **kw: bool) -> pd.DataFrame:
+    return apply_preset(read_xyz(path, **kw), MAGNAV_PRESET, MAGNAV_FLUXGATES)
 
 
 def _read_hdf5(path: Path) -> pd.DataFrame:
     return apply_preset(read_hdf5(path), MAGNAV_PRESET, MAGNAV_FLUXGATES)
 
 
-register(Format("csv", (".csv", ".txt"), read=read_csv, write=write_csv))
+_TEXT = ("allow_truncated",)
+register(Format("csv", (".csv", ".txt"), read=read_csv, write=write_csv, options=_TEXT))
 register(Format("parquet", (".parquet", ".pq"), read=read_parquet, write=write_parquet))
-register(Format("xyz", (".xyz",), read=_read_xyz, write=write_xyz))
+register(Format("xyz", (".xyz",), read=_read_xyz, write=write_xyz, options=_TEXT))
 register(Format("hdf5", (".h5", ".hdf5"), read=_read_hdf5))
-register(Format("magarrow", read=read_magarrow, sniff=_sniff_magarrow))
-register(Format("magdrone", read=read_magdrone, sniff=_sniff_magdrone))
-register(Format("magdrone_b2", read=lambda p: read_magdrone(p, sensor=2)))
+register(Format("magarrow", read=read_magarrow, sniff=_sniff_magarrow, options=_TEXT))
+register(Format("magdrone", read=read_magdrone, sniff=_sniff_magdrone, options=_TEXT))
+register(Format("magdrone_b2", read=lambda p, **kw: read_magdrone(p, sensor=2, **kw),
+                options=_TEXT))
 
 
 def formats() -> tuple[str, ...]:
@@ -210,10 +221,12 @@ def read_table(path: str | os.PathLike[str], fmt: str | None = None) -> pd.DataF
     return df
 
 
-def read_table_rows(path: str | os.PathLike[str], fmt: str | None = None) -> pd.DataFrame:
+def read_table_rows(path: str | os.PathLike[str], fmt: str | None = None, *,
+                    allow_truncated: bool = False) -> pd.DataFrame:
     """:func:`read_table`, with ``df.attrs[ROWS_ATTR]`` telling where each row is in the file.
 
     Used by :func:`aeromag.io.read_log` to name the file line (or the sample) of a bad value.
+    ``allow_truncated`` is passed to the text formats (see :func:`aeromag.io.read_log`).
     """
     p = Path(path)
     if not p.exists():
@@ -224,7 +237,8 @@ def read_table_rows(path: str | os.PathLike[str], fmt: str | None = None) -> pd.
     reader = REGISTRY[f].read
     if reader is None:
         raise InputError(f"{p}: aeromag cannot read the {f} format")
-    df = reader(p)
+    opts = {"allow_truncated": allow_truncated} if allow_truncated else {}
+    df = reader(p, **{k: v for k, v in opts.items() if k in REGISTRY[f].options})
     df.attrs["format"] = f
     return df
 

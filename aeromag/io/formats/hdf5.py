@@ -5,9 +5,11 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from ...errors import InputError
+from ..messages import clean
 from ..rows import ROWS_ATTR, rows_numbered
 
 log = logging.getLogger(__name__)
@@ -18,22 +20,45 @@ def read_hdf5(path: Path) -> pd.DataFrame:
         import h5py
     except ImportError:  # pragma: no cover
         raise InputError(f"{path}: reading HDF5 needs h5py: pip install 'aeromag[hdf5]'") from None
+    arrays: dict[str, np.ndarray] = {}
+    other: list[str] = []
     try:
         with h5py.File(path, "r") as h5:
-            arrays = {}
-            for name, ds in h5.items():
-                if isinstance(ds, h5py.Dataset) and ds.ndim == 1 and ds.shape[0] > 1:
-                    arrays[name] = ds[()]
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read as HDF5 ({exc}); is it an HDF5 file?") from None
+            for name in list(h5.keys()):
+                ds = h5.get(name)
+                if not isinstance(ds, h5py.Dataset):
+                    continue  # a group: not a channel
+                if ds.ndim == 0 or (ds.ndim == 1 and ds.shape[0] <= 1):
+                    continue  # a scalar: metadata (MagNav's dt, N ...), not a channel
+                if ds.ndim != 1:
+                    other.append(f"{clean(name)!r} is {ds.ndim}-D (shape"
+                                 f" {'x'.join(map(str, ds.shape))})")
+                    continue
+                arrays[name] = np.asarray(ds[()])
+    except Exception as exc:  # noqa: BLE001 - h5py raises many types on a damaged file
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"{clean(path)}: cannot read as HDF5 ({clean(msg)}); is it an HDF5"
+                         " file, complete and undamaged?") from None
     if not arrays:
-        raise InputError(f"{path}: no 1-D channel datasets in this HDF5 file")
+        raise InputError(f"{clean(path)}: no 1-D channel datasets in this HDF5 file (one 1-D"
+                         " dataset per channel expected, as MagNav.jl writes them)")
     lengths = pd.Series({k: len(v) for k, v in arrays.items()})
     n = int(lengths.mode().iloc[0])
-    skipped = sorted(k for k, v in arrays.items() if len(v) != n)
-    if skipped:
-        log.info("%s: skipped HDF5 datasets of another length: %s", path, ", ".join(skipped))
-    df = pd.DataFrame({k: v for k, v in arrays.items() if len(v) == n})
+    other += [f"{clean(k)!r} has {len(v)} samples" for k, v in arrays.items() if len(v) != n]
+    if other:
+        more = f" (and {len(other) - 1} more)" if len(other) > 1 else ""
+        raise InputError(
+            f"{clean(path)}: dataset {other[0]}{more}"
+            f" while the channels have {n} samples each; every channel must be one 1-D dataset"
+            " of the same length: fix or remove that dataset")
+    for k, v in arrays.items():
+        if v.dtype.kind == "S":  # fixed-length byte strings: text channels
+            try:
+                arrays[k] = np.char.decode(v, "utf-8").astype(object)
+            except UnicodeDecodeError:
+                raise InputError(f"{clean(path)}: dataset {clean(k)!r} holds bytes that are not"
+                                 " UTF-8 text; fix or remove that dataset") from None
+    df = pd.DataFrame(arrays)
     df.attrs[ROWS_ATTR] = rows_numbered("sample")
     return df
 

@@ -16,7 +16,8 @@ from ._native import interp_sparse, native_values, parse_datetime_seconds
 
 log = logging.getLogger(__name__)
 
-def read_magarrow(path: str | os.PathLike[str]) -> pd.DataFrame:
+def read_magarrow(path: str | os.PathLike[str], *, allow_truncated: bool = False
+                  ) -> pd.DataFrame:
     """Read the native CSV of a Geometrics MagArrow.
 
     Canonical columns: ``time`` = ``Date`` + ``Time`` (UTC) in seconds since 1970-01-01;
@@ -45,7 +46,7 @@ def read_magarrow(path: str | os.PathLike[str]) -> pd.DataFrame:
     # The rows end with one or two delimiters more than the header has (GNSS rows two): the
     # CSV reader drops these empty fields (and refuses a row where one holds a value) instead
     # of shifting the columns.
-    df = read_csv(p, spare_fields=_MAGARROW_SPARE_FIELDS)
+    df = read_csv(p, spare_fields=_MAGARROW_SPARE_FIELDS, allow_truncated=allow_truncated)
     rows = df.attrs.get(ROWS_ATTR)
     missing = [c for c in ("Date", "Time", "Mag") if c not in df.columns]
     if missing:

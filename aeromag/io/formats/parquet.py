@@ -9,6 +9,7 @@ from pathlib import Path
 import pandas as pd
 
 from ...errors import InputError
+from ..messages import clean
 from ..outputs import atomic_path
 from ..rows import ROWS_ATTR, rows_numbered
 
@@ -25,10 +26,9 @@ def read_parquet(path: Path) -> pd.DataFrame:
         raise InputError(
             f"{path}: reading Parquet needs pyarrow: pip install 'aeromag[parquet]'") from None
     try:
-        df = pq.read_table(path).to_pandas()
+        df = pq.read_table(path, page_checksum_verification=True).to_pandas()
     except Exception as exc:  # noqa: BLE001 - any pyarrow failure is a bad file
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise InputError(f"{path}: cannot read as Parquet ({msg}); is it a Parquet file?") from None
+        raise InputError(parquet_error(path, exc)) from None
     named = [n for n in df.index.names if n is not None]
     if named:
         # Saved with e.g. df.set_index("time"): the index is a column of the log.
@@ -39,6 +39,13 @@ def read_parquet(path: Path) -> pd.DataFrame:
         df = df.reset_index()
     df.attrs[ROWS_ATTR] = rows_numbered("row")
     return df
+
+
+def parquet_error(path: str | os.PathLike[str], exc: BaseException) -> str:
+    """The one-line error for a Parquet file pyarrow cannot read."""
+    msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    return (f"{clean(path)}: cannot read as Parquet ({clean(msg)[:200]}); is it a Parquet file,"
+            " complete and undamaged?")
 
 
 def write_parquet(df: pd.DataFrame, path: str | os.PathLike[str]) -> Path:
@@ -61,5 +68,5 @@ def write_parquet(df: pd.DataFrame, path: str | os.PathLike[str]) -> Path:
     p = Path(path)
     table = pa.Table.from_pandas(df, preserve_index=False)
     with atomic_path(p) as tmp:
-        pq.write_table(table, tmp)
+        pq.write_table(table, tmp, write_page_checksum=True)
     return p

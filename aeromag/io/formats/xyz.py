@@ -16,6 +16,8 @@ from ...errors import InputError
 from ..columns import (
     check_unique_names,
 )
+from ..csv import check_text_file, not_utf8_message
+from ..messages import clean
 from ..outputs import atomic_path
 from ..rows import ROWS_ATTR, row_location, rows_in_runs
 
@@ -85,7 +87,10 @@ def _line_ids(keys: Sequence[tuple[str, int, int, int | None] | None]
                 taken.add(k[1])
     rest = [k for k in order if k not in ids]
     if rest:
-        base = 10 ** len(str(max(abs(k[1]) for k in order)))
+        top = max(abs(k[1]) for k in order)
+        base = 10 ** len(str(top))
+        if base + len(rest) >= 2**63:  # keep ids int64: just above every number instead
+            base = top + 1
         for j, k in enumerate(rest, start=1):
             ids[k] = base + j
     return ids, bool(rest)
@@ -147,15 +152,20 @@ def _xyz_field_counts(blob: bytes) -> np.ndarray:
     return np.add.reduceat(start.view(np.uint8), line_starts, dtype=np.int64)
 
 
-def read_xyz(path: str | os.PathLike[str]) -> pd.DataFrame:
+#: Largest line, version or flight number accepted in a line header (ids stay int64).
+MAX_LINE_NUMBER = 2**62
+
+
+def read_xyz(path: str | os.PathLike[str], *, allow_truncated: bool = False) -> pd.DataFrame:
     """Read a Geosoft XYZ file (line-based ASCII).
 
     ``/`` lines are comments.  The channel names are on the ``/`` line before the data whose
     word count matches the values of the data rows (``//`` lines, ``/====`` underlines and
     units rows are never names; see :func:`_xyz_channel_names`).  Every data row must have
     one value per channel: a row with more or fewer is an error naming its line (columns are
-    never shifted).  ``*`` and Geosoft's numeric dummy -1e32 are missing values.  A UTF-8 BOM
-    is ignored.
+    never shifted), except a last row cut short when ``allow_truncated`` (dropped, with a
+    warning).  ``*`` and Geosoft's numeric dummy -1e32 are missing values.  A UTF-8 BOM is
+    ignored; bytes that are not UTF-8 are an error naming the line (never replaced).
 
     Line headers (:data:`XYZ_LINE_HEADER`: ``Line 10``, ``LINE 10.1``, ``L1010.1``, ``Tie 100``,
     ``T100``, ``Line 10:16``, ``Trend``/``Base``/``Test``/``Random``/``Special N``) start a line;
@@ -177,10 +187,13 @@ def read_xyz(path: str | os.PathLike[str]) -> pd.DataFrame:
         The channels (numbers as float64 where every value parses).
     """
     p = Path(path)
+    check_text_file(p, "Geosoft XYZ file")
     try:
-        text = p.read_text(encoding="utf-8-sig", errors="replace")
+        text = p.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise InputError(not_utf8_message(p)) from None
     except OSError as exc:
-        raise InputError(f"{p}: cannot read ({exc})") from None
+        raise InputError(f"{p}: cannot read ({exc.strerror or exc})") from None
     lines = text.split("\n") if "\n" in text or "\r" not in text else text.split("\r")
     del text
     comments: list[tuple[int, str]] = []
@@ -204,7 +217,13 @@ def read_xyz(path: str | os.PathLike[str]) -> pd.DataFrame:
         if c0.isalpha():
             m = XYZ_LINE_HEADER.match(s)
             if m:
-                seg_keys.append(_line_key(m))
+                key = _line_key(m)
+                if key is not None and max(abs(key[1]), key[2], key[3] or 0) > MAX_LINE_NUMBER:
+                    raise InputError(
+                        f"{p}: line {ln}: line header {clean(s[:60])!r} has a number beyond"
+                        f" 2**62; fix the header (a line number, .version and :flight of at most"
+                        " 18 digits)")
+                seg_keys.append(key)
                 seg_labels.append(" ".join(s.split()))
                 seg_start.append(len(data))
                 continue
@@ -227,17 +246,27 @@ def read_xyz(path: str | os.PathLike[str]) -> pd.DataFrame:
     names = _xyz_channel_names(p, comments, typical, row_location(rows, first))
     check_unique_names(names, str(p), what="channel-name line")
     wrong = np.flatnonzero(counts != len(names))
+    if (allow_truncated and wrong.size == 1 and wrong[0] == n_rows - 1
+            and counts[-1] < len(names) and n_rows > 1):
+        log.warning("%s: %s: the last row is cut short (%d of %d values: the file ended in the"
+                    " middle of a row); dropped it", p, row_location(rows, n_rows - 1),
+                    int(counts[-1]), len(names))
+        blob = blob[: blob.rfind(b"\n")]
+        n_rows -= 1
+        wrong = wrong[:0]
     if wrong.size:
         i = int(wrong[0])
+        last = " (the last row: the file is cut short? --allow-truncated drops it)" if (
+            i == n_rows - 1 and counts[i] < len(names)) else ""
         raise InputError(
             f"{p}: {row_location(rows, i)}: {int(counts[i])} values but {len(names)} channels"
-            f" ({' '.join(names[:8])}{' ...' if len(names) > 8 else ''}); every data row needs"
-            " one value per channel ('*' for a missing one)")
+            f" ({' '.join(names[:8])}{' ...' if len(names) > 8 else ''}){last}; every data row"
+            " needs one value per channel ('*' for a missing one)")
     try:
         df = pd.read_csv(_io.BytesIO(blob), sep=r"\s+", header=None, names=names,
                          index_col=False, na_values=[_MISSING_XYZ], keep_default_na=False,
                          engine="c", encoding="utf-8")
-    except (pd.errors.ParserError, ValueError) as exc:
+    except (pd.errors.ParserError, ValueError, OverflowError) as exc:
         msg = str(exc).strip().splitlines()[-1]
         raise InputError(f"{p}: cannot parse the XYZ data ({msg}); every row needs"
                          f" {len(names)} values separated by blanks") from None
