@@ -67,3 +67,41 @@ def test_moving_mean_respects_stretches():
     assert np.allclose(moving_mean(x, st, 3), x)
     st[2] = -1
     assert np.isnan(moving_mean(x, st, 1)[2])
+
+
+def test_moving_mean_equals_brute_force():
+    """Shrinking windows at every stretch end, NaN outside stretches, any window size."""
+    from aeromag._core.runs import run_bounds
+
+    rng = np.random.default_rng(0)
+    for n, h in [(50, 3), (7, 5), (400, 20), (30, 1)]:
+        x = rng.normal(size=(n, 2))
+        st = np.sort(rng.integers(0, 6, n))
+        st[rng.integers(0, n, 3)] = -1
+        want = np.full_like(x, np.nan)
+        for a, b, _ in zip(*run_bounds(st), strict=True):
+            for i in range(a, b):
+                want[i] = x[max(i - h, a):min(i + h + 1, b)].mean(axis=0)
+        assert np.allclose(moving_mean(x, st, h), want, rtol=1e-12, atol=1e-12,
+                           equal_nan=True)
+
+
+@pytest.mark.parametrize("rate_hz", [10.0, 200.0])
+def test_working_rate_finds_the_same_manoeuvres(rate_hz):
+    """The 2 Hz working rate (default) finds the full-rate manoeuvres, edges within 1 s, on a
+    10 Hz and a 200 Hz simulated box; the labels cover every sample of the log."""
+    df = simulate_calibration(seed=3, n_boxes=1, rate_hz=rate_hz)[0]
+    fast = detect_maneuvers(df)
+    full = detect_maneuvers(df, rate_hz=None)
+    assert len(fast.labels) == len(df) and fast.complete_boxes == full.complete_boxes == [0]
+    a, b = fast.table, full.table
+    assert list(a["maneuver"]) == list(b["maneuver"])
+    assert list(a["heading"]) == list(b["heading"])
+    assert np.abs(a["t_start"] - b["t_start"]).max() < 1.0
+    assert np.abs(a["t_end"] - b["t_end"]).max() < 1.0
+    m = df["truth_maneuver"].isin(MANEUVERS).to_numpy()
+    agree = (fast.labels["maneuver"].to_numpy()[m] == df["truth_maneuver"].to_numpy()[m]).mean()
+    assert agree > 0.95
+    # The table's sample counts are the labels' (every sample of a manoeuvre counted once).
+    counts = np.bincount(fast.labels["maneuver_id"].to_numpy() + 1)[1:]
+    assert (counts == a["n"].to_numpy()).all()

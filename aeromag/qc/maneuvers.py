@@ -35,13 +35,12 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from .._core.angles import wrap_deg
-from .._core.filters import butter_sos, filter_stretches, sampling_rate
+from .._core.filters import sampling_rate
 from .._core.rotations import rotate_body_to_ned
 from .._core.runs import run_bounds
 from .._core.stretches import find_stretches
@@ -95,17 +94,39 @@ class ManeuverResult:
     @property
     def complete_boxes(self) -> list[int]:
         """Boxes with all 12 (heading, manoeuvre) pairs."""
-        t = self.table
-        if t.empty:
-            return []
-        n = t.groupby("box")[["heading_leg", "maneuver"]].apply(
-            lambda g: len(set(zip(g["heading_leg"], g["maneuver"], strict=True))))
-        return [int(b) for b, c in n.items() if c == 12]
+        return complete_boxes(self.table)
+
+
+def complete_boxes(table: pd.DataFrame) -> list[int]:
+    """Boxes of a manoeuvre table that hold all 12 (heading, manoeuvre) pairs.
+
+    Parameters
+    ----------
+    table : DataFrame
+        ``box``, ``heading_leg`` (0-3) and ``maneuver`` (pitch/roll/yaw) per manoeuvre.
+
+    Returns
+    -------
+    list of int
+        Box numbers, ascending.
+    """
+    if table.empty:
+        return []
+    code = pd.Categorical(table["maneuver"], categories=MANEUVERS).codes.astype(np.int64)
+    box = table["box"].to_numpy(dtype=np.int64)
+    ok = code >= 0
+    pair = np.unique(box[ok] * 12 + table["heading_leg"].to_numpy(dtype=np.int64)[ok] * 3
+                     + code[ok])
+    boxes, count = np.unique(pair // 12, return_counts=True)
+    return [int(b) for b in boxes[count == 12]]
 
 
 # --------------------------------------------------------------------------- helpers
 def moving_mean(x: np.ndarray, stretch: np.ndarray, half_width: int) -> np.ndarray:
     """Centred moving mean within each stretch (windows shrink at stretch ends), vectorised.
+
+    One cumulative sum; the full windows are one slice difference over the whole array, and
+    only the ``half_width`` samples at each end of every stretch are gathered.
 
     Parameters
     ----------
@@ -123,21 +144,52 @@ def moving_mean(x: np.ndarray, stretch: np.ndarray, half_width: int) -> np.ndarr
     """
     xv = np.asarray(x, dtype=np.float64)
     x2 = xv if xv.ndim == 2 else xv[:, None]
-    n = len(x2)
-    out = np.full_like(x2, np.nan)
-    starts, stops, _ = run_bounds(stretch)
+    n, m = x2.shape
+    lab = np.asarray(stretch)
+    h = int(half_width)
+    out = np.full((n, m), np.nan)
+    starts, stops, _ = run_bounds(lab)
     if len(starts) == 0:
         return out if xv.ndim == 2 else out[:, 0]
-    lens = stops - starts
-    lo_b = np.repeat(starts, lens)
-    hi_b = np.repeat(stops, lens)
-    idx = np.flatnonzero(np.asarray(stretch) >= 0)
-    cs = np.zeros((n + 1, x2.shape[1]))
-    cs[1:] = np.cumsum(np.where(np.isfinite(x2), x2, 0.0), axis=0)
-    lo = np.maximum(idx - half_width, lo_b)
-    hi = np.minimum(idx + half_width + 1, hi_b)
+    cs = np.empty((n + 1, m))
+    cs[0] = 0.0
+    fin = np.isfinite(x2)
+    np.cumsum(x2 if fin.all() else np.where(fin, x2, 0.0), axis=0, out=cs[1:])
+    w = 2 * h + 1
+    if n > 2 * h:  # full windows everywhere, then the stretch ends are redone
+        np.subtract(cs[w:], cs[: n + 1 - w], out=out[h: n - h])
+        out[h: n - h] /= w
+    k = np.arange(h)
+    lens = (stops - starts)[:, None]
+    sel = k < lens
+    run = np.broadcast_to(np.arange(len(starts))[:, None], sel.shape)[sel]
+    run = np.concatenate([run, run])  # the h samples at each end of every stretch
+    idx = np.concatenate([(starts[:, None] + k)[sel], (stops[:, None] - 1 - k)[sel]])
+    if n <= 2 * h:  # no full window anywhere: every sample of every stretch
+        idx = np.flatnonzero(lab >= 0)
+        run = np.searchsorted(starts, idx, side="right") - 1
+    lo = np.maximum(idx - h, starts[run])
+    hi = np.minimum(idx + h + 1, stops[run])
     out[idx] = (cs[hi] - cs[lo]) / (hi - lo)[:, None]
+    out[lab < 0] = np.nan
     return out if xv.ndim == 2 else out[:, 0]
+
+
+def _run_index(n: int, starts: np.ndarray, stops: np.ndarray) -> np.ndarray:
+    """Index of the (disjoint, ordered) run holding each sample, -1 outside every run."""
+    mark = np.zeros(n + 1, dtype=np.int64)
+    j = np.arange(1, len(starts) + 1, dtype=np.int64)
+    mark[starts] += j
+    mark[stops] -= j
+    return np.cumsum(mark[:-1]) - 1
+
+
+def _run_sums(x: np.ndarray, starts: np.ndarray, stops: np.ndarray) -> np.ndarray:
+    """Sums of ``x`` (shape (n,) or (n, m)) over the runs ``[starts, stops)``."""
+    if len(starts) == 0:
+        return np.zeros((0,) + x.shape[1:])
+    cs = np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)])
+    return cs[stops] - cs[starts]
 
 
 def _heading_source(df: pd.DataFrame, declination_deg: float) -> tuple[np.ndarray, str]:
@@ -204,6 +256,7 @@ def detect_heading_legs(
         card = np.where(np.isfinite(card) & (card >= 0), card, -1).astype(np.int64) % 4
         card = np.where(df[leg_column].to_numpy(dtype=np.float64) >= 0, card, -1)
         hs = np.full(n, np.nan)
+        sc = None
         offset = 0.0
         stretch = find_stretches(t, None, max_gap_s)
     else:
@@ -228,71 +281,94 @@ def detect_heading_legs(
     starts, stops, vals = run_bounds(key)
     dur = t[stops - 1] - t[starts] + 1.0 / fs
     keep = dur >= min_leg_s
-    heading_leg = np.full(n, -1, dtype=np.int64)
-    leg_id = np.full(n, -1, dtype=np.int64)
-    box = np.full(n, -1, dtype=np.int64)
-    rows: list[dict[str, Any]] = []
-    visits = np.zeros(4, dtype=np.int64)
-    for j, (a, b, v) in enumerate(zip(starts[keep], stops[keep], vals[keep], strict=True)):
-        c = int(v % 4)
-        heading_leg[a:b] = c
-        leg_id[a:b] = j
-        box[a:b] = visits[c]
-        seg_h = hs[a:b]
-        mh = float(np.rad2deg(np.arctan2(np.nanmean(np.sin(np.deg2rad(seg_h))),
-                                         np.nanmean(np.cos(np.deg2rad(seg_h)))))) % 360.0 \
-            if np.isfinite(seg_h).any() else float(90.0 * c)
-        rows.append({"leg_id": j, "box": int(visits[c]), "heading_leg": c,
-                     "heading": CARDINALS[c], "t_start": float(t[a]), "t_end": float(t[b - 1]),
-                     "mean_heading_deg": mh})
-        visits[c] += 1
+    ks, ke, kv = starts[keep], stops[keep], vals[keep]
+    card_of_leg = (kv % 4).astype(np.int64)
+    box_of_leg = np.zeros(len(kv), dtype=np.int64)  # k-th visit of a heading = box k
+    for c in range(4):
+        sel = card_of_leg == c
+        box_of_leg[sel] = np.arange(int(sel.sum()))
+    leg_id = _run_index(n, ks, ke)
+    inleg = leg_id >= 0
+    heading_leg = np.where(inleg, card_of_leg[leg_id], -1)
+    box = np.where(inleg, box_of_leg[leg_id], -1)
+    if sc is not None and len(ks):  # circular mean of the smoothed heading over each leg
+        sums = _run_sums(np.where(np.isfinite(sc), sc, 0.0), ks, ke)
+        mean_h = np.rad2deg(np.arctan2(sums[:, 1], sums[:, 0])) % 360.0
+    else:
+        mean_h = 90.0 * card_of_leg.astype(np.float64)
     labels = pd.DataFrame({"heading_leg": heading_leg, "leg_id": leg_id, "box": box},
                           index=df.index)
-    legs = pd.DataFrame(rows, columns=["leg_id", "box", "heading_leg", "heading", "t_start",
-                                       "t_end", "mean_heading_deg"])
+    legs = pd.DataFrame({"leg_id": np.arange(len(ks)), "box": box_of_leg,
+                         "heading_leg": card_of_leg,
+                         "heading": np.asarray(CARDINALS, dtype=object)[card_of_leg],
+                         "t_start": t[ks], "t_end": t[ke - 1], "mean_heading_deg": mean_h},
+                        columns=["leg_id", "box", "heading_leg", "heading", "t_start", "t_end",
+                                 "mean_heading_deg"])
     return labels, legs, offset
 
 
 # --------------------------------------------------------------------------- manoeuvres
+def _best_of(share: np.ndarray) -> np.ndarray:
+    """Axis of the largest share per sample (axis 0 where the shares are NaN)."""
+    return np.argmax(np.where(np.isnan(share), -1.0, share), axis=1)
+
+
 def _axis_energy(df: pd.DataFrame, stretch: np.ndarray, fs: float, highpass_hz: float,
                  half: int, use_attitude: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per-sample energy share per axis (roll=x, pitch=y, yaw=z), rms angle [deg], ambiguity
-    cosine between the best two axes' directions."""
+    """Per sample: the axis (roll=x, pitch=y, yaw=z) with the largest energy share, that
+    axis' rms angle [deg] (0 where undefined), and the ambiguity cosine between the best two
+    axes' cosine-motion directions (fluxgate; 0 from attitude)."""
     n = len(df)
-    sos = butter_sos("highpass", highpass_hz, fs, 2, option="highpass_hz")
+    # High-pass: minus the moving mean over 1 / highpass_hz within the leg (a vectorised
+    # pass; the legs are many and short, an IIR filter per leg costs a Python call each).
+    hw = max(1, int(round(fs / highpass_hz / 2)))
+
+    def highpass(x: np.ndarray) -> np.ndarray:
+        return x - moving_mean(x, stretch, hw)
+
     if use_attitude:
         head = np.unwrap(np.deg2rad(df["heading"].to_numpy(dtype=np.float64)))
         ang = np.column_stack([np.deg2rad(df["roll"].to_numpy(dtype=np.float64)),
                                np.deg2rad(df["pitch"].to_numpy(dtype=np.float64)), head])
-        hp = filter_stretches(ang, stretch, sos, axis=0)
-        e = moving_mean(hp**2, stretch, half)
-        share = e / np.maximum(e.sum(axis=1, keepdims=True), 1e-30)
-        rms = np.rad2deg(np.sqrt(e))
-        return share, rms, np.zeros(n)
+        hp = highpass(ang)
+        np.square(hp, out=hp)
+        e = moving_mean(hp, stretch, half)
+        best = _best_of(e / np.maximum(e.sum(axis=1, keepdims=True), 1e-30))
+        eb = np.take_along_axis(e, best[:, None], axis=1)[:, 0]
+        return best, np.nan_to_num(np.rad2deg(np.sqrt(eb))), np.zeros(n)
     flux = df[["flux_x", "flux_y", "flux_z"]].to_numpy(dtype=np.float64)
     c = flux / np.linalg.norm(flux, axis=1, keepdims=True)
-    dc = filter_stretches(c, stretch, sos, axis=0)
-    cbar = c - dc
-    eye = np.eye(3)
-    v = np.stack([np.cross(cbar, eye[a]) for a in range(3)], axis=1)  # (n, axis, 3)
-    vn = np.linalg.norm(v, axis=2)
-    vhat = v / np.maximum(vn, 1e-12)[..., None]
-    proj = np.einsum("nak,nk->na", vhat, dc)
-    e_share = moving_mean(proj**2, stretch, half)
-    tot = moving_mean(np.einsum("nk,nk->n", dc, dc), stretch, half)
-    share = e_share / np.maximum(tot, 1e-30)[:, None]
-    ang2 = moving_mean((proj / np.maximum(vn, 1e-12)) ** 2, stretch, half)
-    rms = np.rad2deg(np.sqrt(ang2))
-    order = np.argsort(-share, axis=1)
-    b1 = np.take_along_axis(vhat, order[:, :1, None], axis=1)[:, 0]
-    b2 = np.take_along_axis(vhat, order[:, 1:2, None], axis=1)[:, 0]
-    cos12 = np.abs(np.einsum("nk,nk->n", b1, b2))
-    return share, rms, cos12
+    dc = highpass(c)
+    cb = c - dc  # the slowly varying cosines
+    # A small rotation about body axis a moves the cosines along v_a = cb x e_a; the motion
+    # dc projects on it as (cb x dc)_a / |v_a| (up to sign), with |v_a|^2 = |cb|^2 - cb_a^2.
+    vn2 = np.maximum(np.einsum("nk,nk->n", cb, cb)[:, None] - cb * cb, 1e-24)
+    num = np.cross(cb, dc)
+    num2 = num * num
+    stack = np.empty((n, 7))
+    np.divide(num2, vn2, out=stack[:, :3])                 # proj^2
+    np.divide(stack[:, :3], vn2, out=stack[:, 3:6])        # (proj / |v|)^2: angle^2 [rad^2]
+    stack[:, 6] = np.einsum("nk,nk->n", dc, dc)
+    mm = moving_mean(stack, stretch, half)
+    share = mm[:, :3] / np.maximum(mm[:, 6:7], 1e-30)
+    best = _best_of(share)
+    masked = np.where(np.isnan(share), -1.0, share)
+    np.put_along_axis(masked, best[:, None], -np.inf, axis=1)
+    second = np.argmax(masked, axis=1)
+    rms = np.rad2deg(np.sqrt(np.take_along_axis(mm[:, 3:6], best[:, None], axis=1)[:, 0]))
+    # cos between v_a and v_b (a != b): |cb_a cb_b| / (|v_a| |v_b|).
+    ca = np.take_along_axis(cb, best[:, None], axis=1)[:, 0]
+    cbb = np.take_along_axis(cb, second[:, None], axis=1)[:, 0]
+    va = np.take_along_axis(vn2, best[:, None], axis=1)[:, 0]
+    vb = np.take_along_axis(vn2, second[:, None], axis=1)[:, 0]
+    cos12 = np.abs(ca * cbb) / np.sqrt(va * vb)
+    return best, np.nan_to_num(rms), cos12
 
 
 def detect_maneuvers(
     df: pd.DataFrame,
     *,
+    rate_hz: float | None = 2.0,
     maneuver_column: str | None = None,
     leg_column: str | None = None,
     source: str | None = None,
@@ -334,12 +410,127 @@ def detect_maneuvers(
         have ``|cos|`` above this.
     smooth_s, tolerance_deg, declination_deg, max_gap_s : float
         See :func:`detect_heading_legs`.
+    rate_hz : float or None
+        Working rate of the detection [Hz]: a log sampled faster is reduced to means over
+        blocks of ``floor(fs / rate_hz)`` samples (within each continuous stretch, headings on
+        the circle) before detection, and the labels are expanded back to every sample.  The
+        detection's own time scales (10 s heading smoothing, 4 s energy windows, 10 s shortest
+        manoeuvre) are far longer than 1 / rate_hz, so this costs a few tenths of a second of
+        edge placement and saves most of the time on 10 Hz to 1 kHz logs.  None: full rate.
 
     Returns
     -------
     ManeuverResult
     """
     src = source or str(df.attrs.get("source", "<log>"))
+    if "time" not in df.columns:
+        raise InputError(f"{src}: missing column 'time'")
+    if len(df) < 10:
+        raise InputError(f"{src}: only {len(df)} rows; too few for manoeuvre detection")
+    if maneuver_column is None and "maneuver" in df.columns:
+        maneuver_column = "maneuver"
+    kw = dict(maneuver_column=maneuver_column, leg_column=leg_column, source=src,
+              min_leg_s=min_leg_s, min_maneuver_s=min_maneuver_s, window_s=window_s,
+              highpass_hz=highpass_hz, min_rms_deg=min_rms_deg, ambiguity_cos=ambiguity_cos,
+              smooth_s=smooth_s, tolerance_deg=tolerance_deg,
+              declination_deg=declination_deg)
+    t = df["time"].to_numpy(dtype=np.float64)
+    fs = sampling_rate(t)
+    step = int(fs // rate_hz) if rate_hz else 1
+    if step < 2 or maneuver_column is not None or leg_column is not None:
+        return _detect_full(df, max_gap_s=max_gap_s, **kw)
+    small, cnt = _block_means(df, t, step, 5.0 / fs if max_gap_s is None else max_gap_s)
+    if len(small) < 10:
+        return _detect_full(df, max_gap_s=max_gap_s, **kw)
+    return _expand(_detect_full(small, max_gap_s=None, **kw), df, t, fs, cnt)
+
+
+def _block_means(df: pd.DataFrame, t: np.ndarray, step: int, max_gap_s: float
+                 ) -> tuple[pd.DataFrame, np.ndarray]:
+    """Means over blocks of ``step`` samples that never cross a time gap.
+
+    Returns the reduced log (``time``: the block's mean time plus a large offset per stretch,
+    so that the reduced log keeps every gap whatever the block length; headings as circular
+    means about the block's first heading) and the number of samples in each block.
+    """
+    n = len(t)
+    s0, s1, _ = run_bounds(find_stretches(t, None, max_gap_s))
+    nb = -(-(s1 - s0) // step)
+    sid = np.repeat(np.arange(len(s0)), nb)
+    off = np.cumsum(nb) - nb
+    first = s0[sid] + step * (np.arange(int(nb.sum())) - off[sid])
+    cnt = np.diff(np.r_[first, n])
+
+    def mean(x: np.ndarray) -> np.ndarray:
+        fin = np.isfinite(x)
+        if fin.all():
+            return np.add.reduceat(x, first) / cnt
+        k = np.add.reduceat(fin.astype(np.float64), first)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(k > 0, np.add.reduceat(np.where(fin, x, 0.0), first) / k, np.nan)
+
+    out = {"time": mean(t - t[0]) + t[0] + 1e6 * sid}
+    for c in ("pitch", "roll", "flux_x", "flux_y", "flux_z"):
+        if c in df.columns:
+            out[c] = mean(df[c].to_numpy(dtype=np.float64))
+    if "heading" in df.columns:
+        h = df["heading"].to_numpy(dtype=np.float64)
+        h0 = np.repeat(h[first], cnt)
+        ref = np.where(np.isfinite(h0), h0, 0.0)
+        d = h - ref
+        d -= 360.0 * np.rint(d / 360.0)  # about the block's first heading, in [-180, 180]
+        out["heading"] = (mean(d) + ref[first]) % 360.0
+    small = pd.DataFrame(out)
+    small.attrs = dict(df.attrs)
+    return small, cnt
+
+
+def _expand(res: ManeuverResult, df: pd.DataFrame, t: np.ndarray, fs: float,
+            cnt: np.ndarray) -> ManeuverResult:
+    """Labels and tables of a block-rate detection on every sample of the log."""
+    lab = res.labels
+    labels = pd.DataFrame({c: np.repeat(lab[c].to_numpy(), cnt)
+                           for c in ("heading_leg", "leg_id", "box")}, index=df.index)
+    labels["maneuver"] = pd.Categorical.from_codes(
+        np.repeat(np.asarray(lab["maneuver"].cat.codes), cnt),
+        categories=lab["maneuver"].cat.categories)
+    labels["maneuver_id"] = np.repeat(lab["maneuver_id"].to_numpy(), cnt)
+    first = np.r_[0, np.cumsum(cnt)]  # block k spans samples first[k]:first[k + 1]
+    legs = res.legs.copy()
+    table = res.table.copy()
+    for tab, col, key in ((legs, "leg_id", "leg_id"), (table, "maneuver_id", "id")):
+        if tab.empty:
+            continue
+        a, b, ids = run_bounds(lab[col].to_numpy())  # in blocks
+        pos = np.searchsorted(ids, tab[key].to_numpy())
+        sa, sb = first[a[pos]], first[b[pos]]
+        tab["t_start"] = t[sa]
+        tab["t_end"] = t[sb - 1]
+        if col == "maneuver_id":
+            tab["n"] = sb - sa
+            tab["duration_s"] = t[sb - 1] - t[sa] + 1.0 / fs
+    return ManeuverResult(labels, table, legs, res.method, res.heading_offset_deg, res.notes)
+
+
+def _detect_full(
+    df: pd.DataFrame,
+    *,
+    maneuver_column: str | None,
+    leg_column: str | None,
+    source: str,
+    min_leg_s: float,
+    min_maneuver_s: float,
+    window_s: float,
+    highpass_hz: float,
+    min_rms_deg: float,
+    ambiguity_cos: float,
+    smooth_s: float,
+    tolerance_deg: float,
+    declination_deg: float,
+    max_gap_s: float | None,
+) -> ManeuverResult:
+    """:func:`detect_maneuvers` at the log's own rate."""
+    src = source
     if "time" not in df.columns:
         raise InputError(f"{src}: missing column 'time'")
     if len(df) < 10:
@@ -376,9 +567,7 @@ def detect_maneuvers(
         # Filter within each leg only: turns between legs must not ring into the manoeuvres.
         stretch = np.where(ok & (leg_id >= 0), leg_id, -1)
         half = max(1, int(round(window_s * fs / 2)))
-        share, rms, cos12 = _axis_energy(df, stretch, fs, highpass_hz, half, has_att)
-        best_axis = np.argmax(np.nan_to_num(share, nan=-1.0), axis=1)
-        best_rms = np.take_along_axis(np.nan_to_num(rms), best_axis[:, None], axis=1)[:, 0]
+        best_axis, best_rms, cos12 = _axis_energy(df, stretch, fs, highpass_hz, half, has_att)
         axis_to_man = np.array([_AXIS_OF[m] for m in MANEUVERS])  # man index -> axis
         man_of_axis = np.argsort(axis_to_man)  # axis -> man index
         active = (best_rms >= min_rms_deg) & (leg_id >= 0)
@@ -392,34 +581,28 @@ def detect_maneuvers(
     dur = t[stops - 1] - t[starts] + 1.0 / fs
     keep = dur >= min_maneuver_s
     starts, stops, vals = starts[keep], stops[keep], vals[keep]
-    rows: list[dict[str, Any]] = []
-    for a, b, v in zip(starts, stops, vals, strict=True):
-        lid = int(v // 3)
-        leg = legs.loc[legs["leg_id"] == lid].iloc[0]
-        rows.append({"box": int(leg["box"]), "heading_leg": int(leg["heading_leg"]),
-                     "heading": leg["heading"], "maneuver": MANEUVERS[int(v % 3)],
-                     "leg_id": lid, "start": int(a), "stop": int(b),
-                     "t_start": float(t[a]), "t_end": float(t[b - 1]),
-                     "duration_s": float(t[b - 1] - t[a] + 1.0 / fs), "n": int(b - a),
-                     "rms_deg": float(np.mean(rms_axis[a:b])),
-                     "ambiguous": bool(ambiguous[a:b].mean() > 0.5)})
+    lid = (vals // 3).astype(np.int64)
+    man_code = (vals % 3).astype(np.int64)
+    length = stops - starts
+    amb = (2 * _run_sums(ambiguous.astype(np.int64), starts, stops) > length) \
+        if len(starts) else np.zeros(0, dtype=bool)
     if method == "fluxgate":
-        _resolve_ambiguous(rows, notes)
-    table = pd.DataFrame(rows, columns=["box", "heading_leg", "heading", "maneuver", "leg_id",
-                                        "start", "stop", "t_start", "t_end", "duration_s", "n",
-                                        "rms_deg", "ambiguous"])
-    table.insert(0, "id", np.arange(len(table)))
-    man = np.full(n, "", dtype=object)
-    mid = np.full(n, -1, dtype=np.int64)
-    if len(table):
-        lens = (table["stop"] - table["start"]).to_numpy()
-        pos = np.concatenate([np.arange(a, b) for a, b in zip(table["start"], table["stop"],
-                                                              strict=True)])
-        mid[pos] = np.repeat(table["id"].to_numpy(), lens)
-        man[pos] = np.repeat(table["maneuver"].to_numpy(dtype=object), lens)
-    labels["maneuver"] = man.astype(str)
+        _resolve_ambiguous(lid, man_code, amb, notes)
+    leg_box = legs["box"].to_numpy(dtype=np.int64)
+    leg_card = legs["heading_leg"].to_numpy(dtype=np.int64)
+    rms_sum = _run_sums(np.where(np.isfinite(rms_axis), rms_axis, np.nan), starts, stops)
+    table = pd.DataFrame({
+        "id": np.arange(len(starts)), "box": leg_box[lid], "heading_leg": leg_card[lid],
+        "heading": np.asarray(CARDINALS, dtype=object)[leg_card[lid]],
+        "maneuver": np.asarray(MANEUVERS, dtype=object)[man_code], "leg_id": lid,
+        "t_start": t[starts], "t_end": t[stops - 1],
+        "duration_s": t[stops - 1] - t[starts] + 1.0 / fs, "n": length,
+        "rms_deg": rms_sum / np.maximum(length, 1), "ambiguous": amb.astype(bool)})
+    mid = _run_index(n, starts, stops)
+    codes = np.where(mid >= 0, man_code[np.maximum(mid, 0)] + 1, 0) if len(starts) \
+        else np.zeros(n, dtype=np.int64)
+    labels["maneuver"] = pd.Categorical.from_codes(codes, categories=["", *MANEUVERS])
     labels["maneuver_id"] = mid
-    table = table.drop(columns=["start", "stop"])
     res = ManeuverResult(labels, table, legs, method, offset, notes)
     full = res.complete_boxes
     nb = int(table["box"].nunique()) if len(table) else 0
@@ -430,24 +613,24 @@ def detect_maneuvers(
     return res
 
 
-def _resolve_ambiguous(rows: list[dict[str, Any]], notes: list[str]) -> None:
-    """Fluxgate roll/yaw ambiguity: give ambiguous runs the labels missing on their leg."""
-    by_leg: dict[int, list[dict[str, Any]]] = {}
-    for r in rows:
-        by_leg.setdefault(r["leg_id"], []).append(r)
+def _resolve_ambiguous(lid: np.ndarray, man: np.ndarray, amb: np.ndarray,
+                       notes: list[str]) -> None:
+    """Fluxgate roll/yaw ambiguity: give ambiguous runs the labels missing on their leg.
+
+    ``lid`` (leg of each run, runs in time order), ``man`` (manoeuvre index, changed in place)
+    and ``amb`` (ambiguous flag) describe the runs.
+    """
     n_fixed = 0
-    for runs in by_leg.values():
-        amb = [r for r in runs if r["ambiguous"]]
-        if not amb:
-            continue
-        sure = {r["maneuver"] for r in runs if not r["ambiguous"]}
-        missing = [m for m in MANEUVERS if m not in sure]
-        amb.sort(key=lambda r: r["t_start"])
-        if len(amb) == len(missing):
-            for r, m in zip(amb, missing, strict=True):
-                n_fixed += r["maneuver"] != m
-                r["maneuver"] = m
-    if any(r["ambiguous"] for r in rows):
+    for leg in np.unique(lid[amb]):
+        runs = np.flatnonzero(lid == leg)
+        sure = {int(man[r]) for r in runs if not amb[r]}
+        missing = [j for j in range(len(MANEUVERS)) if j not in sure]
+        unsure = [r for r in runs if amb[r]]  # already in flight order
+        if len(unsure) == len(missing):
+            for r, j in zip(unsure, missing, strict=True):
+                n_fixed += int(man[r] != j)
+                man[r] = j
+    if amb.any():
         notes.append("fluxgate only: roll and yaw cannot be told apart on headings along the"
                      " magnetic meridian; ambiguous manoeuvres were named in flight order"
                      f" pitch, roll, yaw ({n_fixed} renamed)")
