@@ -1,15 +1,174 @@
-"""Options of the compensation pipeline (:class:`CompensationConfig`)."""
+"""Options of the compensation pipeline: :class:`CompensationConfig` and its option groups.
+
+The configuration is flat (``CompensationConfig(band_hz=..., shrink=...)``, the keywords the
+command line and old code use) and grouped: :class:`FilterOptions`, :class:`SegmentOptions`,
+:class:`ScreeningOptions` and :class:`FitChecks` each hold and check their own parameters;
+``cfg.filter``, ``cfg.segments``, ``cfg.screening``, ``cfg.checks`` read them and
+:meth:`CompensationConfig.from_groups` builds a configuration from them.  A bad value raises
+:class:`ConfigError`, which names the parameter (the command line maps it to its flag).
+"""
 
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from ..errors import InputError
+
+
+class ConfigError(InputError):
+    """A configuration value out of range; names the parameter.
+
+    Attributes
+    ----------
+    parameter : str
+        The keyword (``band_hz``, ``segment_seconds``...).
+    value : object
+        The value given.
+    reason : str
+        What the value must be.
+    """
+
+    def __init__(self, parameter: str, value: Any, reason: str) -> None:
+        self.parameter = parameter
+        self.value = value
+        self.reason = reason
+        super().__init__(f"{parameter}={value!r}: {reason}")
+
+
+def _positive(name: str, v: float | None) -> None:
+    if v is not None and not (np.isfinite(v) and v > 0):
+        raise ConfigError(name, v, "must be a positive number")
+
+
+def _nonneg(name: str, v: float | None) -> None:
+    if v is not None and not (np.isfinite(v) and v >= 0):
+        raise ConfigError(name, v, "must be a number >= 0")
+
+
+@dataclass(frozen=True)
+class FilterOptions:
+    """Filters: the fitting band, the final low-pass, their order, the trimmed edges.
+
+    Attributes
+    ----------
+    band_hz : (float, float)
+        Band-pass before fitting [Hz].
+    order : int
+        Butterworth order (1-10).
+    lowpass_hz : float or None
+        Cut-off of the final low-pass on ``mag_comp`` [Hz]; default the band's upper edge.
+    filter_output : bool
+        Low-pass ``mag_comp`` at all.
+    trim_s : float or None
+        Filter edge dropped at each end of every piece before fitting [s].
+    """
+
+    band_hz: tuple[float, float] = (0.1, 0.9)
+    order: int = 4
+    lowpass_hz: float | None = None
+    filter_output: bool = True
+    trim_s: float | None = None
+
+    def __post_init__(self) -> None:
+        lo, hi = (float(self.band_hz[0]), float(self.band_hz[1]))
+        if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < hi):
+            raise ConfigError("band_hz", (lo, hi), "need 0 < LOW < HIGH in Hz")
+        if int(self.order) != self.order or not 1 <= self.order <= 10:
+            raise ConfigError("order", self.order, "must be an integer from 1 to 10")
+        _positive("lowpass_hz", self.lowpass_hz)
+        _nonneg("trim_s", self.trim_s)
+
+
+@dataclass(frozen=True)
+class SegmentOptions:
+    """Stretches and segments.
+
+    Attributes
+    ----------
+    segment_seconds : float
+        Segment length when the log has no ``line`` column [s].
+    min_segment_seconds : float or None
+        Shortest usable segment after trimming [s]; default ``1 / band_hz[0]``.
+    max_gap_s : float or None
+        Longest time step inside a stretch [s]; default 5 sample intervals.
+    max_interp_s : float
+        Longest NaN gap interpolated [s].
+    """
+
+    segment_seconds: float = 60.0
+    min_segment_seconds: float | None = None
+    max_gap_s: float | None = None
+    max_interp_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        _positive("segment_seconds", self.segment_seconds)
+        _positive("min_segment_seconds", self.min_segment_seconds)
+        _positive("max_gap_s", self.max_gap_s)
+        _nonneg("max_interp_s", self.max_interp_s)
+
+
+@dataclass(frozen=True)
+class ScreeningOptions:
+    """PCA screening of the segments and its materiality guards.
+
+    Attributes are those of :class:`CompensationConfig` with the same names.
+    """
+
+    screen: bool = True
+    shrink: float = 1.0
+    pca_variance: float = 0.8
+    screen_quantile: float = 0.975
+    max_iter: int = 10
+    min_segments: int = 6
+    min_excess: float = 1.5
+    min_excess_nT: float = 0.01
+    gross_excess: float = 10.0
+    inlier_excess: float = 2.5
+    inlier_own_excess: float = 4.0
+
+    def __post_init__(self) -> None:
+        _nonneg("shrink", self.shrink)
+        _nonneg("min_excess", self.min_excess)
+        _nonneg("min_excess_nT", self.min_excess_nT)
+        for name in ("gross_excess", "inlier_excess", "inlier_own_excess"):
+            _positive(name, getattr(self, name))
+        if not 0 < self.pca_variance <= 1:
+            raise ConfigError("pca_variance", self.pca_variance, "must be in (0, 1]")
+        if not 0 < self.screen_quantile < 1:
+            raise ConfigError("screen_quantile", self.screen_quantile, "must be in (0, 1)")
+
+
+@dataclass(frozen=True)
+class FitChecks:
+    """Regularisation and the refusals of the final fit.
+
+    Attributes
+    ----------
+    ridge : float
+        Relative ridge parameter (0: plain least squares).
+    max_condition : float
+        Largest scaled condition number of an unregularised fit.
+    max_interference : float
+        Largest plausible interference as a fraction of the Earth field.
+    """
+
+    ridge: float = 0.0
+    max_condition: float = 1e5
+    max_interference: float = 0.25
+
+    def __post_init__(self) -> None:
+        _nonneg("ridge", self.ridge)
+        _positive("max_condition", self.max_condition)
+        _positive("max_interference", self.max_interference)
+
+
+_GROUPS = {"filter": FilterOptions, "segments": SegmentOptions, "screening": ScreeningOptions,
+           "checks": FitChecks}
 
 
 @dataclass
@@ -21,7 +180,7 @@ class CompensationConfig:
     band_hz : (float, float)
         Band-pass applied to the target and every term before least squares [Hz].
     terms : str
-        Term set (:func:`aeromag.tolles_lawson.parse_terms`), default ``"16"``.
+        Term set (:func:`aeromag.compensation.terms.parse_terms`), default ``"16"``.
     segment_seconds : float
         Segment length when the log has no ``line`` column [s].
     screen : bool
@@ -123,31 +282,56 @@ class CompensationConfig:
 
     def __post_init__(self) -> None:
         self.band_hz = (float(self.band_hz[0]), float(self.band_hz[1]))
-        lo, hi = self.band_hz
-        if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo < hi):
-            raise InputError(f"--band {lo:g} {hi:g}: need 0 < LOW < HIGH in Hz")
-        positive = {"--segment-seconds": self.segment_seconds, "--lowpass": self.lowpass_hz,
-                    "--max-gap": self.max_gap_s, "--max-condition": self.max_condition,
-                    "--min-segment-seconds": self.min_segment_seconds,
-                    "--max-interference": self.max_interference,
-                    "gross_excess": self.gross_excess, "inlier_excess": self.inlier_excess,
-                    "inlier_own_excess": self.inlier_own_excess}
-        for opt, v in positive.items():
-            if v is not None and not (np.isfinite(v) and v > 0):
-                raise InputError(f"{opt} {v:g}: must be a positive number")
-        nonneg = {"--ridge": self.ridge, "--shrink": self.shrink, "--max-interp":
-                  self.max_interp_s, "--min-excess": self.min_excess, "--min-excess-nt":
-                  self.min_excess_nT, "--trim": self.trim_s}
-        for opt, v in nonneg.items():
-            if v is not None and not (np.isfinite(v) and v >= 0):
-                raise InputError(f"{opt} {v:g}: must be a number >= 0")
-        if not 0 < self.pca_variance <= 1:
-            raise InputError(f"--pca-variance {self.pca_variance}: must be in (0, 1]")
-        if not 0 < self.screen_quantile < 1:
-            raise InputError(f"--screen-quantile {self.screen_quantile}: must be in (0, 1)")
-        if int(self.order) != self.order or not 1 <= self.order <= 10:
-            raise InputError(f"filter order {self.order}: must be an integer from 1 to 10")
+        for name in _GROUPS:  # each group checks its own parameters
+            getattr(self, name)
 
+    def _group(self, cls: type) -> Any:
+        return cls(**{f.name: getattr(self, f.name) for f in fields(cls)})
+
+    @property
+    def filter(self) -> FilterOptions:
+        """The filter options."""
+        return self._group(FilterOptions)
+
+    @property
+    def segments(self) -> SegmentOptions:
+        """The stretch and segment options."""
+        return self._group(SegmentOptions)
+
+    @property
+    def screening(self) -> ScreeningOptions:
+        """The screening options."""
+        return self._group(ScreeningOptions)
+
+    @property
+    def checks(self) -> FitChecks:
+        """Regularisation and the fit's refusals."""
+        return self._group(FitChecks)
+
+    @classmethod
+    def from_groups(cls, *, filter: FilterOptions | None = None,  # noqa: A002 - the group's name
+                    segments: SegmentOptions | None = None,
+                    screening: ScreeningOptions | None = None, checks: FitChecks | None = None,
+                    **flat: Any) -> CompensationConfig:
+        """Build a configuration from option groups (and flat keywords: ``terms``, ``fom``).
+
+        Parameters
+        ----------
+        filter, segments, screening, checks : option group, optional
+            Groups (defaults where not given).
+        **flat
+            Other keywords of :class:`CompensationConfig`.
+
+        Returns
+        -------
+        CompensationConfig
+        """
+        kw: dict[str, Any] = {}
+        for g in (filter, segments, screening, checks):
+            if g is not None:
+                kw.update(dataclasses.asdict(g))
+        kw.update(flat)
+        return cls(**kw)
 
 
 def _config_dict(cfg: CompensationConfig) -> dict[str, Any]:

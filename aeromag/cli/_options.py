@@ -1,0 +1,322 @@
+"""The one option table of the command line: every option declared once.
+
+Each :class:`Option` says which commands take it (``commands``) and, for the compensation
+options, which :class:`~aeromag.compensation.config.CompensationConfig` keyword it sets
+(``config``).  A command is a plain function of one argument, the parsed options; the
+:func:`command` decorator gives typer the signature built from the table's rows for that
+command, so a new option is one row here (and a new command one name in ``commands``)::
+
+    @command("compensate")
+    def compensate(opts: Options) -> None:
+        cfg = opts.config()          # CompensationConfig from the rows that set one
+        ...
+
+:func:`config_errors` turns a library :class:`~aeromag.compensation.config.ConfigError`
+(which names the parameter, e.g. ``band_hz``) into a message naming the flag (``--band``).
+Nothing here imports the library at module level, so ``aeromag --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import inspect
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from ..errors import InputError
+from ._app import app
+
+__all__ = ["OPTIONS", "Option", "Options", "add_option", "command", "config_errors"]
+
+_REQUIRED = inspect.Parameter.empty
+
+#: Log-reading commands (``--col``, ``--map``, ``--units``, ``--format``).
+_READERS = frozenset({"compensate", "calibrate", "batch"})
+#: Commands that fit or apply the TL model.
+_COMP = frozenset({"compensate", "calibrate", "batch"})
+_APPLY = frozenset({"compensate", "batch"})
+
+# Same as aeromag.workflows.batch.LOG_EXTENSIONS (a test checks it); literal here so that
+# 'aeromag --help' does not import pandas.
+LOG_EXTENSIONS = (".csv", ".txt", ".parquet", ".pq", ".xyz", ".h5", ".hdf5")
+
+
+@dataclass(frozen=True)
+class Option:
+    """One row of the option table.
+
+    Attributes
+    ----------
+    name : str
+        Python name of the parameter (what :class:`Options` is indexed by).
+    flags : tuple of str
+        Command-line flags (empty for a positional argument).
+    type : object
+        Python type typer converts the value to.
+    default : object
+        Default value (``_REQUIRED``: must be given).
+    help : str or mapping
+        Help text, or one per command name.
+    commands : frozenset of str
+        Commands that take the option.
+    metavar : str or mapping, optional
+        Metavariable shown in the help, or one per command.
+    config : str, optional
+        The :class:`CompensationConfig` keyword the option sets.
+    to_config : callable, optional
+        Value -> keyword value (``--no-screen`` sets ``screen=not value``).
+    extra : dict
+        Further keywords for ``typer.Option`` / ``typer.Argument``.
+    """
+
+    name: str
+    flags: tuple[str, ...]
+    type: Any
+    default: Any
+    help: str | Mapping[str, str]
+    commands: frozenset[str]
+    metavar: str | Mapping[str, str] | None = None
+    config: str | None = None
+    to_config: Callable[[Any], Any] | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def _for(self, value: Any, cmd: str) -> Any:
+        return value.get(cmd) if isinstance(value, Mapping) else value
+
+    def parameter(self, cmd: str) -> inspect.Parameter:
+        """The typer parameter of this option for command ``cmd``."""
+        kw = dict(help=self._for(self.help, cmd), metavar=self._for(self.metavar, cmd),
+                  **self.extra)
+        info = typer.Option(*self.flags, **kw) if self.flags else typer.Argument(
+            show_default=False, **kw)
+        return inspect.Parameter(self.name, inspect.Parameter.KEYWORD_ONLY,
+                                 default=self.default, annotation=Annotated[self.type, info])
+
+
+def _o(name: str, flags: str | tuple[str, ...], typ: Any, default: Any, help: str | Mapping,
+       commands: frozenset[str] | set[str], **kw: Any) -> Option:
+    flags = (flags,) if isinstance(flags, str) else flags
+    return Option(name, flags, typ, default, help, frozenset(commands), **kw)
+
+
+#: The table.  Order is the order of the options in each command's help.
+OPTIONS: list[Option] = [
+    # positional arguments
+    _o("survey", (), Path, _REQUIRED, "Survey log (CSV, or another --format).", {"compensate"},
+       metavar="SURVEY.csv"),
+    _o("cal", (), Path, _REQUIRED, "Calibration flight log (CSV, or another --format).",
+       {"calibrate"}, metavar="CAL.csv"),
+    _o("inputs", (), list[str], _REQUIRED, "Logs: files, globs or folders (a folder's "
+       f"{', '.join('*' + e for e in LOG_EXTENSIONS)} files).", {"batch"}, metavar="INPUTS"),
+    # outputs and models
+    _o("output", "-o", Path, _REQUIRED,
+       {"compensate": "Output CSV (the report goes to OUT.json).",
+        "calibrate": "Output model file (JSON).",
+        "batch": "Output folder (NAME_comp.csv/.json per log, batch_summary.csv/.json)."},
+       _COMP, metavar={"compensate": "OUT.csv", "calibrate": "MODEL.json", "batch": "OUTDIR"}),
+    _o("model", "--model", Path | None, None,
+       {"compensate": "Apply a saved model (from 'aeromag calibrate') instead of fitting.",
+        "batch": "Apply this saved model to every log (default: self-calibrate each log like "
+                 "'compensate')."}, _APPLY, metavar="MODEL.json"),
+    _o("plan", "--plan", Path | None, None, "Mission plan: also run the track check per log "
+       "(NAME_track.csv/.json).", {"batch"}, metavar="PLAN.csv"),
+    _o("workers", "--workers", int | None, None, "Local worker processes (default: all cores).",
+       {"batch"}, metavar="N"),
+    _o("scheduler", "--scheduler", str | None, None, "Run on a Dask cluster, e.g. "
+       "tcp://host:8786 (pip install 'aeromag[dask]').", {"batch"}, metavar="ADDRESS"),
+    _o("force", "--force", bool, False, "Re-process every log (by default a log is skipped when "
+       "its outputs are newer than it and were made with the same options, model, plan and "
+       "aeromag version).", {"batch"}),
+    _o("threshold", "--threshold", float, 1.0, "Track alarm threshold, metres (with --plan).",
+       {"batch"}, metavar="M"),
+    # filters, terms, segments
+    _o("band", "--band", tuple[float, float], (0.1, 0.9),
+       "Band-pass applied before fitting, Hz (zero-phase Butterworth).", _COMP,
+       metavar="LOW HIGH", config="band_hz"),
+    _o("terms", "--terms", str, "16", "Term set: 16 (default), 18, 9, or groups like "
+       "permanent,induced_5,eddy_8[,bias] (MagNav spellings such as induced5, eddy8 too).",
+       _COMP, metavar="SET", config="terms"),
+    _o("segment_seconds", "--segment-seconds", float, 60.0,
+       "Segment length when the log has no 'line' column, s.", _COMP, metavar="S",
+       config="segment_seconds"),
+    _o("no_screen", "--no-screen", bool, False, "Skip PCA screening (fit all segments).", _COMP,
+       config="screen", to_config=lambda v: not v),
+    _o("no_decimate", "--no-decimate", bool, False, "Fit every sample of a high-rate log "
+       "(default: fit a copy decimated to >= 40x the band's upper edge, anti-aliased per "
+       "stretch; see docs/compensation.md).", _COMP, config="decimate",
+       to_config=lambda v: not v),
+    _o("no_filter", "--no-filter", bool, False, "Leave mag_comp unfiltered.", _APPLY,
+       config="filter_output", to_config=lambda v: not v),
+    _o("lowpass", "--lowpass", float | None, None, "Cut-off of the final low-pass on mag_comp, "
+       "Hz (default: the band's upper edge).", _APPLY, metavar="HZ", config="lowpass_hz"),
+    # reading logs
+    _o("col", "--col", list[str] | None, None, "Column map, repeatable (e.g. mag=mag_1_uc).",
+       _READERS, metavar="NAME=SOURCE"),
+    _o("map_file", "--map", Path | None, None, "TOML column map: [columns] NAME = \"SOURCE\", "
+       "optional [units] NAME = \"UNIT\".", _READERS, metavar="FILE"),
+    _o("units", "--units", list[str] | None, None,
+       "Convert a field column or group (flux, mag) from nT/uT/mT/G to nT.", _READERS,
+       metavar="NAME=UNIT"),
+    # the fit and its checks
+    _o("ridge", "--ridge", float, 0.0, "Relative ridge parameter (0 = plain LS).", _COMP,
+       config="ridge"),
+    _o("max_condition", "--max-condition", float, 1e5, "Refuse an unregularised fit whose "
+       "scaled condition number exceeds K (a box calibration gives ~1e2; straight-and-level "
+       "flight ~1e5-1e6).", _COMP, metavar="K", config="max_condition"),
+    _o("max_interference", "--max-interference", float, 0.25, "Refuse a fitted model whose "
+       "|mag_tl| (99th percentile) exceeds this fraction of the Earth field (non-physical: the "
+       "flight did not determine it).", _COMP, metavar="FRACTION", config="max_interference"),
+    # screening
+    _o("shrink", "--shrink", float, 1.0, "Shrinkage of per-segment fits toward the pooled fit "
+       "during screening (0 = none).", _COMP, config="shrink"),
+    _o("pca_variance", "--pca-variance", float, 0.8, "Cumulative explained variance of the PCA "
+       "components used for screening.", _COMP, config="pca_variance"),
+    _o("screen_quantile", "--screen-quantile", float, 0.975, "Chi-square quantile of the "
+       "screening cut-off on the robust distance.", _COMP, config="screen_quantile"),
+    _o("min_excess", "--min-excess", float, 1.5, "A PCA outlier is dropped only when the pooled "
+       "fit leaves it a residual above this times the median segment's.", _COMP,
+       config="min_excess"),
+    _o("min_excess_nt", "--min-excess-nt", float, 0.01, "... and by at least this much in nT "
+       "(harmless differences are kept).", _COMP, config="min_excess_nT"),
+    # stretches
+    _o("max_gap", "--max-gap", float | None, None, "A time step longer than this starts a new "
+       "stretch, s (default 5 dt).", _COMP, metavar="S", config="max_gap_s"),
+    _o("max_interp", "--max-interp", float, 1.0, "NaN gaps up to this long are interpolated, s; "
+       "longer ones split stretches.", _COMP, metavar="S", config="max_interp_s"),
+    _o("fmt", "--format", str | None, None, "Input format (default: from the extension and "
+       "contents; see docs/formats.md).", _READERS, metavar="FORMAT"),
+    _o("fom", "--fom", bool, False, "Detect manoeuvres and report the Figure of Merit (for a "
+       "calibration-style flight).", {"compensate"}, config="fom",
+       to_config=lambda v: v or None),
+    _o("plot", "--plot", Path | None, None,
+       "Also write the QC figures (PNG) and report.html into DIR.", {"compensate", "calibrate"},
+       metavar="DIR"),
+    _o("chunk_rows", "--chunk-rows", int | None, None,
+       {"compensate": "With --model: apply it in chunks of N rows, memory bounded by the chunk "
+                      "size (identical output; for very large logs).",
+        "batch": "With --model: apply it in chunks of N rows (bounded memory for very large "
+                 "logs)."}, _APPLY, metavar="N"),
+    _o("no_progress", "--no-progress", bool, False, "No progress bar.", {"batch"}),
+    _o("verbose", ("-v", "--verbose"), bool, False,
+       "Log progress details (DEBUG messages of aeromag's loggers).", _COMP),
+]
+
+
+def add_option(option: Option, *, before: str | None = None) -> None:
+    """Add a row to the table (before the row named ``before``, default at the end).
+
+    Call it before the command module that uses it is imported (rows are read when the
+    command is registered).
+
+    Parameters
+    ----------
+    option : Option
+        The new row.
+    before : str, optional
+        Name of the row it goes before.
+    """
+    names = [o.name for o in OPTIONS]
+    if option.name in names:
+        raise ValueError(f"option {option.name!r} is declared already")
+    OPTIONS.insert(names.index(before) if before in names else len(OPTIONS), option)
+
+
+class Options(dict):
+    """The parsed options of one command (``opts["band"]``, ``opts.band``).
+
+    Parameters
+    ----------
+    command : str
+        The command's name.
+    values : mapping
+        Parameter name -> value, as typer parsed them.
+    """
+
+    def __init__(self, command: str, values: Mapping[str, Any]) -> None:
+        super().__init__(values)
+        self.command = command
+
+    def __getattr__(self, name: str) -> Any:
+        try:
+            return self[name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    def config(self, **overrides: Any) -> Any:
+        """The :class:`CompensationConfig` of the rows of this command that set one.
+
+        Parameters
+        ----------
+        **overrides
+            Keywords set on top of the options.
+
+        Returns
+        -------
+        CompensationConfig
+        """
+        from ..compensation.config import CompensationConfig
+
+        kw: dict[str, Any] = {}
+        for opt in OPTIONS:
+            if opt.config and opt.name in self:
+                v = self[opt.name]
+                kw[opt.config] = opt.to_config(v) if opt.to_config else v
+        kw.update(overrides)
+        with config_errors():
+            return CompensationConfig(**kw)
+
+
+def _flag_text(value: Any) -> str:
+    if isinstance(value, tuple | list):
+        return " ".join(_flag_text(v) for v in value)
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+@contextlib.contextmanager
+def config_errors() -> Iterator[None]:
+    """Re-raise a :class:`ConfigError` naming the command-line flag instead of the keyword."""
+    from ..compensation.config import ConfigError
+
+    try:
+        yield
+    except ConfigError as exc:
+        flag = next((o.flags[-1] for o in OPTIONS if o.config == exc.parameter and o.flags),
+                    exc.parameter)
+        raise InputError(f"{flag} {_flag_text(exc.value)}: {exc.reason}") from None
+
+
+def command(name: str, **typer_kw: Any) -> Callable[[Callable[[Options], None]], Callable]:
+    """Register ``body(opts)`` as command ``name`` with the table's options for it.
+
+    Parameters
+    ----------
+    name : str
+        The command's name (rows whose ``commands`` hold it are its options).
+    **typer_kw
+        Passed to ``app.command`` (e.g. ``help``).
+
+    Returns
+    -------
+    callable
+        The decorator.
+    """
+
+    def deco(body: Callable[[Options], None]) -> Callable:
+        rows = [o for o in OPTIONS if name in o.commands]
+        params = [o.parameter(name) for o in rows]
+
+        def run(**values: Any) -> None:
+            body(Options(name, values))
+
+        run.__name__ = name
+        run.__doc__ = body.__doc__
+        run.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
+        run.__annotations__ = {p.name: p.annotation for p in params}
+        app.command(name, **typer_kw)(run)
+        return body
+
+    return deco
