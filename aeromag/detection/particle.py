@@ -24,11 +24,14 @@ Noise and threshold come from the log:
   deviation from a 2 s running median, 1.4826 MAD) over the whole log and over the calm
   window, and ``sigma_floor_deg``: a quiet stretch (a landed vehicle, motors off) cannot make
   the filter over-confident for the rest of the flight;
-* the threshold is the calm window's largest ``S_k`` plus ``margin``, unless given.  The
-  default margin is how far ``S_k`` of a correct model rises by chance -- half the excess of
-  the ``chi^2_M`` quantile at 1e-6 over its mean -- times the ratio of the calm window's
-  standard deviation of ``S_k`` to the chi-square's ``sqrt(M/2)`` when above one (compass
-  noise correlated in time makes ``S_k`` wander more than independent noise would).
+* the threshold is the calm window's largest ``S_k`` (but at least the model's own mean
+  ``S_k`` and the log's median ``S_k``, so a calm window quieter than the flight cannot set
+  a threshold the flight's noise alone exceeds) plus ``margin``, unless given.  The default
+  margin is how far ``S_k`` of a correct model rises by chance -- half the excess of the
+  ``chi^2_M`` quantile at 1e-6 over its mean -- times the ratio of the standard deviation of
+  ``S_k`` (over the calm window, and robustly over the log) to the chi-square's
+  ``sqrt(M/2)`` when above one (compass noise correlated in time makes ``S_k`` wander more
+  than independent noise would).
 
 Gaps longer than ``gap_s`` (default 1 s, or 20 median intervals if that is longer) restart the
 filter: the statistic is NaN (no alarm) until the window is full again, so a gap never
@@ -425,22 +428,39 @@ def particle_detector(
                 f" window {calm_window!r} (need {MIN_CALM_STATS}; the window is {window} compass"
                 " samples); choose a longer --calm-window or give --threshold"
             )
+        w = int(window)
+        fin = np.isfinite(stat)
+        med_all = float(np.median(stat[fin]))
         if margin is None:
             # How far S_k of a correct model rises by chance (chi-square excess at 1e-6),
-            # inflated by the calm window's spread of S_k over the chi-square's (compass
-            # noise is correlated in time: S_k then wanders more than a chi-square sum).
-            base = 0.5 * (float(_stats.chi2.ppf(1.0 - 1e-6, int(window))) - int(window))
-            spread = float(np.std(stat[calm_ok])) / np.sqrt(0.5 * int(window))
-            info["calm_spread_ratio"] = spread
-            margin = base * max(1.0, spread)
+            # inflated by the spread of S_k over the chi-square's sqrt(M/2) when larger
+            # (compass noise correlated in time makes S_k wander more), measured over the
+            # calm window and, robustly, over the whole log (a quiet calm window, e.g. a
+            # landed vehicle, would under-state the flight's spread).
+            base = 0.5 * (float(_stats.chi2.ppf(1.0 - 1e-6, w)) - w)
+            sd_chi = np.sqrt(0.5 * w)
+            spread_calm = float(np.std(stat[calm_ok])) / sd_chi
+            mad = float(np.median(np.abs(stat[fin] - med_all)))
+            spread_log = 1.4826 * mad / sd_chi
+            info["calm_spread_ratio"] = spread_calm
+            info["log_spread_ratio"] = spread_log
+            margin = base * max(1.0, spread_calm, spread_log)
         th = threshold_from_calm(stat, calm_ok, percentile=100.0, margin=float(margin))
+        # The level the margin is added to: the calm window's largest S_k, but never below
+        # the mean S_k of the model itself or the log's median S_k (a calm window quieter
+        # than the flight must not set a threshold the flight's noise alone exceeds).
+        expected = 0.5 * w * (np.log(2.0 * np.pi * sigma_y**2) + 1.0)
+        level = max(th.info["calm_percentile_value"], expected, med_all)
+        th.value = level + float(margin)
+        info["expected_stat"] = float(expected)
+        info["log_median_stat"] = med_all
         thr = th.value
         info["threshold_source"] = "calm"
         info["calm_window"] = calm_window if calm_window is None else str(calm_window)
         info["calm_samples"] = th.n
         info["calm_max_stat"] = th.info["calm_percentile_value"]
         info["margin"] = float(margin)
-        info["calm_false_alarm_rate"] = th.false_alarm_rate
+        info["calm_false_alarm_rate"] = float(np.mean(stat[calm_ok] > th.value))
     else:
         thr = float(threshold)
         info["threshold_source"] = "given"
