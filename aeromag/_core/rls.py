@@ -122,6 +122,25 @@ class RLSResult:
         return int(self.skipped.sum())
 
 
+def _upper_products(f: np.ndarray, offs: np.ndarray) -> np.ndarray:
+    """Upper-triangle outer products ``f_i f_j`` (i <= j) of each row, in ``triu_indices``
+    order, by row slices (a fancy-index gather is several times slower)."""
+    k, n = f.shape
+    out = np.empty((k, offs[-1]))
+    for i in range(n):
+        np.multiply(f[:, i:i + 1], f[:, i:], out=out[:, offs[i]:offs[i + 1]])
+    return out
+
+
+def _symmetric_index(n: int) -> np.ndarray:
+    """For each (i, j) of an n x n matrix, the position of (min, max) in ``triu_indices``."""
+    iu, ju = np.triu_indices(n)
+    pos = np.empty((n, n), dtype=np.intp)
+    pos[iu, ju] = np.arange(len(iu))
+    pos[ju, iu] = np.arange(len(iu))
+    return pos.ravel()
+
+
 class RecursiveLeastSquares:
     """Recursive least squares with forgetting factor and a shared regressor.
 
@@ -256,6 +275,8 @@ class RecursiveLeastSquares:
         ok = np.isfinite(phi).all(axis=1) & np.isfinite(y).all(axis=1)
         idx = np.flatnonzero(ok)
         iu, ju = np.triu_indices(n)
+        offs = np.r_[0, np.cumsum(np.arange(n, 0, -1))]  # row i of the upper triangle
+        sym = _symmetric_index(n)
         R = np.linalg.inv(self.P)
         R = 0.5 * (R + R.T)
         B = R @ self.theta
@@ -271,7 +292,7 @@ class RecursiveLeastSquares:
         for s0 in range(0, len(idx), BLOCK):
             rows = idx[s0:s0 + BLOCK]
             f = phi[rows]
-            xr = f[:, iu] * f[:, ju]
+            xr = _upper_products(f, offs)
             if c > 0.0:
                 xr[:, diag] += c
             xb = (f[:, :, None] * y[rows][:, None, :]).reshape(len(rows), n * m)
@@ -281,10 +302,8 @@ class RecursiveLeastSquares:
             Bk, zb = lfilter([1.0], a, xb, axis=0, zi=zb[None, :])
             zr, zb = zr[0], zb[0]
             if history:
-                Rf = np.empty((len(rows), n, n))
-                Rf[:, iu, ju] = Rk
-                Rf[:, ju, iu] = Rk
-                th = np.linalg.solve(Rf, Bk.reshape(len(rows), n, m))
+                th = np.linalg.solve(Rk[:, sym].reshape(len(rows), n, n),
+                                     Bk.reshape(len(rows), n, m))
                 # Skipped samples before each used one repeat the previous estimate.
                 hist[last_fill:rows[0]] = prev
                 hist[rows] = th

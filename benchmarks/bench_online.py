@@ -1,0 +1,85 @@
+"""Speed of the online estimators (samples per second), 1e5 and 1e6 samples.
+
+- ``rls-vector``: the RLS kernel alone, the 12-parameter vector form (4 x 4 covariance, three
+  outputs), batched ``run``;
+- ``compass``: :func:`aeromag.compass.calibrate_compass` end to end (reference rotated into
+  body axes, the estimate, the calibrated field, heading, its error, excitation windows);
+- ``online-tl``: :class:`aeromag.compensation.online.OnlineTL` (16 terms: design matrix,
+  causal band-pass, RLS, coefficient low-pass, ``mag_tl``);
+- ``rls-step``: the streaming step form, for comparison (2e4 samples).
+
+Usage: ``python benchmarks/bench_online.py [--sizes 1e5 1e6] [--repeat 2]``.  The best of
+``--repeat`` runs is reported.  Data come from the project's simulators (not timed).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from aeromag._core.rls import RecursiveLeastSquares
+from aeromag.compass import calibrate_compass
+from aeromag.compensation.online import OnlineTL
+from aeromag.synthetic.compass import simulate_compass
+from aeromag.synthetic.online_tl import simulate_online_tl
+
+
+def _best(fn, repeat: int) -> float:
+    best = np.inf
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", nargs="+", type=float, default=[1e5, 1e6])
+    ap.add_argument("--repeat", type=int, default=2)
+    args = ap.parse_args()
+    print(f"{'case':<12} {'samples':>9} {'seconds':>8} {'samples/s':>12}")
+    for size in args.sizes:
+        n = int(size)
+        log, truth = simulate_compass(duration_s=n / 50.0, amplitude_deg=40.0)
+        flux = log[["flux_x", "flux_y", "flux_z"]].to_numpy()
+        b = log[["truth_bx", "truth_by", "truth_bz"]].to_numpy()
+        phi = np.column_stack([flux / 54000.0, np.ones(n)])
+        y = b / 54000.0
+        cols = [log[c].to_numpy() for c in ("heading", "pitch", "roll")]
+        ref = np.array(truth["earth_ned_nT"])
+        tt = log["time"].to_numpy()
+        cases = {
+            "rls-vector": lambda phi=phi, y=y: RecursiveLeastSquares(
+                4, 3, forgetting=0.975, alpha=1e4).run(phi, y),
+            "compass": lambda flux=flux, cols=cols, ref=ref, tt=tt: calibrate_compass(
+                flux, *cols, ref, time_s=tt, forgetting=0.975),
+        }
+        for name, fn in cases.items():
+            s = _best(fn, args.repeat)
+            print(f"{name:<12} {n:>9d} {s:>8.3f} {n / s:>12,.0f}")
+        del log, flux, b, phi, y
+        tl, _ = simulate_online_tl(duration_s=n / 10.0, jump_s=n / 20.0, line_s=120.0)
+        t = tl["time"].to_numpy()
+        fx = tl[["flux_x", "flux_y", "flux_z"]].to_numpy()
+        mag = tl["mag"].to_numpy()
+        s = _best(lambda t=t, fx=fx, mag=mag: OnlineTL(10.0, forgetting=0.999).run(t, fx, mag),
+                  args.repeat)
+        print(f"{'online-tl':<12} {n:>9d} {s:>8.3f} {n / s:>12,.0f}")
+    m = 20000
+    phi = np.column_stack([np.random.default_rng(0).normal(size=(m, 3)), np.ones(m)])
+    y = phi @ np.ones((4, 3))
+    est = RecursiveLeastSquares(4, 3, forgetting=0.975, alpha=1e4)
+
+    def steps() -> None:
+        for p, q in zip(phi, y, strict=True):
+            est.step(p, q)
+
+    s = _best(steps, 1)
+    print(f"{'rls-step':<12} {m:>9d} {s:>8.3f} {m / s:>12,.0f}")
+
+
+if __name__ == "__main__":
+    main()
