@@ -495,9 +495,11 @@ def _floats_as_pandas_text(table: Any) -> Any:
     """Format float columns as pandas does: shortest round trip, integral values with ``.0``.
 
     Arrow writes ``1.0`` as ``1``; read back, a float column whose values are all integral
-    would turn into integers.  Only such columns are rewritten (a column with any fractional
-    value reads back as float anyway), which keeps the writer fast on measurement data: a
-    column is ruled out by its first fractional value, usually within the first few rows.
+    would turn into integers.  Every value is written on its own, whatever the others are, so
+    that the same number is the same text in every output (in memory and chunk by chunk: a
+    ``0.0`` never becomes ``0`` because the rest of a chunk happens to be integral).  Only
+    float columns holding an integral value are rewritten (one vectorised scan), which keeps
+    the writer fast on measurement data.
     """
     import pyarrow as pa
     import pyarrow.compute as pc
@@ -505,7 +507,7 @@ def _floats_as_pandas_text(table: Any) -> Any:
     for i, f in enumerate(table.schema):
         if not pa.types.is_floating(f.type):
             continue
-        if not _all_integral(table.column(i)):
+        if not _has_integral(table.column(i)):
             continue
         txt = pc.cast(table.column(i), pa.string())
         has_point = pc.match_substring_regex(txt, "[.eEnN]")
@@ -514,16 +516,16 @@ def _floats_as_pandas_text(table: Any) -> Any:
     return table
 
 
-def _all_integral(column: Any) -> bool:
-    """True when every finite value of an Arrow float column is a whole number."""
+def _has_integral(column: Any) -> bool:
+    """True when some finite value of an Arrow float column is a whole number."""
     for chunk in column.chunks:
         vals = chunk.to_numpy(zero_copy_only=False)
-        # Look at a small head first: measurement columns are ruled out at once.
-        for part in (vals[:256], vals[256:]):
-            fin = part[np.isfinite(part)]
-            if fin.size and not np.all(fin == np.floor(fin)):
-                return False
-    return True
+        with np.errstate(invalid="ignore"):
+            if np.any(vals == np.floor(vals)):  # NaN and inf compare False / are excluded
+                fin = vals[np.isfinite(vals)]
+                if np.any(fin == np.floor(fin)):
+                    return True
+    return False
 
 
 #: Rows formatted per task by the CSV writer (small slices keep each text buffer in cache).

@@ -140,10 +140,18 @@ def read_log(
     return df
 
 
-def _clean_time(df: pd.DataFrame, source: str,
-                rows: Mapping[str, Any] | None = None) -> pd.DataFrame:
-    """Drop exact duplicate rows; require a finite, strictly increasing ``time``."""
-    t = df["time"].to_numpy(dtype=np.float64)
+def check_time_values(t: np.ndarray, source: str, rows: Mapping[str, Any] | None) -> None:
+    """Refuse an empty or non-finite time, or one beyond :data:`MAX_TIME_S` (naming the row).
+
+    Parameters
+    ----------
+    t : ndarray
+        Times [s].
+    source : str
+        File name quoted in errors.
+    rows : mapping or None
+        Where the rows are in the file.
+    """
     bad = ~np.isfinite(t)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
@@ -156,6 +164,19 @@ def _clean_time(df: pd.DataFrame, source: str,
             f"{source}: column 'time', {row_location(rows, i)}: time {plain_number(t[i])} s is"
             f" beyond {MAX_TIME_S:.0e} s (the year 5000): fix the value, or if time is in ms, us"
             " or ns convert it to seconds")
+
+
+def duplicates_warning(source: str, n: int, where: str) -> str:
+    """The warning for exact duplicate rows dropped (the same in memory and chunked)."""
+    return (f"{source}: dropped {n} exact duplicate row(s) (the first at {where}: a copy of the"
+            " row before it); check the logger if you did not expect copies")
+
+
+def _clean_time(df: pd.DataFrame, source: str,
+                rows: Mapping[str, Any] | None = None) -> pd.DataFrame:
+    """Drop exact duplicate rows; require a finite, strictly increasing ``time``."""
+    t = df["time"].to_numpy(dtype=np.float64)
+    check_time_values(t, source, rows)
     dup = np.zeros(len(df), dtype=bool)
     same_t = np.r_[False, t[1:] == t[:-1]]
     if same_t.any():
@@ -165,9 +186,8 @@ def _clean_time(df: pd.DataFrame, source: str,
         dup = same_t & eq
         if dup.any():
             first = int(np.flatnonzero(dup)[0])
-            log.warning("%s: dropped %d exact duplicate row(s) (the first at %s: a copy of the"
-                        " row before it); check the logger if you did not expect copies",
-                        source, int(dup.sum()), row_location(rows, first))
+            log.warning("%s", duplicates_warning(source, int(dup.sum()),
+                                                 row_location(rows, first)))
             df = df.loc[~dup].reset_index(drop=True)
             t = t[~dup]
     dt = np.diff(t)

@@ -31,6 +31,15 @@ def rows_numbered(unit: str) -> dict[str, Any]:
     return {"kind": "index", "unit": unit}
 
 
+def shift_rows(rows: Mapping[str, Any] | None, offset: int) -> dict[str, Any] | None:
+    """The row description of a batch that starts at data row ``offset`` of ``rows``."""
+    if rows is None:
+        return None
+    out = dict(rows)
+    out["offset"] = int(rows.get("offset", 0)) + int(offset)
+    return out
+
+
 def row_location(rows: Mapping[str, Any] | None, i: int) -> str:
     """Say where data row ``i`` (0-based) of a table is, for an error message.
 
@@ -49,6 +58,8 @@ def row_location(rows: Mapping[str, Any] | None, i: int) -> str:
         when the file line cannot be told.
     """
     kind = rows.get("kind") if rows else None
+    if rows is not None:
+        i += int(rows.get("offset", 0))
     if kind == "runs" and rows is not None:
         k = bisect.bisect_right(rows["rows"], i) - 1
         if k >= 0:

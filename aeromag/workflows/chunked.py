@@ -44,18 +44,16 @@ from ..compensation.report import AppliedRun, applied_report
 from ..errors import InputError
 from ..io import (
     FLUX_COLUMNS,
-    NUMERIC_COLUMNS,
     _csv_header,
     _floats_as_pandas_text,
-    apply_column_map,
     atomic_path,
-    convert_units,
     json_path_for,
-    numeric_values,
+    plain_number,
     write_arrow_csv,
     write_json,
 )
-from ..io.stream import iter_batches
+from ..io.log import duplicates_warning
+from ..io.stream import duplicate_rows, iter_log_batches
 from .compensate import check_outputs
 
 log = logging.getLogger(__name__)
@@ -176,23 +174,19 @@ def apply_model_chunked(
         model.meta["path"] = str(mpath)
     colmap = dict(columns or {})
 
-    def canon(df: pd.DataFrame) -> pd.DataFrame:
-        df = apply_column_map(df, colmap, source=source) if colmap else df
-        for c in (c for c in NUMERIC_COLUMNS if c in df.columns):
-            if df[c].dtype != np.float64 and c not in ("line", "leg"):
-                df[c] = numeric_values(df[c], source, colmap.get(c, c), None,
-                                       remedy="fix the value (run without --chunk-rows for"
-                                       " the exact line)")
-        return convert_units(df, units, source=source) if units else df
+    drop = np.zeros(0, dtype=np.int64)  # exact duplicate rows, found in pass 1
 
-    def src_cols(names: list[str]) -> list[str]:
-        return [colmap.get(c, c) for c in names]
+    def batches(names: list[str] | None = None, batch_rows: int = 250_000
+                ) -> Iterator[pd.DataFrame]:
+        """Canonical, validated batches: io's one reading path, as read_log (issue 16)."""
+        return iter_log_batches(src, fmt, names, colmap=colmap, units=units, drop=drop,
+                                batch_rows=batch_rows)
 
     # ---- pass 1: time steps, line values, row count
-    first = next(iter_batches(src, fmt, batch_rows=2), None)
+    first = next(batches(batch_rows=2), None)
     if first is None or len(first) == 0:
         raise InputError(f"{source}: no data rows")
-    present = set(canon(first).columns)
+    present = set(first.columns)
     missing = [c for c in ("time", *FLUX_COLUMNS) if c not in present]
     if missing:
         raise InputError(f"{source}: missing column(s) {', '.join(missing)}; map them with"
@@ -203,28 +197,42 @@ def apply_model_chunked(
     lines: set[float] = set()
     n_rows = 0
     prev_t = None
-    for b in iter_batches(src, fmt, src_cols(["time", *(["line"] if has_line else [])])):
-        b = canon(b)
+    same_t: list[np.ndarray] = []  # rows whose time equals the previous row's
+    for b in batches(["time", *(["line"] if has_line else [])]):
         t = b["time"].to_numpy(np.float64)
-        if not np.all(np.isfinite(t)):
-            i = int(np.flatnonzero(~np.isfinite(t))[0])
-            raise InputError(f"{source}: column 'time', line {n_rows + i + 2}: empty or"
-                             " non-finite time")
         tt = t if prev_t is None else np.r_[prev_t, t]
         dt = np.diff(tt)
-        if (dt <= 0).any():
-            i = int(np.flatnonzero(dt <= 0)[0]) + (0 if prev_t is None else -1)
-            raise InputError(f"{source}: column 'time', line {n_rows + i + 3}: time is not"
-                             " increasing (duplicates or disorder); sort the log, or run"
-                             " without --chunk-rows to drop exact duplicates")
+        back = 0 if prev_t is None else 1
+        if (dt < 0).any():
+            i = int(np.flatnonzero(dt < 0)[0])
+            raise InputError(f"{source}: column 'time', row {n_rows + i - back + 2} of the data:"
+                             f" time {plain_number(tt[i + 1])} is not after"
+                             f" {plain_number(tt[i])}; time must be strictly increasing (sort"
+                             " the log or fix the row)")
+        if (dt == 0).any():
+            same_t.append(n_rows + np.flatnonzero(dt == 0) + 1 - back)
+            dt = dt[dt != 0]
         u, c = np.unique(dt, return_counts=True)
         for v, k in zip(u.tolist(), c.tolist(), strict=True):
             steps[v] = steps.get(v, 0) + k
         if has_line:
             ln = b["line"].to_numpy(np.float64)
             lines.update(np.unique(ln[np.isfinite(ln)]).tolist())
-        prev_t = t[-1:]
+        prev_t = t[-1:] if len(t) else prev_t
         n_rows += len(t)
+    if same_t:
+        cand = np.concatenate(same_t)
+        dup = duplicate_rows(src, fmt, cand, colmap=colmap, units=units)
+        other = np.setdiff1d(cand, dup)
+        if other.size:
+            i = int(other[0])
+            raise InputError(f"{source}: column 'time', row {i + 1} of the data: time is the"
+                             " same as in the row before, with other values; time must be"
+                             " strictly increasing (sort the log or fix the row)")
+        log.warning("%s", duplicates_warning(source, int(dup.size),
+                                             f"row {int(dup[0]) + 1} of the data"))
+        drop = dup
+        n_rows -= int(dup.size)
     if n_rows < 2:
         raise InputError(f"{source}: only {n_rows} data row(s); need at least 2")
     med = _median_from_counts(steps)
@@ -236,7 +244,7 @@ def apply_model_chunked(
         if not np.all(vals == np.round(vals)):
             line_codes = vals
     overlap = overlap_rows(fs, cfg)
-    need = src_cols(["time", *FLUX_COLUMNS, *(["mag"] if has_mag else [])])
+    need = ["time", *FLUX_COLUMNS, *(["mag"] if has_mag else [])]
 
     def arrays(w: pd.DataFrame) -> dict[str, np.ndarray]:
         t = w["time"].to_numpy(np.float64)
@@ -256,8 +264,7 @@ def apply_model_chunked(
     # ---- pass 2: stretch start / end times
     s_start: list[np.ndarray] = []
     s_end: list[np.ndarray] = []
-    for w, a, b, _ in _windows((canon(x) for x in iter_batches(src, fmt, need)),
-                               chunk_rows, overlap):
+    for w, a, b, _ in _windows(batches(need), chunk_rows, overlap):
         ar = arrays(w)
         st = find_stretches(ar["t"], ar["valid"], max_gap)
         starts = (st >= 0) & np.r_[True, st[1:] != st[:-1]]
@@ -289,8 +296,7 @@ def apply_model_chunked(
     import pyarrow as pa
 
     with atomic_path(out_csv) as tmp, open(tmp, "wb") as fh:
-        for w, a, b, _ in _windows((canon(x) for x in iter_batches(src, fmt)),
-                                   chunk_rows, overlap):
+        for w, a, b, _ in _windows(batches(), chunk_rows, overlap):
             ar = arrays(w)
             t = ar["t"]
             st = find_stretches(t, ar["valid"], max_gap)
