@@ -9,7 +9,7 @@ from matplotlib.figure import Figure
 from typer.testing import CliRunner
 
 from aeromag.cli import app
-from aeromag.compensation.pipeline import compensate
+from aeromag.workflows.compensate import compensate
 from aeromag.synthetic import simulate_calibration
 
 runner = CliRunner()

@@ -170,14 +170,16 @@ def setup_logging(verbose: bool, quiet: bool = False) -> None:
     Parameters
     ----------
     verbose : bool
-        Debug messages with timestamps [ms].
+        Debug messages of aeromag's own loggers, with timestamps [ms] (other libraries stay at
+        warnings: matplotlib's or numba's debug output is not aeromag's progress).
     quiet : bool
         Library warnings off (errors only); the command line's own warnings about its options
         (``aeromag.cli``) are still shown.
     """
-    level = logging.DEBUG if verbose else (logging.ERROR if quiet else logging.WARNING)
+    root = logging.ERROR if quiet and not verbose else logging.WARNING
     fmt = "%(relativeCreated)6.0f ms %(levelname)s: %(message)s" if verbose else \
         "%(levelname)s: %(message)s"
-    logging.basicConfig(level=level, format=fmt, force=True)
+    logging.basicConfig(level=root, format=fmt, force=True)
+    logging.getLogger("aeromag").setLevel(logging.DEBUG if verbose else logging.NOTSET)
     logging.getLogger(__package__).setLevel(
         logging.WARNING if quiet and not verbose else logging.NOTSET)

@@ -2,15 +2,12 @@
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError
 from .config import CompensationConfig
 from .model import TLModel
 from .screening import ScreenResult
@@ -63,67 +60,3 @@ class CompensationResult:
     def metrics(self) -> dict[str, Any]:
         """The report's ``metrics`` block (empty for a fit without data)."""
         return self.report.get("metrics") or {}
-
-    # Figures (matplotlib Figure objects, headless; see aeromag.plot.compensation).
-    def plot_pca_scores(self, **kw: Any) -> Any:
-        """The PCA score plot (PC1 vs PC2): kept/dropped segments, decision boundary."""
-        from ..plot import compensation as pc
-
-        return pc.plot_pca_scores(self.report, **kw)
-
-    def plot_explained_variance(self, **kw: Any) -> Any:
-        """Explained-variance bars of the screening PCA."""
-        from ..plot import compensation as pc
-
-        return pc.plot_explained_variance(self.report, **kw)
-
-    def plot_timeseries(self, **kw: Any) -> Any:
-        """Uncompensated vs compensated total field against time."""
-        from ..plot import compensation as pc
-
-        return pc.plot_timeseries(self._data(), **kw)
-
-    def plot_psd(self, **kw: Any) -> Any:
-        """Power spectral density before and after compensation."""
-        from ..plot import compensation as pc
-
-        kw.setdefault("band_hz", tuple(self.report["band_hz"]))
-        return pc.plot_psd(self._data(), **kw)
-
-    def plot_term_contributions(self, **kw: Any) -> Any:
-        """Permanent / induced / eddy contributions to ``mag_tl``."""
-        from ..plot import compensation as pc
-
-        return pc.plot_term_contributions(self._data(), self.report, **kw)
-
-    def plot_fom(self, **kw: Any) -> Any:
-        """FOM bars per heading and manoeuvre (calibration flights)."""
-        from ..plot import compensation as pc
-        from ..qc import fom_table
-
-        table = fom_table(self._data(), band_hz=tuple(self.report["band_hz"]))
-        return pc.plot_fom(table, **kw)
-
-    def plot_map(self, **kw: Any) -> Any:
-        """Map of the flight coloured by the compensated field (needs lat/lon)."""
-        from ..plot import compensation as pc
-
-        return pc.plot_map(self._data(), **kw)
-
-    def qc(self, **kw: Any) -> Any:
-        """All quality-control metrics (:func:`aeromag.qc.compute_qc`)."""
-        from ..qc import compute_qc
-
-        return compute_qc(self._data(), self.report, **kw)
-
-    def write_report(self, out_dir: str | os.PathLike[str]) -> Path:
-        """Write the figures, ``qc.json`` and ``report.html`` into ``out_dir``."""
-        from ..workflows.report import write_report
-
-        return write_report(self._data(), self.report, out_dir)
-
-    def _data(self) -> pd.DataFrame:
-        if self.data is None:
-            raise InputError("this result holds no compensated data (use compensate())")
-        return self.data
-

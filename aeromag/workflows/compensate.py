@@ -13,6 +13,7 @@ import logging
 import os
 import time
 import warnings
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -29,14 +30,14 @@ from ..io import atomic_path, json_path_for, read_log, write_csv, write_csv_pass
 log = logging.getLogger(__name__)
 
 
-__all__ = ["calibrate", "calibrate_file", "check_outputs", "compensate", "compensate_file",
-           "write_outputs"]
+__all__ = ["CompensationRun", "calibrate", "calibrate_file", "check_outputs", "compensate",
+           "compensate_file", "write_outputs"]
 
 
 def compensate(
     df: pd.DataFrame, cfg: CompensationConfig | None = None, *, model: TLModel | None = None,
     source: str | None = None,
-) -> CompensationResult:
+) -> CompensationRun:
     """Compensate a log in memory, report ``qc`` block included (``am.compensate``).
 
     Parameters
@@ -55,14 +56,14 @@ def compensate(
     CompensationResult
         See :func:`aeromag.compensation.pipeline.compensate`.
     """
-    res = _pipeline.compensate(df, cfg, model=model, source=source)
+    res = _run(_pipeline.compensate(df, cfg, model=model, source=source))
     _add_qc(res)
     return res
 
 
 def calibrate(
     df: pd.DataFrame, cfg: CompensationConfig | None = None, *, source: str | None = None,
-) -> CompensationResult:
+) -> CompensationRun:
     """Fit and screen the model on a calibration log in memory (``am.calibrate``).
 
     Parameters
@@ -78,9 +79,88 @@ def calibrate(
     -------
     CompensationResult
     """
-    res = _pipeline.calibrate(df, cfg, source=source)
+    res = _run(_pipeline.calibrate(df, cfg, source=source))
     _add_qc(res)
     return res
+
+
+@dataclass
+class CompensationRun(CompensationResult):
+    """A :class:`~aeromag.compensation.result.CompensationResult` with figures, QC and report.
+
+    What :func:`compensate` and :func:`calibrate` (``am.compensate``, ``am.calibrate``) return:
+    the result plus methods that draw its figures (:mod:`aeromag.plot.compensation`), compute
+    its quality control (:mod:`aeromag.qc`) and write the HTML report; they live here, above
+    the compensation, plot and QC packages they join.
+    """
+
+    # Figures (matplotlib Figure objects, headless; see aeromag.plot.compensation).
+    def plot_pca_scores(self, **kw: Any) -> Any:
+        """The PCA score plot (PC1 vs PC2): kept/dropped segments, decision boundary."""
+        from ..plot import compensation as pc
+
+        return pc.plot_pca_scores(self.report, **kw)
+
+    def plot_explained_variance(self, **kw: Any) -> Any:
+        """Explained-variance bars of the screening PCA."""
+        from ..plot import compensation as pc
+
+        return pc.plot_explained_variance(self.report, **kw)
+
+    def plot_timeseries(self, **kw: Any) -> Any:
+        """Uncompensated vs compensated total field against time."""
+        from ..plot import compensation as pc
+
+        return pc.plot_timeseries(self._data(), **kw)
+
+    def plot_psd(self, **kw: Any) -> Any:
+        """Power spectral density before and after compensation."""
+        from ..plot import compensation as pc
+
+        kw.setdefault("band_hz", tuple(self.report["band_hz"]))
+        return pc.plot_psd(self._data(), **kw)
+
+    def plot_term_contributions(self, **kw: Any) -> Any:
+        """Permanent / induced / eddy contributions to ``mag_tl``."""
+        from ..plot import compensation as pc
+
+        return pc.plot_term_contributions(self._data(), self.report, **kw)
+
+    def plot_fom(self, **kw: Any) -> Any:
+        """FOM bars per heading and manoeuvre (calibration flights)."""
+        from ..plot import compensation as pc
+        from ..qc import fom_table
+
+        table = fom_table(self._data(), band_hz=tuple(self.report["band_hz"]))
+        return pc.plot_fom(table, **kw)
+
+    def plot_map(self, **kw: Any) -> Any:
+        """Map of the flight coloured by the compensated field (needs lat/lon)."""
+        from ..plot import compensation as pc
+
+        return pc.plot_map(self._data(), **kw)
+
+    def qc(self, **kw: Any) -> Any:
+        """All quality-control metrics (:func:`aeromag.qc.compute_qc`)."""
+        from ..qc import compute_qc
+
+        return compute_qc(self, **kw)
+
+    def write_report(self, out_dir: str | os.PathLike[str]) -> Path:
+        """Write the figures, ``qc.json`` and ``report.html`` into ``out_dir``."""
+        from .report import write_report
+
+        return write_report(self._data(), self.report, out_dir)
+
+    def _data(self) -> pd.DataFrame:
+        if self.data is None:
+            raise InputError("this result holds no compensated data (use compensate())")
+        return self.data
+
+
+
+def _run(res: CompensationResult) -> CompensationRun:
+    return CompensationRun(**{f.name: getattr(res, f.name) for f in fields(CompensationResult)})
 
 
 def _add_qc(res: CompensationResult) -> None:
