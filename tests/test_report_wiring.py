@@ -9,8 +9,8 @@ from matplotlib.figure import Figure
 from typer.testing import CliRunner
 
 from aeromag.cli import app
-from aeromag.workflows.compensate import compensate
 from aeromag.synthetic import simulate_calibration
+from aeromag.workflows.compensate import compensate
 
 runner = CliRunner()
 
