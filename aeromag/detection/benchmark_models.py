@@ -195,16 +195,19 @@ def cstr_model(hypothesis: str = "nominal", dt_min: float = 0.05,
         a = k >= onset
         return a[:, None] if np.ndim(a) else a
 
-    def rhs(z, q_c, q_out, q_f):
-        C_A, T, T_C, h = z[..., 0], z[..., 1], z[..., 2], z[..., 3]
-        vol = c["A"] * np.maximum(h, 1e-3)
-        r = c["k0"] * np.exp(-c["E_R"] / T) * C_A
-        ua = c["UA_C"] * (T - T_C)
-        dC = -r + q_f * (c["C_AF"] + z[..., 6] - C_A) / vol
-        dT = (r * (-c["dH"]) / c["rho_cp"] + q_f * (c["T_F"] + z[..., 5] - T) / vol
-              - ua / (c["rho_cp"] * vol))
-        dTc = q_c * (c["T_CF"] - T_C) / c["V_c"] + ua / (c["rho_cp_c"] * c["V_c"])
-        dh = (q_f - q_out) / c["A"]
+    k0, e_r, dh_rc = c["k0"], c["E_R"], -c["dH"] / c["rho_cp"]
+    ua_rc, ua_rcc = c["UA_C"] / c["rho_cp"], c["UA_C"] / (c["rho_cp_c"] * c["V_c"])
+    area, t_cf, v_c = c["A"], c["T_CF"], c["V_c"]
+
+    def rhs(C_A, T, T_C, h, q_c, q_out, q_f, c_af, t_f):
+        inv_vol = 1.0 / (area * np.maximum(h, 1e-3))
+        r = k0 * np.exp(-e_r / T) * C_A
+        dT_TC = T - T_C
+        fv = q_f * inv_vol
+        dC = fv * (c_af - C_A) - r
+        dT = r * dh_rc + fv * (t_f - T) - ua_rc * dT_TC * inv_vol
+        dTc = q_c * (t_cf - T_C) / v_c + ua_rcc * dT_TC
+        dh = (q_f - q_out) / area
         return dC, dT, dTc, dh
 
     def f(z, k, u):
@@ -215,20 +218,22 @@ def cstr_model(hypothesis: str = "nominal", dt_min: float = 0.05,
         e = z[..., 1] + bias - sp
         q_c = np.clip(c["Q_C"] + c["Kc"] * e + (c["Kc"] / c["tau_I"]) * z[..., 4], 0.0, 60.0)
         q_out = np.maximum(c["Q"] + c["K_h"] * (z[..., 3] - c["h"]), 0.0)
-        zs = z[..., :4]
+        c_af, t_f = c["C_AF"] + z[..., 6], c["T_F"] + z[..., 5]
+        x = [z[..., i] for i in range(4)]
         hs = dt_min / substeps
         for _ in range(substeps):
-            full = np.concatenate([zs, z[..., 4:]], axis=-1)
-            k1 = np.stack(rhs(full, q_c, q_out, q_f), axis=-1)
-            full[..., :4] = zs + 0.5 * hs * k1
-            k2 = np.stack(rhs(full, q_c, q_out, q_f), axis=-1)
-            full[..., :4] = zs + 0.5 * hs * k2
-            k3 = np.stack(rhs(full, q_c, q_out, q_f), axis=-1)
-            full[..., :4] = zs + hs * k3
-            k4 = np.stack(rhs(full, q_c, q_out, q_f), axis=-1)
-            zs = zs + (hs / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            k1 = rhs(*x, q_c, q_out, q_f, c_af, t_f)
+            k2 = rhs(*(xi + 0.5 * hs * ki for xi, ki in zip(x, k1, strict=True)),
+                     q_c, q_out, q_f, c_af, t_f)
+            k3 = rhs(*(xi + 0.5 * hs * ki for xi, ki in zip(x, k2, strict=True)),
+                     q_c, q_out, q_f, c_af, t_f)
+            k4 = rhs(*(xi + hs * ki for xi, ki in zip(x, k3, strict=True)),
+                     q_c, q_out, q_f, c_af, t_f)
+            x = [xi + (hs / 6.0) * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+                 for xi, a1, a2, a3, a4 in zip(x, k1, k2, k3, k4, strict=True)]
         out = z.copy()
-        out[..., :4] = zs
+        for i in range(4):
+            out[..., i] = x[i]
         out[..., 4] = z[..., 4] + e * dt_min
         return out
 
