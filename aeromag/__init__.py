@@ -62,6 +62,10 @@ _API: dict[str, str] = {
     "igrf_field": "aeromag.compass",
     "compass_file": "aeromag.workflows.compass",
     "simulate_compass": "aeromag.synthetic.compass",
+    "OnlineTL": "aeromag.compensation.online",
+    "OnlineTollesLawson": "aeromag.compensation.online_estimator",
+    "compensate_online_file": "aeromag.workflows.online_compensate",
+    "simulate_online_tl": "aeromag.synthetic.online_tl",
 }
 
 __all__ = ["AeromagError", "FitError", "InputError", "__version__", *sorted(_API)]

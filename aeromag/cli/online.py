@@ -1,0 +1,70 @@
+"""``aeromag compensate --online``: the option rows and the dispatch to the online workflow.
+
+Imported by :mod:`aeromag.cli.compensate` before its command is registered, so the two rows
+below are part of the one option table (:mod:`aeromag.cli._options`).
+"""
+
+from __future__ import annotations
+
+import typer
+
+from ..errors import InputError
+from ._app import column_options, setup_logging, user_errors
+from ._options import OPTIONS, Option, Options, add_option
+
+_ONLINE = frozenset({"compensate"})
+
+if "online" not in {o.name for o in OPTIONS}:
+    add_option(Option(
+        "online", ("--online",), bool, False,
+        "Fit the model sample by sample (recursive least squares with a forgetting factor, "
+        "causal), for interference that changes during the flight; no screening.", _ONLINE),
+        before="model")
+    add_option(Option(
+        "forgetting", ("--forgetting",), float | None, None,
+        "With --online: forgetting factor lambda, 0 < L <= 1 (1: plain recursive least "
+        "squares; default 0.999, a memory of about 1000 samples).", _ONLINE, metavar="L"),
+        before="model")
+
+
+def run_online(opts: Options) -> None:
+    """Run ``compensate --online`` with the parsed options of ``compensate``.
+
+    Parameters
+    ----------
+    opts : Options
+        The options of the ``compensate`` command.
+    """
+    setup_logging(opts.verbose)
+    from ..io import json_path_for
+    from ..workflows.online_compensate import DEFAULT_FORGETTING, compensate_online_file
+
+    with user_errors():
+        for name, flag in (("model", "--model"), ("chunk_rows", "--chunk-rows"),
+                           ("plot", "--plot")):
+            if opts.get(name) is not None:
+                raise InputError(f"{flag} does not go with --online (the online fit estimates "
+                                 f"the model as it goes); drop {flag}")
+        columns, unit_map = column_options(opts.col, opts.map_file, opts.units)
+        cfg = opts.config()
+        lam = DEFAULT_FORGETTING if opts.get("forgetting") is None else opts.forgetting
+        report = compensate_online_file(opts.survey, opts.output, cfg, forgetting=lam,
+                                        columns=columns, units=unit_map,
+                                        fmt=opts.get("fmt"))
+    m = report["metrics"]
+    typer.echo(f"wrote {opts.output} and {json_path_for(opts.output)}: online fit, lambda "
+               f"{report['forgetting']:g}, improvement ratio {m['improvement_ratio']:.2f}, "
+               f"residual {m['residual_std_nT']:.3f} nT")
+
+
+def check_forgetting_without_online(opts: Options) -> None:
+    """``--forgetting`` without ``--online`` is a mistake: say so.
+
+    Parameters
+    ----------
+    opts : Options
+        The options of the ``compensate`` command.
+    """
+    if opts.get("forgetting") is not None and not opts.get("online"):
+        with user_errors():
+            raise InputError("--forgetting applies to the online fit: add --online")
