@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 from collections.abc import Sequence
@@ -231,19 +230,15 @@ class TLModel:
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> TLModel:
-        """Read a model JSON file (as written by ``aeromag calibrate``)."""
-        p = Path(path)
-        try:
-            d = json.loads(p.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise InputError(f"{p}: model file not found") from None
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise InputError(
-                f"{p}: not valid JSON ({exc}); pass a file from 'aeromag calibrate'"
-            ) from None
-        if not isinstance(d, dict):
-            raise InputError(f"{p}: not a model file; pass a file from 'aeromag calibrate'")
-        return cls.from_dict(d, source=str(p))
+        """Read a model JSON file (as written by ``aeromag calibrate``).
+
+        The file is read with a size limit and validated against the model schema by
+        :func:`aeromag.io.model_file.read_model_document` (term names and count, finite
+        coefficients, positive ``scale_nT``, bounded nesting).
+        """
+        from ..io.model_file import read_model_document
+
+        return cls.from_dict(read_model_document(path), source=str(Path(path)))
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write the model JSON atomically."""

@@ -11,9 +11,7 @@ from __future__ import annotations
 import logging
 import os
 import re
-import tomllib
 from collections.abc import Iterable, Mapping, Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -120,18 +118,9 @@ def read_map_file(path: str | os.PathLike[str]) -> tuple[dict[str, str], dict[st
     -------
     columns, units : dict, dict
     """
-    p = Path(path)
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"{p}: column-map file not found") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{p}: not a valid TOML column map ({exc})") from None
-    cols = data.get("columns", {})
-    units = data.get("units", {})
-    if not isinstance(cols, dict) or not isinstance(units, dict):
-        raise InputError(f"{p}: [columns] and [units] must be tables of NAME = \"VALUE\"")
-    return {str(k): str(v) for k, v in cols.items()}, {str(k): str(v) for k, v in units.items()}
+    from .model_file import read_map_document
+
+    return read_map_document(path)
 
 
 def unit_factor(unit: str, *, what: str = "--units") -> float:
@@ -343,7 +332,7 @@ def _check_magnitudes(s: pd.Series, source: str, column: str,
         what = ("is infinite (beyond the range of numbers)" if np.isinf(v[i]) else
                 f"is beyond {MAX_ID:.0e}: not a {column} id")
         raise InputError(f"{clean(source)}: column {clean(column)!r}, {row_location(rows, i)}:"
-                         f" value {v[i]!r} {what}; fix the value")
+                         f" value {plain_number(v[i])} {what}; fix the value")
 
 
 #: ISO 8601 date and time at the start of a text value (``2024-01-01T00:00:00``, with a space too).

@@ -455,6 +455,28 @@ def _csv_ready(df: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
+def check_no_binary(df: pd.DataFrame, target: Path) -> None:
+    """Refuse a column of raw bytes (a Parquet binary column) for a text output.
+
+    Parameters
+    ----------
+    df : DataFrame
+        The table to write.
+    target : Path
+        The output, named in the message.
+    """
+    for c in df.columns:
+        s = df[c]
+        if s.dtype.kind not in "OS":
+            continue
+        vals = s.dropna()
+        if len(vals) and isinstance(vals.iloc[0], bytes | bytearray | memoryview) or (
+                s.dtype.kind == "S"):
+            raise InputError(
+                f"{clean(target)}: column {clean(c)!r} holds binary data (raw bytes), which a"
+                " text file cannot hold; write -o OUT.parquet, or drop or decode the column")
+
+
 def write_csv(df: pd.DataFrame, path: str | os.PathLike[str]) -> Path:
     """Write a log to CSV atomically; booleans are written ``true``/``false``.
 
@@ -475,6 +497,7 @@ def write_csv(df: pd.DataFrame, path: str | os.PathLike[str]) -> Path:
         The written path.
     """
     target = Path(path)
+    check_no_binary(df, target)
     with atomic_path(target) as tmp:
         if not _write_csv_arrow(df, tmp):
             _csv_ready(df).to_csv(tmp, index=False, lineterminator="\n")

@@ -16,7 +16,7 @@ from ...errors import InputError
 from ..columns import (
     check_unique_names,
 )
-from ..csv import check_text_file, not_utf8_message
+from ..csv import check_no_binary, check_text_file, not_utf8_message
 from ..messages import clean
 from ..outputs import atomic_path
 from ..rows import ROWS_ATTR, row_location, rows_in_runs
@@ -355,6 +355,7 @@ def write_xyz(df: pd.DataFrame, path: str | os.PathLike[str], *,
     line_cols = [c for c in ("line", "line_type", "line_label") if c in df.columns]
     if "line" not in df.columns and "line_label" not in df.columns:
         line_cols = []
+    check_no_binary(df, p)
     body = df.drop(columns=line_cols)
     names = [str(c) for c in body.columns]
     for c in names:
