@@ -66,6 +66,16 @@ _API: dict[str, str] = {
     "OnlineTollesLawson": "aeromag.compensation.online_estimator",
     "compensate_online_file": "aeromag.workflows.online_compensate",
     "simulate_online_tl": "aeromag.synthetic.online_tl",
+    # particle filters and the particle-filter detector
+    "ParticleFilter": "aeromag._core.particles",
+    "PFResult": "aeromag._core.particles",
+    "StateSpaceModel": "aeromag._core.particles",
+    "FilterBank": "aeromag._core.particles",
+    "threshold_from_runs": "aeromag._core.particles",
+    "particle_detector": "aeromag.detection.particle",
+    "detect_file": "aeromag.workflows.detect",
+    "simulate_growth": "aeromag.synthetic.benchmarks",
+    "simulate_cstr": "aeromag.synthetic.benchmarks",
 }
 
 __all__ = ["AeromagError", "FitError", "InputError", "__version__", *sorted(_API)]
