@@ -52,6 +52,7 @@ from ..io import (
     write_arrow_csv,
     write_json,
 )
+from ..io.formats import output_format
 from ..io.log import duplicates_warning
 from ..io.stream import duplicate_rows, iter_log_batches
 from .compensate import check_outputs
@@ -166,6 +167,9 @@ def apply_model_chunked(
     if not src.exists():
         raise InputError(f"{source}: file not found")
     check_outputs(src, out_path, json_path_for(Path(out_path)))
+    if output_format(out_path) != "csv":
+        raise InputError(f"-o {out_path}: --chunk-rows writes CSV (streamed chunk by chunk);"
+                         " give -o OUT.csv, or run without --chunk-rows for Parquet or XYZ")
     if chunk_rows < 1:
         raise InputError(f"--chunk-rows {chunk_rows}: must be positive")
     if not isinstance(model, TLModel):

@@ -25,7 +25,8 @@ from ..compensation.model import TLModel
 from ..compensation.result import CompensationResult
 from ..conventions import FLUX_COLUMNS
 from ..errors import InputError
-from ..io import atomic_path, json_path_for, read_log, write_csv, write_csv_passthrough, write_json
+from ..io import atomic_path, json_path_for, read_log, write_csv_passthrough, write_json
+from ..io.formats import output_format, write_table
 
 log = logging.getLogger(__name__)
 
@@ -243,6 +244,7 @@ def compensate_file(
     """
     cfg = cfg or CompensationConfig()
     check_outputs(path, out_path, json_path_for(Path(out_path)))
+    output_format(out_path)
     if model is not None and not isinstance(model, TLModel):
         mpath = Path(model)
         model = TLModel.load(mpath)
@@ -271,9 +273,10 @@ def write_outputs(data: pd.DataFrame, report: dict[str, Any], out_csv: Path, *,
     (:func:`aeromag.io.write_csv_passthrough`).
     """
     out_json = json_path_for(out_csv)
+    fmt = output_format(out_csv)  # -o OUT.parquet / OUT.xyz write that format (issue 15, 2)
     with atomic_path(out_csv) as tmp_csv:
         done = False
-        if passthrough:
+        if passthrough and fmt == "csv":
             cols = list(passthrough["columns"])
             if list(data.columns[: len(cols)]) == cols and len(data.columns) > len(cols):
                 done = write_csv_passthrough(passthrough["path"], cols,
@@ -282,7 +285,7 @@ def write_outputs(data: pd.DataFrame, report: dict[str, Any], out_csv: Path, *,
                     log.info("%s: not a plain CSV, output written column by column",
                              passthrough["path"])
         if not done:
-            write_csv(data, tmp_csv)
+            write_table(data, tmp_csv, fmt)
         write_json(report, out_json)
 
 

@@ -244,6 +244,38 @@ def read_table_rows(path: str | os.PathLike[str], fmt: str | None = None, *,
 
 
 # --------------------------------------------------------------------------- writing
+def output_format(path: str | os.PathLike[str]) -> str:
+    """The format an output log is written in, from its extension (``-o OUT.ext``).
+
+    Parameters
+    ----------
+    path : path-like
+        The output file.
+
+    Returns
+    -------
+    str
+        ``"csv"`` (``.csv``, ``.txt``), ``"parquet"`` (``.parquet``, ``.pq``) or ``"xyz"``
+        (Geosoft XYZ with line headers, ``.xyz``): the registered formats with a writer.
+
+    Raises
+    ------
+    InputError
+        For any other extension (never a CSV under another name).
+    """
+    from ..messages import clean
+
+    p = Path(path)
+    ext = p.suffix.lower()
+    f = extensions().get(ext)
+    if f is None or REGISTRY[f].write is None:
+        writable = sorted(e for e, n in extensions().items() if REGISTRY[n].write is not None)
+        what = f"'{clean(ext)}' is not a format aeromag writes" if ext else "no extension"
+        raise InputError(f"-o {clean(p)}: {what}; name the output with one of"
+                         f" {', '.join(writable)} (e.g. -o {clean(p.stem or 'out')}.csv)")
+    return f
+
+
 def write_table(df: pd.DataFrame, path: str | os.PathLike[str], fmt: str | None = None) -> Path:
     """Write a table atomically as CSV, Parquet or Geosoft XYZ.
 
@@ -272,6 +304,6 @@ def write_table(df: pd.DataFrame, path: str | os.PathLike[str], fmt: str | None 
 __all__ = [
     "EXTENSIONS", "FORMATS", "GEOSOFT_DUMMY", "MAGNAV_FLUXGATES", "MAGNAV_PRESET", "REGISTRY",
     "XYZ_LINE_HEADER", "XYZ_LINE_TYPES", "Format", "apply_preset", "detect_format",
-    "extensions", "formats", "read_magarrow", "read_magdrone", "read_table",
+    "extensions", "formats", "output_format", "read_magarrow", "read_magdrone", "read_table",
     "read_table_rows", "read_xyz", "register", "sniff_csv", "write_table", "write_xyz",
 ]
