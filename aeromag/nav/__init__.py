@@ -8,7 +8,9 @@ is the generic filter it is built on.  See ``docs/navigate.md``.
 
 from .config import NavConfig
 from .filter import ALL_SENSORS, NavFilter, NavInputs, magnetic_reference_from_log
+from .navigate import NAV_COLUMNS, NavigationResult, navigate
 from .ukf import DivergenceError, FilterResult, InnovationStats, UnscentedKalmanFilter
 
-__all__ = ["ALL_SENSORS", "DivergenceError", "FilterResult", "InnovationStats", "NavConfig",
-           "NavFilter", "NavInputs", "UnscentedKalmanFilter", "magnetic_reference_from_log"]
+__all__ = ["ALL_SENSORS", "NAV_COLUMNS", "DivergenceError", "FilterResult", "InnovationStats",
+           "NavConfig", "NavFilter", "NavInputs", "NavigationResult", "UnscentedKalmanFilter",
+           "magnetic_reference_from_log", "navigate"]

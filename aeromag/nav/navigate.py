@@ -1,0 +1,311 @@
+"""Navigate a canonical log: the columns of ``shared/interface.md`` in, the ``nav_*`` out.
+
+:func:`navigate` is what ``aeromag navigate`` runs between reading and writing, and what a
+notebook calls on a DataFrame: it checks the sensor columns (one-line errors and warnings
+with the remedy), chooses the GNSS fixes to use (``gps="use" | "none" | (T0, T1)``), builds
+the local NED frame at the first fix (or ``origin``), runs :class:`~aeromag.nav.NavFilter`
+and returns the log with the navigation columns and a report.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .._core.angles import wrap360_deg
+from .._core.geodesy import geodetic_to_ned, ned_to_geodetic
+from ..errors import InputError
+from .config import NavConfig
+from .filter import ALL_SENSORS, NavFilter, NavInputs
+from .ukf import DivergenceError, FilterResult
+
+log = logging.getLogger(__name__)
+
+__all__ = ["GYRO", "ACC", "NAV_COLUMNS", "NavigationResult", "navigate", "parse_gps_mode"]
+
+GYRO = ("gyro_x", "gyro_y", "gyro_z")
+ACC = ("acc_x", "acc_y", "acc_z")
+FLOW = ("flow_x", "flow_y")
+FLUX = ("flux_x", "flux_y", "flux_z")
+GPS_POS = ("lat", "lon", "alt")
+GPS_VEL = ("vel_n", "vel_e", "vel_d")
+#: Sensor columns the filter reads (besides ``time``).
+SENSOR_COLUMNS = GYRO + ACC + FLOW + ("flow_quality", "range_m", "baro_alt") + FLUX + (
+    GPS_POS + GPS_VEL + ("heading",))
+#: Columns added by ``navigate``, in order.
+NAV_COLUMNS = ("nav_lat", "nav_lon", "nav_alt", "nav_n_m", "nav_e_m", "nav_d_m", "nav_vn",
+               "nav_ve", "nav_vd", "nav_roll", "nav_pitch", "nav_yaw", "nav_std_n_m",
+               "nav_std_e_m", "nav_std_d_m")
+#: Largest plausible body rate, rad/s (the MPU-6000's full scale, 2000 °/s).
+MAX_RATE_RADS = 34.9
+_FIX_GAP_S = 2.0
+
+GpsMode = str | tuple[float, float]
+
+
+@dataclass
+class NavigationResult:
+    """The navigated log, the filter's result and the report (JSON-ready).
+
+    Attributes
+    ----------
+    data : DataFrame
+        The input log plus :data:`NAV_COLUMNS`.
+    result : FilterResult
+        The filter's estimate at every row.
+    report : dict
+        ``gps`` (mode, origin, intervals used), ``settings``, ``innovations`` (per sensor),
+        ``mean_nis`` (per sensor), ``reference_field``, ``warnings``.
+    """
+
+    data: pd.DataFrame
+    result: FilterResult
+    report: dict = field(default_factory=dict)
+
+
+def parse_gps_mode(gps: GpsMode) -> GpsMode:
+    """Check ``--gps``: ``use``, ``none`` or ``T0:T1`` (an outage, seconds of log time).
+
+    Returns
+    -------
+    str or (float, float)
+        ``"use"``, ``"none"`` or the outage ``(T0, T1)``.
+    """
+    if isinstance(gps, tuple):
+        t0, t1 = (float(v) for v in gps)
+    else:
+        g = str(gps).strip().lower()
+        if g in ("use", "none"):
+            return g
+        parts = g.split(":")
+        try:
+            if len(parts) != 2:
+                raise ValueError
+            t0, t1 = float(parts[0]), float(parts[1])
+        except ValueError:
+            raise InputError(f"--gps {gps}: write use, none or T0:T1 (an outage between T0 and "
+                             "T1 seconds of the log's time, e.g. --gps 30:60)") from None
+    if not (np.isfinite(t0) and np.isfinite(t1) and t1 > t0):
+        raise InputError(f"--gps {gps}: the outage needs T1 > T0 (seconds of the log's time)")
+    return (t0, t1)
+
+
+def _col(df: pd.DataFrame, name: str, source: str) -> np.ndarray | None:
+    if name not in df.columns:
+        return None
+    s = df[name]
+    v = pd.to_numeric(s, errors="coerce").to_numpy(dtype=np.float64)
+    bad = np.isnan(v) & s.notna().to_numpy() & (s.astype(str).str.strip() != "").to_numpy()
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(f"{source}: column '{name}', data row {i + 1}: {s.iloc[i]!r} is not a"
+                         " number; fix the value or leave the cell empty")
+    inf = np.isinf(v)
+    if inf.any():
+        i = int(np.flatnonzero(inf)[0])
+        raise InputError(f"{source}: column '{name}', data row {i + 1}: infinite value; fix"
+                         " the value or leave the cell empty")
+    return v
+
+
+def _group(df: pd.DataFrame, names: Sequence[str], source: str) -> np.ndarray | None:
+    present = [n in df.columns for n in names]
+    if not any(present):
+        return None
+    if not all(present):
+        missing = [n for n, p in zip(names, present, strict=True) if not p]
+        raise InputError(f"{source}: column(s) {', '.join(missing)} missing beside "
+                         f"{', '.join(n for n, p in zip(names, present, strict=True) if p)};"
+                         " a sensor needs all its axes (map them with --col NAME=SOURCE)")
+    return np.column_stack([_col(df, n, source) for n in names])
+
+
+def _check_imu(t: np.ndarray, gyro: np.ndarray, acc: np.ndarray, source: str,
+               warnings: list[str]) -> None:
+    imu = np.isfinite(gyro).all(axis=1) & np.isfinite(acc).all(axis=1)
+    if imu.sum() < 2:
+        raise InputError(f"{source}: fewer than two rows with all of gyro_x..z and acc_x..z;"
+                         " navigate needs the IMU on its rows")
+    w = np.linalg.norm(gyro[imu], axis=1)
+    big = float(np.quantile(w, 0.999))
+    if big > MAX_RATE_RADS:
+        msg = (f"{source}: gyro magnitudes reach {big:.3g} rad/s, beyond any plausible body "
+               f"rate ({MAX_RATE_RADS} rad/s is 2000 °/s): the gyro is probably in deg/s;"
+               " convert it with --units gyro=deg/s")
+        warnings.append(msg)
+        log.warning("%s", msg)
+    f = float(np.median(np.linalg.norm(acc[imu], axis=1)))
+    if not 5.0 < f < 15.0:
+        hint = " (in g? use --units acc=g)" if 0.5 < f < 1.5 else ""
+        msg = (f"{source}: the median specific force is {f:.3g}, not about 9.81 m/s²: check"
+               f" the accelerometer's unit{hint}")
+        warnings.append(msg)
+        log.warning("%s", msg)
+    dt = np.diff(t[imu])
+    med = float(np.median(dt))
+    if (dt > 20 * med).any():
+        k = int(np.argmax(dt))
+        msg = (f"{source}: the IMU has a gap of {dt[k]:.3g} s after t = {t[imu][k]:.6g} s"
+               f" ({dt[k] / med:.0f} intervals); it is bridged with the sample after it")
+        warnings.append(msg)
+        log.warning("%s", msg)
+
+
+def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
+             origin: tuple[float, float, float] | None = None,
+             mag_reference_ned_nT: np.ndarray | None = None,
+             config: NavConfig | None = None, sensors: Sequence[str] | None = None,
+             source: str | None = None) -> NavigationResult:
+    """Run the navigation filter on a canonical multi-rate log.
+
+    Parameters
+    ----------
+    df : DataFrame
+        Canonical columns (``time`` s; ``gyro_*`` rad/s; ``acc_*`` m/s²; optional
+        ``flow_x``, ``flow_y`` rad/s, ``flow_quality``, ``range_m`` m, ``baro_alt`` m,
+        ``flux_*`` nT, ``lat``, ``lon`` deg, ``alt`` m, ``vel_*`` m/s, ``heading`` deg);
+        empty cells where a sensor has no sample.
+    gps : "use", "none" or (T0, T1)
+        Fuse every GNSS fix; only the first (to start); or all but those in [T0, T1) s.
+    origin : (lat, lon, alt), optional
+        Origin of the local frame when the log has no GNSS fix (degrees, degrees, m).
+    mag_reference_ned_nT : ndarray, shape (3,), optional
+        Earth field in NED, nT (IGRF or explicit); default from the log itself.
+    config : NavConfig, optional
+        Filter settings.
+    sensors : sequence of str, optional
+        Measurement models to use (default all, see :data:`aeromag.nav.ALL_SENSORS`).
+    source : str, optional
+        Name of the log for messages (default ``df.attrs["source"]``).
+
+    Returns
+    -------
+    NavigationResult
+
+    Raises
+    ------
+    InputError
+        No IMU columns, non-numeric values, a sensor with missing axes, a bad ``gps``.
+    DivergenceError
+        The filter diverged (one line with the time and the remedy).
+    """
+    src = source or str(df.attrs.get("source", "<log>"))
+    cfg = config or NavConfig()
+    mode = parse_gps_mode(gps)
+    warnings: list[str] = []
+    missing = [c for c in ("time",) + GYRO + ACC if c not in df.columns]
+    if missing:
+        raise InputError(f"{src}: missing column(s) {', '.join(missing)}; navigate needs time, "
+                         "the gyro (gyro_x..z, rad/s) and the accelerometer (acc_x..z, m/s²);"
+                         " map them with --col NAME=SOURCE")
+    t = _col(df, "time", src)
+    if not np.isfinite(t).all() or (np.diff(t) <= 0).any():
+        k = int(np.flatnonzero(~np.isfinite(t) | np.r_[False, np.diff(t) <= 0])[0])
+        raise InputError(f"{src}: column 'time', data row {k + 1}: time must be finite and "
+                         "strictly increasing (sort the log or fix the row)")
+    gyro = _group(df, GYRO, src)
+    acc = _group(df, ACC, src)
+    _check_imu(t, gyro, acc, src, warnings)
+    use = list(ALL_SENSORS if sensors is None else sensors)
+    flow = _group(df, FLOW, src)
+    rng = _col(df, "range_m", src)
+    has_flow = flow is not None and np.isfinite(flow).all(axis=1).any()
+    has_range = rng is not None and np.isfinite(rng).any()
+    if has_flow and not has_range and "flow" in use:
+        msg = (f"{src}: flow_x/flow_y without range_m: optical flow needs the height above"
+               " ground, so it is not used (map the rangefinder with --col range_m=SOURCE)")
+        warnings.append(msg)
+        log.warning("%s", msg)
+        use.remove("flow")
+    flux = _group(df, FLUX, src)
+    llh = _group(df, GPS_POS, src)
+    vel = _group(df, GPS_VEL, src)
+    fix = (np.zeros(len(t), bool) if llh is None else np.isfinite(llh).all(axis=1))
+    gps_ned = gps_use = None
+    if fix.any():
+        i_fix = int(np.flatnonzero(fix)[0])
+        if origin is not None:
+            msg = f"{src}: --origin ignored: the local frame's origin is the log's first GNSS fix"
+            warnings.append(msg)
+            log.warning("%s", msg)
+        org = tuple(float(v) for v in llh[i_fix])
+        gps_ned = np.full((len(t), 3), np.nan)
+        gps_ned[fix] = geodetic_to_ned(llh[fix, 0], llh[fix, 1], llh[fix, 2], org)
+        if mode == "use":
+            gps_use = fix.copy()
+        elif mode == "none":
+            gps_use = np.zeros(len(t), bool)
+            gps_use[i_fix] = True
+        else:
+            gps_use = fix & ~((t >= mode[0]) & (t < mode[1]))
+            gps_use[i_fix] = True
+    else:
+        org = None if origin is None else tuple(float(v) for v in origin)
+        if mode != "none" and any(s in use for s in ("gps_pos", "gps_vel")):
+            msg = f"{src}: no GNSS fix in the log: the filter starts at the local frame's origin"
+            warnings.append(msg)
+            log.info("%s", msg)
+    if vel is not None and gps_use is not None:
+        vel = np.where(gps_use[:, None], vel, np.nan)
+    elif vel is not None and mode != "use":
+        vel = None
+    inputs = NavInputs(
+        time_s=t, gyro=gyro, acc=acc, flow=flow, flow_quality=_col(df, "flow_quality", src),
+        range_m=rng, baro_alt=_col(df, "baro_alt", src), flux=flux, gps_ned=gps_ned,
+        gps_vel=vel, gps_use=gps_use, heading_deg=_col(df, "heading", src))
+    filt = NavFilter(cfg, mag_reference_ned_nT=mag_reference_ned_nT, sensors=use)
+    try:
+        res = filt.run(inputs)
+    except DivergenceError as exc:
+        raise DivergenceError(f"{src}: {exc}") from None
+    warnings += [w for w in res.info["warnings"] if w not in warnings]
+    x, sd = res.x, res.std
+    out = df.copy()
+    if org is not None:
+        geo = ned_to_geodetic(x[:, 0:3], org)
+        out["nav_lat"], out["nav_lon"], out["nav_alt"] = geo[:, 0], geo[:, 1], geo[:, 2]
+    else:
+        for c in ("nav_lat", "nav_lon", "nav_alt"):
+            out[c] = np.nan
+    for j, c in enumerate(("nav_n_m", "nav_e_m", "nav_d_m", "nav_vn", "nav_ve", "nav_vd")):
+        out[c] = x[:, j]
+    out["nav_roll"] = np.rad2deg(x[:, 6])
+    out["nav_pitch"] = np.rad2deg(x[:, 7])
+    out["nav_yaw"] = wrap360_deg(np.rad2deg(x[:, 8]))
+    for j, c in enumerate(("nav_std_n_m", "nav_std_e_m", "nav_std_d_m")):
+        out[c] = sd[:, j]
+    # The GNSS intervals used: runs of used fixes, a run broken by a gap of over 2 s.
+    intervals: list[list[float]] = []
+    if gps_use is not None and "gps_pos" in use:
+        rows = np.flatnonzero(gps_use & fix)
+        if rows.size:
+            cut = np.flatnonzero(np.r_[True, np.diff(t[rows]) > _FIX_GAP_S])
+            ends = np.r_[cut[1:] - 1, rows.size - 1]
+            intervals = [[float(t[rows[a]]), float(t[rows[b]])]
+                         for a, b in zip(cut, ends, strict=True)]
+    stats = {k: v.as_dict() for k, v in res.innovations.items()}
+    report = {
+        "gps": {"mode": mode if isinstance(mode, str) else {"outage_s": list(mode)},
+                "origin": None if org is None else list(org),
+                "origin_from": "first GNSS fix" if fix.any() else (
+                    "--origin" if org is not None else None),
+                "intervals": intervals,
+                "n_fixes_in_log": int(fix.sum()),
+                "n_fixes_used": int((gps_use & fix).sum()) if gps_use is not None else 0,
+                "n_fixes_fused": int(stats.get("gps_pos", {}).get("n_fused", 0))},
+        "settings": {**cfg.as_dict(), "sensors": use, "states": list(res.state_names)},
+        "innovations": stats,
+        "mean_nis": {k: v["mean_nis"] for k, v in stats.items()},
+        "reference_field": {
+            "ned_nT": res.info["mag_reference_ned_nT"],
+            "declination_deg": res.info["declination_deg"],
+            "from_log": mag_reference_ned_nT is None},
+        "ground_d_m": res.info["d_ground_m"],
+        "imu_interval_s": res.info["imu_interval_s"],
+        "warnings": warnings,
+    }
+    return NavigationResult(data=out, result=res, report=report)

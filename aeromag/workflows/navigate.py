@@ -1,0 +1,142 @@
+"""``aeromag navigate``, file in, files out: read a multi-rate log, navigate, write OUT.csv
+(the log plus the ``nav_*`` columns) and OUT.json (GNSS intervals used, settings, per-sensor
+innovation statistics) as a set."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..errors import InputError
+from ..io import atomic_path, json_path_for, read_log, write_csv, write_json
+from ..io.outputs import check_outputs
+from ..nav.config import NavConfig
+from ..nav.navigate import GPS_POS, GpsMode, NavigationResult, navigate, parse_gps_mode
+
+__all__ = ["NAV_UNITS", "navigate_file", "split_units"]
+
+#: Units ``--units`` converts for the navigation sensors: {group or column: {unit: factor}}.
+_ANGULAR = {"rad/s": 1.0, "deg/s": np.pi / 180.0, "dps": np.pi / 180.0}
+_ACCEL = {"m/s2": 1.0, "m/s^2": 1.0, "g": 9.80665, "mg": 9.80665e-3}
+NAV_UNITS: dict[str, tuple[tuple[str, ...], dict[str, float]]] = {
+    "gyro": (("gyro_x", "gyro_y", "gyro_z"), _ANGULAR),
+    "flow": (("flow_x", "flow_y"), _ANGULAR),
+    "acc": (("acc_x", "acc_y", "acc_z"), _ACCEL),
+}
+for _g, (_cols, _u) in list(NAV_UNITS.items()):
+    for _c in _cols:
+        NAV_UNITS[_c] = ((_c,), _u)
+
+
+def split_units(units: Mapping[str, str] | None) -> tuple[dict[str, str], dict[str, str]]:
+    """Split ``--units`` into the navigation sensors' (gyro, flow, acc) and the field ones."""
+    nav, rest = {}, {}
+    for k, v in (units or {}).items():
+        (nav if k in NAV_UNITS else rest)[k] = v
+    return nav, rest
+
+
+def _convert_nav_units(df: pd.DataFrame, units: Mapping[str, str], source: str) -> None:
+    for key, unit in units.items():
+        cols, table = NAV_UNITS[key]
+        u = unit.strip().lower().replace("°", "deg").replace("²", "2")
+        if u not in table:
+            raise InputError(f"{source}: --units {key}={unit}: unknown unit; use one of "
+                             f"{', '.join(table)}")
+        present = [c for c in cols if c in df.columns]
+        if not present:
+            raise InputError(f"{source}: --units {key}={unit}: no column {key!r} in the log")
+        for c in present:
+            df[c] = pd.to_numeric(df[c], errors="coerce") * table[u]
+
+
+def navigate_file(
+    log_path: str | os.PathLike[str],
+    out_path: str | os.PathLike[str],
+    *,
+    gps: GpsMode = "use",
+    origin: tuple[float, float, float] | None = None,
+    date: str | None = None,
+    earth_field: tuple[float, float, float] | None = None,
+    config: NavConfig | None = None,
+    sensors: Sequence[str] | None = None,
+    columns: dict[str, str] | None = None,
+    units: dict[str, str] | None = None,
+    fmt: str | None = None,
+) -> NavigationResult:
+    """Read a log, run the navigation filter, write OUT.csv and OUT.json as a set.
+
+    Parameters
+    ----------
+    log_path : path-like
+        Multi-rate log with ``time``, ``gyro_*`` (rad/s), ``acc_*`` (m/s²) and any of the
+        aiding sensors (see :func:`aeromag.nav.navigate.navigate`).
+    out_path : path-like
+        Output CSV; the report goes to the same path with suffix ``.json``.
+    gps : "use", "none" or "T0:T1"
+        GNSS use (``--gps``).
+    origin : (lat, lon, alt), optional
+        Local frame origin when the log has no GNSS fix (degrees, degrees, m).
+    date : str, optional
+        Flight date YYYY-MM-DD: the magnetic reference is IGRF at the origin.
+    earth_field : (F nT, I deg, D deg), optional
+        Explicit magnetic reference instead of IGRF.
+    config : NavConfig, optional
+        Filter settings (noise, gates).
+    sensors : sequence of str, optional
+        Measurement models to use (default all).
+    columns : dict, optional
+        Column map ``{canonical: source}``.
+    units : dict, optional
+        Unit conversions: ``gyro``/``flow`` (rad/s, deg/s), ``acc`` (m/s2, g, mg), or any
+        field column or group (to nT).
+    fmt : str, optional
+        Log format (default from the extension).
+
+    Returns
+    -------
+    NavigationResult
+    """
+    out = Path(out_path)
+    out_json = json_path_for(out)
+    check_outputs([(log_path, "input log")], out, out_json)
+    mode = parse_gps_mode(gps)
+    if date is not None and earth_field is not None:
+        raise InputError("--date and --earth-field: give one magnetic reference, not both")
+    nav_units, field_units = split_units(units)
+    df = read_log(log_path, columns=columns, units=field_units or None, required=("time",),
+                  fmt=fmt)
+    source = str(log_path)
+    _convert_nav_units(df, nav_units, source)
+    ref = None
+    if earth_field is not None:
+        from ..compass.reference import explicit_field
+
+        ref = explicit_field(*earth_field)
+    elif date is not None:
+        from ..compass.reference import igrf_field
+
+        where = origin
+        if all(c in df.columns for c in GPS_POS):
+            llh = df[list(GPS_POS)].apply(lambda s: s.astype(float)).to_numpy()
+            ok = np.isfinite(llh).all(axis=1)
+            if ok.any():
+                where = tuple(llh[np.flatnonzero(ok)[0]])
+        if where is None:
+            raise InputError(f"{source}: --date needs a position for IGRF: the log has no GNSS"
+                             " fix; give --origin LAT LON ALT (or --earth-field F I D)")
+        ref = igrf_field(where[0], where[1], where[2], date)
+    ref_ned = None if ref is None else np.atleast_2d(ref.ned_nT)[0]
+    res = navigate(df, gps=mode, origin=origin, mag_reference_ned_nT=ref_ned, config=config,
+                   sensors=sensors, source=source)
+    res.report["input"] = source
+    if ref is not None:
+        res.report["reference_field"]["source"] = ref.info
+    with atomic_path(out) as tmp_csv, atomic_path(out_json) as tmp_json:
+        write_csv(res.data, tmp_csv)
+        write_json(res.report, tmp_json)
+    return res
