@@ -277,3 +277,33 @@ def test_cli_compass_subprocess(study_log, tmp_path):
     assert "heading error RMS" in r.stdout
     rep = json.loads(out.with_suffix(".json").read_text())
     assert len(rep["matrix"]) == 3 and len(rep["offset_nT"]) == 3
+
+
+def test_excitation_windows_match_direct_statistics():
+    from aeromag.compass import excitation_windows
+
+    log, truth = simulate_compass(amplitude_deg=30.0, seed=4, duration_s=12.0)
+    t = log["time"].to_numpy()
+    hdg = log["heading"].to_numpy().copy()
+    hdg[30] = np.nan  # a row without attitude (another sensor's row)
+    b = reference_in_body(np.array(truth["earth_ned_nT"]), hdg, log["pitch"], log["roll"])
+    keep = np.ones(len(t), bool)
+    keep[252:520] = False  # a gap: the second window keeps 2 samples and is skipped
+    wins = excitation_windows(t[keep], hdg[keep], log["pitch"].to_numpy()[keep],
+                              log["roll"].to_numpy()[keep], b[keep], window_s=5.0)
+    assert [w.start_time for w in wins] == [0.0, 10.4]
+    for w in wins:
+        s = (t >= w.start_time) & (t <= w.end_time) & keep
+        u = b[s] / np.linalg.norm(b[s], axis=1, keepdims=True)
+        u = u[np.isfinite(u).all(axis=1)]
+        assert w.excitation == pytest.approx(np.sqrt(np.linalg.eigvalsh(np.cov(u.T))[0]),
+                                             rel=1e-6)
+        r = log["roll"].to_numpy()[s]
+        assert w.roll_range_deg == pytest.approx(r.max() - r.min())
+        assert np.isfinite(w.heading_range_deg) and w.heading_range_deg > 0
+    full = excitation_windows(t, hdg, log["pitch"].to_numpy(), log["roll"].to_numpy(), b)
+    assert [w.n for w in full] == [250, 250, 100]
+    for w in full:
+        s = (t >= w.start_time) & (t <= w.end_time)
+        p = log["pitch"].to_numpy()[s]
+        assert w.pitch_range_deg == pytest.approx(p.max() - p.min())

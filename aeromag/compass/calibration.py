@@ -158,30 +158,67 @@ def excitation_windows(time_s: np.ndarray, heading_deg: np.ndarray, pitch_deg: n
     list of ExcitationWindow
     """
     t = np.asarray(time_s, dtype=np.float64)
-    if not len(t):
+    n = len(t)
+    if not n:
         return []
     u = ref_body_nT / np.linalg.norm(ref_body_nT, axis=1, keepdims=True)
-    hdg = np.rad2deg(np.unwrap(np.deg2rad(heading_deg)))
+    ok = np.isfinite(u).all(axis=1)
+    hdg = np.full(n, np.nan)
+    h = np.asarray(heading_deg, dtype=np.float64)
+    fin = np.isfinite(h)
+    hdg[fin] = np.rad2deg(np.unwrap(np.deg2rad(h[fin])))  # a NaN row must not stop unwrap
     edges = np.arange(t[0], t[-1] + window_s, window_s)
     bounds = np.searchsorted(t, edges)
-    out = []
-    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
-        if b - a < 4:
-            continue
-        ok = np.isfinite(u[a:b]).all(axis=1)
-        uu = u[a:b][ok]
-        exc = float(np.sqrt(max(np.linalg.eigvalsh(np.cov(uu.T))[0], 0.0))) if len(uu) > 3 \
-            else 0.0
+    a, b = bounds[:-1], bounds[1:]
+    use = (b - a >= 4) & (a < n)
+    a, b = a[use], b[use]
+    if not len(a):
+        return []
+    # Moments per window from cumulative sums (all windows at once).
+    uz = np.where(ok[:, None], u, 0.0)
+    cols = np.column_stack([ok.astype(float), uz, (uz[:, :, None] * uz[:, None, :]).reshape(n, 9)])
+    c = np.vstack([np.zeros((1, cols.shape[1])), np.cumsum(cols, axis=0)])
+    s = c[b] - c[a]
+    cnt = s[:, 0]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = s[:, 1:4] / cnt[:, None]
+        cov = (s[:, 4:].reshape(-1, 3, 3) - cnt[:, None, None] * mean[:, :, None]
+               * mean[:, None, :]) / (cnt - 1)[:, None, None]
+    good = cnt > 3
+    exc = np.zeros(len(a))
+    if good.any():
+        exc[good] = np.sqrt(np.clip(np.linalg.eigvalsh(cov[good])[:, 0], 0.0, None))
 
-        def rng(x: np.ndarray) -> float:
-            x = x[np.isfinite(x)]
-            return float(x.max() - x.min()) if x.size else 0.0
+    def ranges(x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=np.float64)
+        starts = bounds[:-1][use]
+        # reduceat runs from each start to the next one; windows are consecutive, so cut at
+        # the window ends explicitly by reducing over [a, b) with a gap-free index list.
+        idx = np.r_[starts, b[-1]] if b[-1] < n else starts
+        hi = np.fmax.reduceat(x, idx)[:len(starts)]
+        lo = np.fmin.reduceat(x, idx)[:len(starts)]
+        r = hi - lo
+        return np.where(np.isfinite(r), r, 0.0)
 
-        out.append(ExcitationWindow(
-            start_time=float(t[a]), end_time=float(t[b - 1]), n=int(b - a),
-            roll_range_deg=rng(roll_deg[a:b]), pitch_range_deg=rng(pitch_deg[a:b]),
-            heading_range_deg=rng(hdg[a:b]), excitation=exc, sufficient=exc >= threshold))
-    return out
+    contiguous = np.array_equal(a[1:], b[:-1])
+    if contiguous:
+        rr, pr, hr = ranges(roll_deg), ranges(pitch_deg), ranges(hdg)
+    else:  # some windows skipped (fewer than 4 samples): one window at a time
+        def one(x: np.ndarray) -> np.ndarray:
+            x = np.asarray(x, dtype=np.float64)
+            out = np.zeros(len(a))
+            for i, (lo_, hi_) in enumerate(zip(a, b, strict=True)):
+                v = x[lo_:hi_]
+                v = v[np.isfinite(v)]
+                out[i] = v.max() - v.min() if v.size else 0.0
+            return out
+
+        rr, pr, hr = one(roll_deg), one(pitch_deg), one(hdg)
+    return [ExcitationWindow(start_time=float(t[a[i]]), end_time=float(t[b[i] - 1]),
+                             n=int(b[i] - a[i]), roll_range_deg=float(rr[i]),
+                             pitch_range_deg=float(pr[i]), heading_range_deg=float(hr[i]),
+                             excitation=float(exc[i]), sufficient=bool(exc[i] >= threshold))
+            for i in range(len(a))]
 
 
 @dataclass
