@@ -15,7 +15,7 @@ log = logging.getLogger(__name__)
 
 def _mission_files(out_dir: Path, seed: int, small: bool) -> dict[str, Path]:
     """Write the multirotor mission-simulator files (DGPS track check)."""
-    from ..simulate_mission import write_mission_files
+    from ..workflows.mission import write_mission_files
 
     written = write_mission_files(out_dir, seed=seed, small=small)
     # Its keys ("plan", "truth") would clash with ours: keep them apart.

@@ -62,6 +62,8 @@ _GROUPS: dict[str, tuple[str, ...]] = {
     "bias": BIAS,
     "b": BIAS,
 }
+# MagNav.jl's spellings without the underscore (``induced5``, ``eddy8``...) too.
+_GROUPS.update({k.replace("_", ""): v for k, v in list(_GROUPS.items()) if "_" in k})
 _PRESETS: dict[str, tuple[str, ...]] = {
     "16": TERMS_16,
     "18": PERMANENT + INDUCED_6 + EDDY_9,
@@ -82,8 +84,8 @@ def parse_terms(spec: str | Sequence[str]) -> tuple[str, ...]:
         ``"16"`` (default set), ``"18"``, ``"9"``, ``"8"``, ``"3"``, or a comma-separated list of
         MagNav.jl-style groups (``permanent``/``p``, ``induced``/``induced_6``/``induced_5``/
         ``induced_3`` (``i``, ``i6``, ``i5``, ``i3``), ``eddy``/``eddy_9``/``eddy_8``/``eddy_3``
-        (``e``, ``e9``, ``e8``, ``e3``), ``bias``/``b``) and/or single term names
-        (``"cx*cy'"``).
+        (``e``, ``e9``, ``e8``, ``e3``), ``bias``/``b``; MagNav's ``induced5``, ``eddy8``
+        and ``:induced_5`` spellings too) and/or single term names (``"cx*cy'"``).
 
     Returns
     -------

@@ -1,0 +1,184 @@
+"""The public API (``import aeromag as am``), the old import paths, the option table, config
+groups and the CLI's logging switch (issue 10)."""
+
+from __future__ import annotations
+
+import logging
+import subprocess
+import sys
+import types
+
+import pytest
+from typer.testing import CliRunner
+
+import aeromag as am
+from aeromag._deprecated import OLD_PATHS
+from aeromag.cli import app
+
+runner = CliRunner()
+
+#: Old flat modules of the compensation side and where their names went.
+OLD = {
+    "aeromag.compensate": ("compensate_file", "aeromag.workflows.compensate"),
+    "aeromag.tolles_lawson": ("design_matrix", "aeromag.compensation.terms"),
+    "aeromag.estimator": ("TollesLawson", "aeromag.compensation.estimator"),
+    "aeromag.screening": ("pca_screen", "aeromag.compensation.screening"),
+    "aeromag.segments": ("find_stretches", "aeromag._core.stretches"),
+    "aeromag.filters": ("butter_sos", "aeromag._core.filters"),
+    "aeromag.simulate": ("simulate_calibration", "aeromag.synthetic.calibration"),
+    "aeromag.chunked": ("apply_model_chunked", "aeromag.workflows.chunked"),
+}
+
+
+def _python(code: str, *flags: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, *flags, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+
+
+def test_all_lists_the_public_api_and_every_name_resolves():
+    assert len(am.__all__) == len(set(am.__all__))
+    for name in ("read_log", "compensate", "calibrate", "TollesLawson", "TLModel",
+                 "CompensationConfig", "check_track", "simulate_calibration",
+                 "simulate_survey"):
+        assert name in am.__all__, name
+    for name in am.__all__:
+        assert getattr(am, name) is not None, name
+    assert set(am.__all__) <= set(dir(am))
+    p = _python("import aeromag as am; print(am.__all__)")
+    assert p.returncode == 0 and "'compensate'" in p.stdout, p.stderr
+
+
+def test_import_aeromag_is_light():
+    """The flat API imports on first use: ``import aeromag`` loads neither pandas nor scipy."""
+    p = _python("import sys, aeromag; print(sorted(m for m in ('pandas', 'scipy', 'sklearn',"
+                " 'matplotlib') if m in sys.modules))")
+    assert p.returncode == 0 and p.stdout.strip() == "[]", p.stdout + p.stderr
+
+
+def test_public_compensate_runs_and_is_not_shadowed_by_the_old_module(flight):
+    df, _ = flight
+    res = am.compensate(df)
+    assert res.report["metrics"]["improvement_ratio"] > 10 and "qc" in res.report
+    assert callable(am.compensate) and not isinstance(am.compensate, types.ModuleType)
+    # In a fresh interpreter: importing the old module must leave am.compensate the function.
+    code = ("import warnings; warnings.simplefilter('ignore')\n"
+            "import aeromag as am\n"
+            "import aeromag.compensate\n"
+            "from aeromag.compensate import compensate_file, CompensationConfig\n"
+            "import types, sys\n"
+            "assert not isinstance(am.compensate, types.ModuleType), am.compensate\n"
+            "assert am.compensate.__module__ == 'aeromag.workflows.compensate'\n"
+            "assert sys.modules['aeromag.compensate'].compensate_file is compensate_file\n"
+            "print('ok')")
+    p = _python(code)
+    assert p.returncode == 0 and p.stdout.strip() == "ok", p.stderr
+
+
+@pytest.mark.parametrize("old", sorted(OLD))
+def test_old_paths_warn_and_still_work(old):
+    name, home = OLD[old]
+    code = (f"import warnings\nwith warnings.catch_warnings(record=True) as w:\n"
+            f"    warnings.simplefilter('always')\n"
+            f"    from {old} import {name}\n"
+            f"import importlib\n"
+            f"assert {name} is getattr(importlib.import_module('{home}'), '{name}')\n"
+            f"msgs = [str(x.message) for x in w if x.category is DeprecationWarning]\n"
+            f"assert any('{old} is deprecated' in m for m in msgs), msgs\n"
+            f"print('ok')")
+    p = _python(code)
+    assert p.returncode == 0 and p.stdout.strip() == "ok", p.stderr
+    p = _python(f"import {old}", "-W", "error::DeprecationWarning")
+    assert p.returncode != 0 and "DeprecationWarning" in p.stderr
+
+
+def test_old_paths_are_recorded():
+    import aeromag.compensate  # noqa: F401 - registers the forwarder (warns once)
+
+    assert OLD_PATHS["aeromag.compensate"][0] == "aeromag.workflows.compensate"
+
+
+def test_config_groups_and_flat_keywords_agree():
+    from aeromag.compensation.config import (
+        CompensationConfig,
+        ConfigError,
+        FilterOptions,
+        FitChecks,
+        ScreeningOptions,
+    )
+
+    flat = CompensationConfig(band_hz=(0.2, 1.0), shrink=0.5, max_condition=1e4, terms="9")
+    grouped = CompensationConfig.from_groups(filter=FilterOptions(band_hz=(0.2, 1.0)),
+                                             screening=ScreeningOptions(shrink=0.5),
+                                             checks=FitChecks(max_condition=1e4), terms="9")
+    assert flat == grouped
+    assert flat.filter.band_hz == (0.2, 1.0) and flat.screening.shrink == 0.5
+    assert flat.checks.max_condition == 1e4 and flat.segments.segment_seconds == 60.0
+    with pytest.raises(ConfigError, match="^pca_variance=") as err:
+        ScreeningOptions(pca_variance=2.0)
+    assert err.value.parameter == "pca_variance"
+
+
+def test_cli_names_the_flag_of_a_bad_value(tmp_path):
+    src = tmp_path / "x.csv"
+    src.write_text("time,flux_x,flux_y,flux_z\n0,1,2,3\n")
+    for cmd, extra in (("compensate", ["-o", str(tmp_path / "o.csv")]),
+                       ("calibrate", ["-o", str(tmp_path / "m.json")])):
+        r = runner.invoke(app, [cmd, str(src), *extra, "--band", "0.5", "0.1"])
+        assert r.exit_code == 1
+        assert r.output.strip() == "error: --band 0.5 0.1: need 0 < LOW < HIGH in Hz", r.output
+    r = runner.invoke(app, ["batch", str(src), "-o", str(tmp_path / "b"), "--pca-variance",
+                            "3"])
+    assert r.exit_code == 1 and "--pca-variance 3: must be in (0, 1]" in r.output, r.output
+
+
+def test_option_table_gives_each_command_its_options():
+    from aeromag.cli._options import OPTIONS
+
+    def flags(cmd: str) -> set[str]:
+        return {f for o in OPTIONS if cmd in o.commands for f in o.flags}
+
+    comp, cal, batch = flags("compensate"), flags("calibrate"), flags("batch")
+    shared = {"--band", "--terms", "--segment-seconds", "--no-screen", "--ridge", "--shrink",
+              "--pca-variance", "--screen-quantile", "--min-excess", "--min-excess-nt",
+              "--max-gap", "--max-interp", "--max-condition", "--max-interference", "--col",
+              "--map", "--units", "--format", "-o", "-v"}
+    assert shared <= comp and shared <= cal and shared <= batch
+    assert {"--model", "--no-filter", "--lowpass", "--chunk-rows"} <= comp & batch
+    assert not {"--model", "--no-filter", "--chunk-rows"} & cal
+    assert {"--plan", "--workers", "--threshold"} <= batch - comp
+    names = [o.name for o in OPTIONS]
+    assert len(names) == len(set(names))
+    r = runner.invoke(app, ["batch", "--help"], terminal_width=100)
+    assert "--shrink" in r.output and "--pca-variance" in r.output
+
+
+def test_options_build_the_configuration():
+    from aeromag.cli._options import Options
+
+    cfg = Options("batch", {"band": (0.2, 0.8), "no_screen": True, "shrink": 0.3,
+                            "no_filter": True, "fmt": None}).config()
+    assert cfg.band_hz == (0.2, 0.8) and cfg.screen is False and cfg.shrink == 0.3
+    assert cfg.filter_output is False
+
+
+def test_verbose_is_debug_for_aeromag_only():
+    from aeromag.cli._app import setup_logging
+
+    try:
+        setup_logging(True)
+        assert logging.getLogger("aeromag.compensation.fit").isEnabledFor(logging.DEBUG)
+        assert not logging.getLogger("matplotlib.font_manager").isEnabledFor(logging.DEBUG)
+        assert logging.getLogger("matplotlib").isEnabledFor(logging.WARNING)
+        setup_logging(False)
+        assert not logging.getLogger("aeromag.compensation.fit").isEnabledFor(logging.INFO)
+        assert logging.getLogger("aeromag.compensation.fit").isEnabledFor(logging.WARNING)
+    finally:
+        logging.getLogger("aeromag").setLevel(logging.NOTSET)
+
+
+def test_magnav_term_spellings():
+    from aeromag.compensation.terms import TERMS_16, parse_terms
+
+    assert parse_terms("permanent,induced5,eddy8") == TERMS_16
+    assert parse_terms(":permanent,:induced_5,:eddy_8") == TERMS_16
+    assert len(parse_terms("p,i6,e9")) == 18
