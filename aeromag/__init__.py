@@ -76,6 +76,17 @@ _API: dict[str, str] = {
     "detect_file": "aeromag.workflows.detect",
     "simulate_growth": "aeromag.synthetic.benchmarks",
     "simulate_cstr": "aeromag.synthetic.benchmarks",
+    # navigation: the unscented transform, the UKF and the 12-state navigation filter
+    "sigma_points": "aeromag._core.unscented",
+    "unscented_transform": "aeromag._core.unscented",
+    "UnscentedKalmanFilter": "aeromag.nav",
+    "FilterResult": "aeromag.nav",
+    "NavConfig": "aeromag.nav",
+    "NavFilter": "aeromag.nav",
+    "NavInputs": "aeromag.nav",
+    "navigate": "aeromag.nav",
+    "navigate_file": "aeromag.workflows.navigate",
+    "simulate_quadrotor": "aeromag.synthetic.quadrotor",
 }
 
 __all__ = ["AeromagError", "FitError", "InputError", "__version__", *sorted(_API)]

@@ -8,7 +8,7 @@ is the generic filter it is built on.  See ``docs/navigate.md``.
 
 from .config import NavConfig
 from .filter import ALL_SENSORS, NavFilter, NavInputs, magnetic_reference_from_log
-from .navigate import NAV_COLUMNS, NavigationResult, navigate
+from .pipeline import NAV_COLUMNS, NavigationResult, navigate
 from .ukf import DivergenceError, FilterResult, InnovationStats, UnscentedKalmanFilter
 
 __all__ = ["ALL_SENSORS", "NAV_COLUMNS", "DivergenceError", "FilterResult", "InnovationStats",

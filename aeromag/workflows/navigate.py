@@ -15,7 +15,7 @@ from ..errors import InputError
 from ..io import atomic_path, json_path_for, read_log, write_csv, write_json
 from ..io.outputs import check_outputs
 from ..nav.config import NavConfig
-from ..nav.navigate import GPS_POS, GpsMode, NavigationResult, navigate, parse_gps_mode
+from ..nav.pipeline import GPS_POS, GpsMode, NavigationResult, navigate, parse_gps_mode
 
 __all__ = ["NAV_UNITS", "navigate_file", "split_units"]
 
@@ -74,7 +74,7 @@ def navigate_file(
     ----------
     log_path : path-like
         Multi-rate log with ``time``, ``gyro_*`` (rad/s), ``acc_*`` (m/s²) and any of the
-        aiding sensors (see :func:`aeromag.nav.navigate.navigate`).
+        aiding sensors (see :func:`aeromag.nav.navigate`).
     out_path : path-like
         Output CSV; the report goes to the same path with suffix ``.json``.
     gps : "use", "none" or "T0:T1"
