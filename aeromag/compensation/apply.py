@@ -23,8 +23,7 @@ log = logging.getLogger(__name__)
 # --------------------------------------------------------------------------- applying
 def apply_model(
     df: pd.DataFrame, model: TLModel, cfg: CompensationConfig | None = None, *,
-    prep: Prepared | None = None, kept_segments: np.ndarray | None = None,
-    source: str | None = None,
+    kept_segments: np.ndarray | None = None, source: str | None = None,
 ) -> tuple[pd.DataFrame, dict[str, Any]]:
     """Apply a TL model: add ``mag_tl``, ``mag_comp``, ``segment``, ``segment_kept``.
 
@@ -40,8 +39,6 @@ def apply_model(
         Model to apply.
     cfg : CompensationConfig, optional
         Options.
-    prep : Prepared, optional
-        Arrays already prepared from ``df``.
     kept_segments : ndarray of int, optional
         Segment ids kept by screening (default: all segments kept).
     source : str, optional
@@ -54,7 +51,7 @@ def apply_model(
     metrics : dict
         ``improvement_ratio``, ``residual_std_nT`` and friends (band-passed, see interface.md).
     """
-    out, metrics, _ = _apply(df, model, cfg or CompensationConfig(), prep=prep,
+    out, metrics, _ = _apply(df, model, cfg or CompensationConfig(), prep=None,
                              kept_segments=kept_segments, source=source)
     return out, metrics
 

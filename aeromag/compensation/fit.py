@@ -29,7 +29,8 @@ from .terms import design_matrix, parse_terms
 
 log = logging.getLogger(__name__)
 
-__all__ = ["FitOutcome", "check_interference", "fit_model", "solve_fit"]
+__all__ = ["FitOutcome", "check_interference", "fit_model", "fit_outcome", "fit_result",
+           "solve_fit"]
 
 
 def solve_fit(gram: np.ndarray, rhs: np.ndarray, *, ridge: float, max_condition: float,
@@ -214,7 +215,6 @@ def fit_outcome(prep: Prepared, cfg: CompensationConfig) -> FitOutcome:
 
 def fit_model(
     df: pd.DataFrame, cfg: CompensationConfig | None = None, *, source: str | None = None,
-    prep: Prepared | None = None,
 ) -> CompensationResult:
     """Fit the TL model on a log: per-segment fits, PCA screening, refit on kept segments.
 
@@ -226,8 +226,6 @@ def fit_model(
         Options (defaults as on the command line).
     source : str, optional
         File name quoted in errors and the report.
-    prep : Prepared, optional
-        Arrays already prepared from ``df``.
 
     Returns
     -------
@@ -235,7 +233,24 @@ def fit_model(
         ``data`` is None; ``model`` carries the report as its metadata.
     """
     cfg = cfg or CompensationConfig()
-    prep = prep or prepare(df, cfg, source=source)
+    return fit_result(prepare(df, cfg, source=source), cfg)
+
+
+def fit_result(prep: Prepared, cfg: CompensationConfig) -> CompensationResult:
+    """:func:`fit_model` on arrays already prepared (what the pipeline calls).
+
+    Parameters
+    ----------
+    prep : Prepared
+        Arrays of the log.
+    cfg : CompensationConfig
+        Options.
+
+    Returns
+    -------
+    CompensationResult
+        ``data`` is None; ``model`` carries the report as its metadata.
+    """
     fit = fit_outcome(prep, cfg)
     report = fit_report(fit)
     model = TLModel(fit.terms, fit.coef, meta={k: v for k, v in report.items()

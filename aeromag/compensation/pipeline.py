@@ -35,7 +35,7 @@ import pandas as pd
 
 from .apply import _apply, _check_plausible
 from .config import CompensationConfig, _resolve_gap
-from .fit import fit_model
+from .fit import fit_result
 from .model import TLModel
 from .prepare import prepare
 from .report import AppliedRun, applied_report
@@ -71,7 +71,7 @@ def compensate(
     cfg = _resolve_gap(cfg or CompensationConfig(), df)
     prep = prepare(df, cfg, source=source)
     if model is None:
-        fit = fit_model(df, cfg, prep=prep)
+        fit = fit_result(prep, cfg)
         kept_ids = np.array([s["id"] for s in fit.report["segments"] if s["kept"]], dtype=np.int64)
         data, metrics, comp_bp = _apply(df, fit.model, cfg, prep=prep, kept_segments=kept_ids,
                                         source=source, release_flux=True)
