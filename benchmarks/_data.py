@@ -15,6 +15,7 @@ import pandas as pd
 COEF16 = np.array([30, -20, 15, 40, -10, 8, 25, -5, 2, -1, 0.5, 1.5, -2, 0.8, -0.6, 1.0])
 COLUMNS = ("time", "lat", "lon", "alt", "flux_x", "flux_y", "flux_z", "mag", "line")
 LINE_S = 60.0  # one line (segment) per 60 s heading leg
+TURN_S = 10.0  # ... whose last 10 s turn smoothly by 90 deg to the next heading
 
 
 def _terms16(b: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -38,11 +39,15 @@ def make_log(n: int, fs: float = 10.0, seed: int = 0, t0: float = 0.0) -> pd.Dat
 
     Columns: ``time`` [s], ``lat``/``lon`` [deg], ``alt`` [m], ``flux_x/y/z`` [nT], ``mag``
     [nT], ``line`` (one per 60 s leg; legs on the four cardinal headings with yaw, pitch and
-    roll oscillations of 7.1, 5.3 and 3.1 s periods).
+    roll oscillations of 7.1, 5.3 and 3.1 s periods, each ending in a smooth 10 s turn).
     """
     rng = np.random.default_rng(seed)
     t = t0 + np.arange(n) / fs
-    psi = np.deg2rad((t // LINE_S % 4) * 90 + 5 * np.sin(2 * np.pi * t / 7.1))
+    # Each leg ends with a smooth 90 deg turn of TURN_S (an aircraft cannot turn in one
+    # sample: a step would put a one-sample eddy-current spike of ~1e3 nT into mag at 1 kHz).
+    into = np.clip((t % LINE_S - (LINE_S - TURN_S)) / TURN_S, 0.0, 1.0)
+    turn = 0.5 - 0.5 * np.cos(np.pi * into)
+    psi = np.deg2rad((t // LINE_S % 4 + turn) * 90 + 5 * np.sin(2 * np.pi * t / 7.1))
     th = np.deg2rad(5 * np.sin(2 * np.pi * t / 5.3 + 1.0))
     ph = np.deg2rad(10 * np.sin(2 * np.pi * t / 3.1))
     inc = np.deg2rad(65.0)

@@ -18,7 +18,7 @@ Run::
     python benchmarks/run_all.py --quick     # 1e5 and 1e6 rows, 1.2e6 at 1 kHz (~3 min)
     python benchmarks/run_all.py             # + 1e7 rows and 1.2e7 at 1 kHz (~20 min)
 
-Generated logs are cached in ``--dir`` (default ``$TMPDIR/aeromag-bench-v2``).  deinterf is
+Generated logs are cached in ``--dir`` (default ``$TMPDIR/aeromag-bench-v3``).  deinterf is
 not a dependency of aeromag: install it to compare (``pip install deinterf``); without it
 those columns say so.  Not a test: speed is never asserted.
 """
@@ -145,7 +145,7 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true",
                     help="1e5 and 1e6 rows at 10 Hz, 1.2e6 at 1 kHz only")
     ap.add_argument("--dir", type=Path,
-                    default=Path(tempfile.gettempdir()) / "aeromag-bench-v2",
+                    default=Path(tempfile.gettempdir()) / "aeromag-bench-v3",
                     help="cache of generated logs and outputs")
     ap.add_argument("--repeat", type=int, default=1,
                     help="fresh-process runs per measurement below 5e6 rows; the fastest counts")

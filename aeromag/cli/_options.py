@@ -146,7 +146,7 @@ OPTIONS: list[Option] = [
     _o("no_screen", "--no-screen", bool, False, "Skip PCA screening (fit all segments).", _COMP,
        config="screen", to_config=lambda v: not v),
     _o("no_decimate", "--no-decimate", bool, False, "Fit every sample of a high-rate log "
-       "(default: fit a copy decimated to >= 40x the band's upper edge, anti-aliased per "
+       "(default: fit a copy decimated to >= 80x the band's upper edge, anti-aliased per "
        "stretch; see docs/compensation.md).", _COMP, config="decimate",
        to_config=lambda v: not v),
     _o("no_filter", "--no-filter", bool, False, "Leave mag_comp unfiltered.", _APPLY,

@@ -247,9 +247,10 @@ class CompensationConfig:
         only: cz against a constant, cx*cx and cy*cy), and then the unfiltered model returns
         tens of thousands of nT.  A saved model that does so only draws a warning.
     decimate : bool
-        Fit a high-rate log on a copy decimated per stretch to at least 40 times the band's
-        upper edge (:mod:`aeromag._core.decimate`; a 1 kHz log is fitted at 37 Hz, a 10 Hz log
-        is never decimated); the coefficients are applied to every original sample.
+        Fit a high-rate log on a copy decimated per stretch to at least 80 times the
+        band's upper edge (:mod:`aeromag._core.decimate`; a 1 kHz log is fitted at 77 Hz, logs
+        below 144 Hz are never decimated); the coefficients are applied to every original
+        sample.
         ``--no-decimate`` fits every sample.
     """
 

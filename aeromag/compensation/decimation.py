@@ -42,6 +42,11 @@ def fit_arrays(prep: Prepared, cfg: CompensationConfig) -> tuple[Prepared, int]:
     q = decimation_factor(prep.fs, cfg.band_hz) if getattr(cfg, "decimate", True) else 1
     if q < 2:
         return prep, 1
+    # Per continuous stretch, never across a gap.  Not per segment piece: the FIR reaches
+    # only 10 decimated samples, far inside the edges the fit trims from every piece, while
+    # restarting it at every segment boundary adds edge errors that ring through the fit's
+    # band-pass (on a 1 kHz simulated calibration, rms coefficient error 0.048 nT against
+    # 0.011 nT per stretch and 0.013 nT at the full rate).
     f = prep.flux
     (fx, fy, fz, mag), idx = decimate_stretches([f[:, 0], f[:, 1], f[:, 2], prep.mag],
                                                 prep.stretch, q)
