@@ -81,7 +81,8 @@ def test_mechanisation_against_closed_forms():
     X = np.zeros((3, 12))
     X[1, 6] = 0.01   # a tilted sigma point: its specific force leaks gravity sideways
     X[2, 9:12] = [0.0, 0.0, 0.1]   # a gyro-biased one turns slower
-    end, path = propagate(X, gyro, acc, np.full(N, dt), keep_path=True)
+    W = np.array([0.5, 0.25, 0.25])
+    end, (mean, var6) = propagate(X, gyro, acc, np.full(N, dt), weights=(W, W))
     assert end[0, 8] == pytest.approx(1.0, abs=1e-12)
     assert end[2, 8] == pytest.approx(0.8, abs=1e-12)
     np.testing.assert_allclose(end[0, 3:6], 0.0, atol=1e-12)
@@ -89,7 +90,9 @@ def test_mechanisation_against_closed_forms():
     for k in range(N):
         one, _ = propagate(one, gyro[k:k + 1], acc[k:k + 1], np.array([dt]))
     np.testing.assert_allclose(end, one, rtol=1e-9, atol=1e-9)
-    np.testing.assert_allclose(path[:, -1], end, atol=1e-15)
+    np.testing.assert_allclose(mean[-1, :6], W @ end[:, :6], atol=1e-12)
+    np.testing.assert_allclose(mean[-1, 8], W @ end[:, 8], atol=1e-3)   # chordal mean
+    np.testing.assert_allclose(var6[-1], W @ (end[:, :6] - W @ end[:, :6]) ** 2, atol=1e-12)
     # Free fall: zero specific force, v = g t, d = g t^2 / 2.
     end2, _ = propagate(np.zeros((1, 12)), np.zeros((N, 3)), np.zeros((N, 3)), np.full(N, dt))
     T = N * dt

@@ -246,6 +246,7 @@ class NavFilter:
         self._last_range_t = -np.inf
         self._last_grav: tuple[float, np.ndarray] | None = None
         self._online: dict = {}
+        self._gates: dict[int, float] = {}
 
     # ------------------------------------------------------------------ set-up
     def _noise_rates(self) -> np.ndarray:
@@ -325,6 +326,13 @@ class NavFilter:
                                     "baro": 1, "gravity": 3, "mag": 1}[s])
             for s in self.sensors}
 
+    def _gate(self, dof: int) -> float:
+        """Chi-square quantile of the innovation gate (cached per dimension)."""
+        g = self._gates.get(dof)
+        if g is None:
+            g = self._gates[dof] = float(chi2.ppf(self.config.innovation_gate_p, dof))
+        return g
+
     def _init_ground(self, height_m: float) -> None:
         """Ground level from the first valid range: ``d_ground = p_d + h``, correlated with
         ``p_d`` exactly as that sum is (so the datum error stays in the covariance)."""
@@ -350,21 +358,23 @@ class NavFilter:
     # ------------------------------------------------------------------ predict
     def _propagate(self, gyro: np.ndarray, acc: np.ndarray, dt: np.ndarray,
                    keep_path: bool) -> tuple[np.ndarray, np.ndarray] | None:
-        """Propagate through IMU samples; return per-sample (mean, std) when asked."""
+        """Propagate through IMU samples; return per-sample (mean, std) when asked.
+
+        Between epochs the position and velocity sigma come from the sigma points; the other
+        states carry the last epoch's sigma plus their process noise.
+        """
         ukf = self.ukf
         X, Wm, Wc = ukf.sigma_points()
-        Xe, path = propagate(X, gyro, acc, dt, self.config.accel_bias, keep_path)
+        P0 = np.diag(ukf.P).copy()
+        Xe, mom = propagate(X, gyro, acc, dt, self.config.accel_bias,
+                            (Wm, Wc) if keep_path else None)
         T = float(dt.sum())
         out = None
-        if keep_path:
-            m = np.einsum("s,snk->nk", Wm, path)
-            a = path[..., 6:9]
-            m[:, 6:9] = np.arctan2(np.einsum("s,snk->nk", Wm, np.sin(a)),
-                                   np.einsum("s,snk->nk", Wm, np.cos(a)))
-            d = path - m[None]
-            d[..., 6:9] = np.mod(d[..., 6:9] + np.pi, 2 * np.pi) - np.pi
-            var = np.einsum("s,snk->nk", Wc, d * d)
-            var += np.cumsum(dt)[:, None] * self._qrate[None, :]
+        if mom is not None:
+            m, var6 = mom
+            grow = np.cumsum(dt)[:, None] * self._qrate[None, :]
+            var = P0[None, :] + grow
+            var[:, 0:6] = var6 + grow[:, 0:6]
             out = (m, np.sqrt(np.clip(var, 0.0, None)))
         ukf.set_from_sigma(Xe, Wm, Wc, np.diag(self._qrate * T))
         ukf.time_s += T
@@ -462,7 +472,6 @@ class NavFilter:
         X, Wm, Wc = ukf.sigma_points()
         preds = [np.asarray(h(X), dtype=np.float64) for _, _, h, _, _ in blocks]
         keep = []
-        p_gate = self.config.innovation_gate_p
         for b, Z in zip(blocks, preds, strict=True):
             name, z, _, R, aidx = b
             zp = Wm @ Z
@@ -480,7 +489,7 @@ class NavFilter:
                                       f" innovation of {name}")
             stats = self.innovations[name]
             n_rej = self._rejections.get(name, 0)
-            if nis > chi2.ppf(p_gate, z.size) and n_rej < self.config.max_rejections:
+            if nis > self._gate(z.size) and n_rej < self.config.max_rejections:
                 stats.n_rejected += 1
                 self._rejections[name] = n_rej + 1
                 continue
@@ -700,7 +709,6 @@ class NavFilter:
             qok = np.ones(r_flow_all.size, bool)
         r_baro = _decimate_rows(t, rows_of(inputs.baro_alt, 1), c.baro_interval_s)
         r_mag = _decimate_rows(t, rows_of(flux, 3), c.mag_interval_s)
-        r_grav = _decimate_rows(t, imu_rows[imu_rows > i0], c.gravity_interval_s)
         # Flow: body rate averaged over the interval since the previous flow sample.
         flow_gyro = np.zeros((r_flow_all.size, 3))
         flow_T = np.full(r_flow_all.size, 0.1)
@@ -719,10 +727,18 @@ class NavFilter:
         r_flow = r_flow_all[qok]
         flow_gyro, flow_T = flow_gyro[qok], flow_T[qok]
         # Gravity: mean specific force and rate over the interval since the previous epoch.
-        prev_g = np.r_[i0, r_grav[:-1]]
-        Tg = t[r_grav] - t[prev_g]
-        grav_acc = (cum_acc[r_grav] - cum_acc[prev_g]) / np.where(Tg > 0, Tg, 1.0)[:, None]
-        grav_rate = (cum_ang[r_grav] - cum_ang[prev_g]) / np.where(Tg > 0, Tg, 1.0)[:, None]
+        # Gravity epochs ride on the other sensors' epochs when there are any (one update
+        # instead of two), else on IMU rows; the interval means end at the last IMU sample.
+        others = np.unique(np.concatenate([r_gpsp, r_gpsv, r_range, r_flow, r_baro, r_mag]))
+        r_grav = _decimate_rows(t, others if others.size else imu_rows[imu_rows > i0],
+                                c.gravity_interval_s)
+        li_g = last_imu[r_grav]
+        prev_g = np.r_[i0, li_g[:-1]]
+        Tg = t[li_g] - t[prev_g]
+        ok_g = Tg > 0
+        r_grav, li_g, prev_g, Tg = r_grav[ok_g], li_g[ok_g], prev_g[ok_g], Tg[ok_g]
+        grav_acc = (cum_acc[li_g] - cum_acc[prev_g]) / Tg[:, None]
+        grav_rate = (cum_ang[li_g] - cum_ang[prev_g]) / Tg[:, None]
 
         use = set(self.sensors)
         per: dict[str, np.ndarray] = {

@@ -13,8 +13,9 @@ ends at its time (the interface's convention), so over an interval ``dt``::
     v_k   = v_(k-1) + a_k dt,   p_k = p_(k-1) + (v_(k-1) + v_k) / 2 dt
 
 :func:`propagate` runs a whole batch of IMU samples (those between two measurement epochs)
-for all sigma points in a fixed number of numpy calls: the attitude products are a parallel
-prefix scan (``log2(N)`` batched 3x3 products), velocity and position cumulative sums.
+for all sigma points at once: the rotation increments of every sample and sigma point in one
+call, their running products one batched 3x3 product per sample, velocity and position as
+cumulative sums.
 """
 
 from __future__ import annotations
@@ -63,31 +64,33 @@ def rotation_matrices(w: np.ndarray) -> np.ndarray:
     return R
 
 
-def _matmul3(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """Batched 3x3 products (faster than ``np.matmul`` on many tiny matrices)."""
-    return np.einsum("...ij,...jk->...ik", A, B, optimize=False)
-
-
 def _prefix_products(R: np.ndarray) -> np.ndarray:
-    """Inclusive prefix products ``R_0 R_1 ... R_k`` along axis -3 (Hillis-Steele scan)."""
-    P = R.copy()
-    N = P.shape[-3]
-    s = 1
-    while s < N:
-        P[..., s:, :, :] = _matmul3(P[..., :-s, :, :], P[..., s:, :, :])
-        s *= 2
-    return P
+    """Inclusive prefix products ``R_0 R_1 ... R_k`` along axis 1 of ``(S, N, 3, 3)``.
+
+    One batched 3x3 product over the S sigma points per sample: for the tens of samples
+    between two epochs this is faster than a parallel (log-depth) scan, whose N log N
+    products cost more than the N numpy calls they save (measured: 0.31 ms against 1.5 ms
+    for 25 x 25 matrices).
+    """
+    Rt = np.ascontiguousarray(np.swapaxes(R, 0, 1))
+    P = np.empty_like(Rt)
+    P[0] = Rt[0]
+    for k in range(1, Rt.shape[0]):
+        np.matmul(P[k - 1], Rt[k], out=P[k])
+    return np.swapaxes(P, 0, 1)
 
 
 def propagate(X: np.ndarray, gyro: np.ndarray, acc: np.ndarray, dt: np.ndarray,
-              accel_bias: bool = False, keep_path: bool = False
-              ) -> tuple[np.ndarray, np.ndarray | None]:
+              accel_bias: bool = False,
+              weights: tuple[np.ndarray, np.ndarray] | None = None
+              ) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
     """Propagate sigma points through a batch of IMU samples.
 
     Parameters
     ----------
     X : ndarray, shape (S, n)
-        Sigma points (``n`` = 12, or 15 with ``accel_bias``).
+        Sigma points (position, velocity, roll, pitch, yaw, gyro biases, then optionally
+        accelerometer biases in columns 12..14, then any constant states).
     gyro : ndarray, shape (N, 3)
         Mean body rates over each sample's interval, rad/s.
     acc : ndarray, shape (N, 3)
@@ -96,15 +99,17 @@ def propagate(X: np.ndarray, gyro: np.ndarray, acc: np.ndarray, dt: np.ndarray,
         Interval lengths, s.
     accel_bias : bool
         Whether ``X`` carries accelerometer biases in columns 12..14.
-    keep_path : bool
-        Also return the states after every sample.
+    weights : (Wm, Wc), optional
+        Sigma-point weights: also return the mean state after every sample and the variance
+        of its position and velocity.
 
     Returns
     -------
     X_end : ndarray, shape (S, n)
         Sigma points after the last sample.
-    path : ndarray, shape (S, N, n) or None
-        States after every sample (``keep_path``).
+    moments : (mean (N, n), var (N, 6)) or None
+        Mean state after each sample (attitude from the weighted mean direction-cosine
+        matrix) and the variance of position and velocity (``weights``).
     """
     S, n = X.shape
     N = gyro.shape[0]
@@ -112,7 +117,7 @@ def propagate(X: np.ndarray, gyro: np.ndarray, acc: np.ndarray, dt: np.ndarray,
     C0 = dcm_body_to_ned(X[:, 6], X[:, 7], X[:, 8])                     # (S, 3, 3)
     w = (gyro[None, :, :] - bg[:, None, :]) * dt[None, :, None]          # (S, N, 3)
     Pk = _prefix_products(rotation_matrices(w))                          # (S, N, 3, 3)
-    Ck = _matmul3(C0[:, None], Pk)
+    Ck = np.matmul(C0[:, None], Pk)
     Cprev = np.concatenate([C0[:, None], Ck[:, :-1]], axis=1)
     fb = acc[None, :, :] - (X[:, None, 12:15] if accel_bias else 0.0)
     a = 0.5 * np.einsum("snij,snj->sni", Cprev + Ck, np.broadcast_to(fb, (S, N, 3)))
@@ -121,16 +126,20 @@ def propagate(X: np.ndarray, gyro: np.ndarray, acc: np.ndarray, dt: np.ndarray,
     v = X[:, None, 3:6] + np.cumsum(dv, axis=1)
     vprev = np.concatenate([X[:, None, 3:6], v[:, :-1]], axis=1)
     p = X[:, None, 0:3] + np.cumsum(0.5 * (vprev + v) * dt[None, :, None], axis=1)
-    if keep_path:
-        roll, pitch, yaw = euler_from_dcm(Ck)
-        path = np.empty((S, N, n))
-        path[..., 0:3] = p
-        path[..., 3:6] = v
-        path[..., 6], path[..., 7], path[..., 8] = roll, pitch, yaw
-        path[..., 9:] = X[:, None, 9:]
-        return path[:, -1].copy(), path
     out = X.copy()
     out[:, 0:3] = p[:, -1]
     out[:, 3:6] = v[:, -1]
     out[:, 6], out[:, 7], out[:, 8] = euler_from_dcm(Ck[:, -1])
-    return out, None
+    if weights is None:
+        return out, None
+    Wm, Wc = weights
+    pv = np.concatenate([p, v], axis=2)                                  # (S, N, 6)
+    m6 = np.einsum("s,sni->ni", Wm, pv)
+    d = pv - m6[None]
+    var6 = np.einsum("s,sni->ni", Wc, d * d)
+    mean = np.empty((N, n))
+    mean[:, 0:6] = m6
+    roll, pitch, yaw = euler_from_dcm(np.einsum("s,snij->nij", Wm, Ck))
+    mean[:, 6], mean[:, 7], mean[:, 8] = roll, pitch, yaw
+    mean[:, 9:] = Wm @ X[:, 9:]
+    return out, (mean, var6)
