@@ -49,8 +49,9 @@ def test_no_future_sample_changes_the_past(derivative):
     mag2[k0:] += 50.0
     pert = OnlineTL(10.0, derivative=derivative).run(t, flux2, mag2).mag_tl
     last_equal = k0 - 2 if derivative == "central" else k0 - 1  # one-sample latency
-    np.testing.assert_array_equal(pert[:last_equal + 1], base[:last_equal + 1])
-    assert not np.allclose(pert[k0 + 1:], base[k0 + 1:])
+    # equal to rounding (blocked vector arithmetic), while the change itself is of nT
+    np.testing.assert_allclose(pert[:last_equal + 1], base[:last_equal + 1], rtol=0, atol=1e-8)
+    assert np.abs(pert[last_equal + 2:] - base[last_equal + 2:]).max() > 1e-3
 
 
 def test_pieces_equal_whole_backward_exact_central_close():

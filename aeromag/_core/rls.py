@@ -122,13 +122,14 @@ class RLSResult:
         return int(self.skipped.sum())
 
 
-def _upper_products(f: np.ndarray, offs: np.ndarray) -> np.ndarray:
-    """Upper-triangle outer products ``f_i f_j`` (i <= j) of each row, in ``triu_indices``
-    order, by row slices (a fancy-index gather is several times slower)."""
-    k, n = f.shape
-    out = np.empty((k, offs[-1]))
+def _upper_products(ft: np.ndarray, offs: np.ndarray) -> np.ndarray:
+    """Upper-triangle outer products ``f_i f_j`` (i <= j) of each sample, in
+    ``triu_indices`` order, samples along the last axis: ``ft`` is (n, k), the result
+    (n (n + 1) / 2, k), every row a contiguous product of two contiguous rows."""
+    n, k = ft.shape
+    out = np.empty((offs[-1], k))
     for i in range(n):
-        np.multiply(f[:, i:i + 1], f[:, i:], out=out[:, offs[i]:offs[i + 1]])
+        np.multiply(ft[i], ft[i:], out=out[offs[i]:offs[i + 1]])
     return out
 
 
@@ -291,29 +292,38 @@ class RecursiveLeastSquares:
         a = [1.0, -lam]
         for s0 in range(0, len(idx), BLOCK):
             rows = idx[s0:s0 + BLOCK]
-            f = phi[rows]
-            xr = _upper_products(f, offs)
+            k = len(rows)
+            if rows[-1] - rows[0] == k - 1:  # no skipped sample: slices, no gathers
+                ft = np.ascontiguousarray(phi[rows[0]:rows[-1] + 1].T)
+                yt = y[rows[0]:rows[-1] + 1].T
+            else:
+                ft = np.ascontiguousarray(phi[rows].T)
+                yt = y[rows].T
+            # Samples along the last axis: the filter and the products run on contiguous rows.
+            xr = _upper_products(ft, offs)
             if c > 0.0:
-                xr[:, diag] += c
-            xb = (f[:, :, None] * y[rows][:, None, :]).reshape(len(rows), n * m)
+                xr[diag] += c
+            xb = (ft[:, None, :] * yt[None, :, :]).reshape(n * m, k)
             if c > 0.0:
-                xb += leak_b
-            Rk, zr = lfilter([1.0], a, xr, axis=0, zi=zr[None, :])
-            Bk, zb = lfilter([1.0], a, xb, axis=0, zi=zb[None, :])
-            zr, zb = zr[0], zb[0]
+                xb += leak_b[:, None]
+            Rk, zr = lfilter([1.0], a, xr, axis=-1, zi=zr[:, None])
+            Bk, zb = lfilter([1.0], a, xb, axis=-1, zi=zb[:, None])
+            zr, zb = zr[:, 0], zb[:, 0]
             if history:
-                th = np.linalg.solve(Rk[:, sym].reshape(len(rows), n, n),
-                                     Bk.reshape(len(rows), n, m))
+                th = np.linalg.solve(np.ascontiguousarray(Rk[sym].T).reshape(k, n, n),
+                                     Bk.T.reshape(k, n, m))
                 # Skipped samples before each used one repeat the previous estimate.
                 hist[last_fill:rows[0]] = prev
-                hist[rows] = th
-                gaps = np.flatnonzero(np.diff(rows) > 1)
-                for g in gaps:
-                    hist[rows[g] + 1:rows[g + 1]] = th[g]
+                hist[rows[0]:rows[-1] + 1] = th if k == rows[-1] - rows[0] + 1 else prev
+                if k != rows[-1] - rows[0] + 1:
+                    hist[rows] = th
+                    gaps = np.flatnonzero(np.diff(rows) > 1)
+                    for g in gaps:
+                        hist[rows[g] + 1:rows[g + 1]] = th[g]
                 prev = th[-1]
                 last_fill = rows[-1] + 1
-            R_last = Rk[-1]
-            B_last = Bk[-1]
+            R_last = Rk[:, -1]
+            B_last = Bk[:, -1]
         if len(idx):
             Rf = np.empty((n, n))
             Rf[iu, ju] = R_last

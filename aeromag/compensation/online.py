@@ -257,21 +257,29 @@ class OnlineTL:
         if n and valid[0] and self._ended_valid and self._zi is not None \
                 and 0 < t[0] - self._last_t <= self.max_gap_s:
             starts[0] = False  # continues the previous call's stretch
-        A = np.full((n, p), np.nan)
         idx = np.flatnonzero(valid)
-        A[idx] = self._design(flux[idx], t[idx], starts[idx])
+        all_ok = len(idx) == n
+        X = np.empty((n, p + 1))  # the terms and mag, one row per sample
+        if all_ok:
+            X[:, :p] = self._design(flux, t, starts)
+        else:
+            X[:, :p] = np.nan
+            X[idx, :p] = self._design(flux[idx], t[idx], starts[idx])
+        X[:, p] = mag
+        A = X[:, :p]
         # Causal band-pass per stretch, started in steady state (or carried over).
-        X = np.column_stack([A, mag])  # (n, p + 1)
-        Xf = np.full_like(X, np.nan)
+        Xf = np.empty_like(X) if all_ok else np.full_like(X, np.nan)
         bounds = np.flatnonzero(starts[idx]) if idx.size else np.zeros(0, dtype=int)
         pieces = np.split(idx, bounds[bounds > 0]) if idx.size else []
         zi = self._zi
         for k, rows in enumerate(pieces):
-            x = X[rows]
+            # A piece runs from one stretch start to the next: consecutive rows (an unusable
+            # sample always starts a new stretch after it).
+            sl = slice(rows[0], rows[-1] + 1)
+            x = X[sl]
             if k > 0 or starts[rows[0]] or zi is None:
                 zi = self._zi_unit[:, :, None] * x[0][None, None, :]
-            y, zi = sosfilt(self.sos, x, axis=0, zi=zi)
-            Xf[rows] = y
+            Xf[sl], zi = sosfilt(self.sos, x, axis=0, zi=zi)
         self._zi = zi
         if idx.size:
             self._last_cos = direction_cosines(flux[idx[-1]][None, :])[0][0]
@@ -281,15 +289,17 @@ class OnlineTL:
         before = self.rls.theta[:, 0].copy()
         res = self.rls.run(Xf[:, :p], Xf[:, p])
         hist = res.theta[:, :, 0]
-        prior = np.vstack([before[None, :], hist[:-1]]) if n else hist
+        prior = np.empty_like(hist)
+        if n:
+            prior[0] = before
+            prior[1:] = hist[:-1]
         if self._sos_coef is not None and n:
             from scipy.signal import sosfilt_zi
 
             if self._zi_coef is None:
                 self._zi_coef = sosfilt_zi(self._sos_coef)[:, :, None] * prior[0][None, None, :]
             prior, self._zi_coef = sosfilt(self._sos_coef, prior, axis=0, zi=self._zi_coef)
-        mag_tl = np.einsum("ij,ij->i", np.where(valid[:, None], A, 0.0), prior)
-        mag_tl[~valid] = np.nan
+        mag_tl = np.einsum("ij,ij->i", A, prior)  # NaN rows of A give NaN (not usable)
         return OnlineTLResult(mag_tl=mag_tl, coef_history=hist, coef=self.coef,
                               terms=self.terms, skipped=res.skipped,
                               forgetting=self.forgetting)
