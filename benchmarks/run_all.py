@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -88,6 +89,7 @@ def child(body: str, timeout: float, **names: object) -> dict:
     """Run ``body`` in a fresh interpreter; wall time [s], peak RSS [B], heavy modules."""
     head = "".join(f"{k} = {v!r}\n" for k, v in names.items())
     code = head + textwrap.dedent(body) + _EPILOGUE
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     try:
         p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
@@ -95,13 +97,15 @@ def child(body: str, timeout: float, **names: object) -> dict:
     except subprocess.TimeoutExpired:
         return {"s": float("nan"), "rss": float("nan"), "error": f"timed out after {timeout} s"}
     dt = time.perf_counter() - t0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
     line = next((ln for ln in p.stderr.splitlines() if ln.startswith(MARK)), None)
     if p.returncode or line is None:
-        return {"s": dt, "rss": float("nan"), "error": p.stderr.strip()[-600:]}
+        return {"s": dt, "cpu": cpu, "rss": float("nan"), "error": p.stderr.strip()[-600:]}
     r = json.loads(line[len(MARK):])
     if r["code"]:
-        return {"s": dt, "rss": r["rss"], "error": p.stderr.strip()[-600:]}
-    return {"s": dt, "rss": r["rss"], "mods": r["mods"]}
+        return {"s": dt, "cpu": cpu, "rss": r["rss"], "error": p.stderr.strip()[-600:]}
+    return {"s": dt, "cpu": cpu, "rss": r["rss"], "mods": r["mods"]}
 
 
 def best(n_runs: int, body: str, timeout: float, **names: object) -> dict:
@@ -125,7 +129,10 @@ def have_deinterf() -> bool:
 
 
 def fmt_s(r: dict) -> str:
-    return "n/a" if r is None else ("fail" if "error" in r else f"{r['s']:.2f}")
+    """Wall-clock seconds (CPU seconds of the process in brackets)."""
+    if r is None:
+        return "n/a"
+    return "fail" if "error" in r else f"{r['s']:.2f} ({r['cpu']:.2f})"
 
 
 def fmt_mb(r: dict, data_mb: float) -> str:
@@ -135,9 +142,10 @@ def fmt_mb(r: dict, data_mb: float) -> str:
 
 
 def ratio(a: dict | None, b: dict | None) -> str:
+    """Wall-clock ratio (CPU-time ratio in brackets: steadier on a shared machine)."""
     if a is None or b is None or "error" in a or "error" in b:
         return "n/a"
-    return f"{a['s'] / b['s']:.2f}"
+    return f"{a['s'] / b['s']:.2f} ({a['cpu'] / b['cpu']:.2f})"
 
 
 def main() -> None:
@@ -172,6 +180,7 @@ def main() -> None:
         print(msg, file=sys.stderr, flush=True)
 
     t_start = time.perf_counter()
+    load0 = os.getloadavg()
     help_r = aeromag(["--help"], 3, args.timeout)
     log(f"aeromag --help: {json.dumps(help_r)}")
     # One model for every --model run: calibrated on the 1e5-row log.
@@ -212,7 +221,8 @@ def main() -> None:
           f" total {time.perf_counter() - t_start:.0f} s")
     print(f"aeromag --help: {fmt_s(help_r)} s, peak {fmt_mb(help_r, 1.0).split()[0]} MB,"
           f" imported {', '.join(help_r.get('mods', [])) or 'none of ' + ', '.join(HEAVY)}")
-    print("\n10 Hz logs: time [s] (whole process)\n")
+    print(f"load average before: {load0}, after: {os.getloadavg()}")
+    print("\n10 Hz logs: wall-clock s of the whole process (its CPU s in brackets)\n")
     print("| rows | CSV MB | calibrate | deinterf fit | speed-up | pyarrow read+write"
           " | compensate --model | ratio to floor |")
     print("|---|---|---|---|---|---|---|---|")
@@ -220,7 +230,7 @@ def main() -> None:
         print(f"| {n:.0e} | {mb:.0f} | {fmt_s(r['calibrate'])} | {fmt_s(r['deinterf'])}"
               f" | {ratio(r['deinterf'], r['calibrate'])} | {fmt_s(r['floor'])}"
               f" | {fmt_s(r['model'])} | {ratio(r['model'], r['floor'])} |")
-    print("\n1 kHz logs: time [s] (whole process)\n")
+    print("\n1 kHz logs: wall-clock s of the whole process (its CPU s in brackets)\n")
     print("| rows | CSV MB | calibrate | calibrate --no-decimate | deinterf fit | speed-up |")
     print("|---|---|---|---|---|---|")
     for n, mb, _, r in rows1k:
