@@ -447,7 +447,6 @@ def test_shipped_samples_match_the_recipe(tmp_path: Path) -> None:
 
 
 def test_cli_calls_the_mission_simulator_hook(tmp_path: Path, monkeypatch) -> None:
-    import types
 
     calls = []
 
@@ -457,9 +456,9 @@ def test_cli_calls_the_mission_simulator_hook(tmp_path: Path, monkeypatch) -> No
         p.write_text("time\n0\n")
         return {"mission": p, "plan": p, "truth": p}
 
-    mod = types.ModuleType("aeromag.simulate_mission")
-    mod.write_mission_files = fake
-    monkeypatch.setitem(sys.modules, "aeromag.simulate_mission", mod)
+    import aeromag.workflows.mission as mission_files
+
+    monkeypatch.setattr(mission_files, "write_mission_files", fake)
     res = CliRunner().invoke(app, ["simulate", "-o", str(tmp_path), "--small", "--seed", "7"])
     assert res.exit_code == 0, res.output
     assert calls == [(tmp_path, 7)]

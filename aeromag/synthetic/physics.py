@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 import pyproj
 
+from .._core.rotations import dcm_body_to_ned
 from ..errors import InputError
 
 log = logging.getLogger(__name__)
@@ -130,26 +131,14 @@ def ned_to_body_dcm(heading_deg: Any, pitch_deg: Any, roll_deg: Any) -> np.ndarr
     Returns
     -------
     ndarray, shape (n, 3, 3)
-        ``C_bn = Rx(phi) @ Ry(theta) @ Rz(psi)``; ``v_body = C_bn @ v_ned``.
+        ``C_bn = Rx(phi) @ Ry(theta) @ Rz(psi)``; ``v_body = C_bn @ v_ned``: the transpose of
+        :func:`aeromag._core.rotations.dcm_body_to_ned`.
     """
     psi = np.deg2rad(np.atleast_1d(np.asarray(heading_deg, dtype=float)))
     th = np.deg2rad(np.atleast_1d(np.asarray(pitch_deg, dtype=float)))
     ph = np.deg2rad(np.atleast_1d(np.asarray(roll_deg, dtype=float)))
     psi, th, ph = np.broadcast_arrays(psi, th, ph)
-    cps, sps = np.cos(psi), np.sin(psi)
-    cth, sth = np.cos(th), np.sin(th)
-    cph, sph = np.cos(ph), np.sin(ph)
-    c = np.empty(psi.shape + (3, 3))
-    c[..., 0, 0] = cth * cps
-    c[..., 0, 1] = cth * sps
-    c[..., 0, 2] = -sth
-    c[..., 1, 0] = sph * sth * cps - cph * sps
-    c[..., 1, 1] = sph * sth * sps + cph * cps
-    c[..., 1, 2] = sph * cth
-    c[..., 2, 0] = cph * sth * cps + sph * sps
-    c[..., 2, 1] = cph * sth * sps - sph * cps
-    c[..., 2, 2] = cph * cth
-    return c
+    return np.swapaxes(dcm_body_to_ned(ph, th, psi), -1, -2)
 
 
 def body_field(b_ned: Any, heading_deg: Any, pitch_deg: Any, roll_deg: Any) -> np.ndarray:
@@ -310,6 +299,9 @@ def dipole_field_ned(points_ned: Any, source_ned: Any, moment_ned: Any) -> np.nd
 
 
 # --------------------------------------------------------------------------- geodesy
+# Deliberately not aeromag._core.geodesy: the simulator places the aircraft with pyproj's
+# topocentric pipeline, an implementation independent of the ECEF/NED code the track check
+# uses, so that the track tests compare two methods (they agree to 1e-13 deg, 4e-9 m).
 @functools.lru_cache(maxsize=8)
 def local_transformer(origin: tuple[float, float, float]) -> pyproj.Transformer:
     """A transformer between WGS84 geodetic and a local east-north-up tangent plane.
