@@ -173,3 +173,17 @@ def test_workflow_writes_compensate_columns(tmp_path):
         compensate_online_file(path.with_name("short.csv") if log.iloc[:10].to_csv(
             path.with_name("short.csv"), index=False) is None else path, tmp_path / "y.csv")
     assert not (tmp_path / "x.csv").exists() and not (tmp_path / "y.csv").exists()
+
+
+def test_undetermined_flight_refused_like_the_batch_fit(tmp_path):
+    """The mission sample (no scalar magnetometer, heading disturbances of 20 uT) does not
+    determine the TL terms: the batch fit refuses it, and so does the online fit."""
+    from pathlib import Path
+
+    from aeromag.errors import FitError
+
+    src = Path(__file__).resolve().parents[1] / "data_samples" / "mission.csv"
+    out = tmp_path / "m.csv"
+    with pytest.raises(FitError, match="no aircraft makes.*--forgetting"):
+        compensate_online_file(src, out)
+    assert not out.exists() and not out.with_suffix(".json").exists()

@@ -20,10 +20,11 @@ from .. import __version__
 from .._core.filters import bandpass_stretches, lowpass_stretches
 from .._core.rls import check_forgetting
 from ..compensation.config import CompensationConfig
+from ..compensation.fit import check_interference
 from ..compensation.metrics import compensation_metrics
 from ..compensation.online import OnlineTL, OnlineTLResult
 from ..compensation.prepare import prepare
-from ..errors import InputError
+from ..errors import FitError, InputError
 from ..io import atomic_path, json_path_for, read_log, write_csv, write_json
 from .compensate import check_outputs
 
@@ -77,6 +78,15 @@ def compensate_online_frame(df: pd.DataFrame, cfg: CompensationConfig | None = N
                          "the online fit needs many more than the number of terms")
     mag = np.where(prep.valid, prep.mag, np.nan)
     res = est.run(prep.time, prep.flux, mag)
+    try:  # the batch fit's plausibility limit (cfg.max_interference of the Earth field)
+        check_interference(res.mag_tl, prep.field_nT, cfg.max_interference, source=src,
+                           fitted=True)
+    except FitError as exc:
+        head = str(exc).split(": this flight")[0]
+        raise FitError(f"{head}: the online fit is not determined by this flight (too few "
+                       "headings or manoeuvres within its memory); give a longer memory "
+                       "(--forgetting closer to 1), or calibrate on a box flight and apply "
+                       "the model with --model (limit: --max-interference)") from None
     t = prep.time
     comp = prep.mag - res.mag_tl
     if cfg.filter_output:
