@@ -17,12 +17,12 @@ import numpy as np
 import pandas as pd
 from sklearn.base import BaseEstimator, RegressorMixin
 
-from .._core.filters import bandpass_stretches
 from .._core.stretches import find_stretches
 from ..conventions import FLUX_COLUMNS
 from ..errors import InputError
 from .config import CompensationConfig, _resolve_gap
 from .fit import check_interference, fit_outcome
+from .metrics import compensation_metrics
 from .model import TLModel
 from .prepare import prepare
 
@@ -183,10 +183,29 @@ class TollesLawson(RegressorMixin, BaseEstimator):
         return np.asarray(y, dtype=np.float64).ravel() - self.predict(X)
 
     def score(self, X: Any, y: Any, sample_weight: Any = None) -> float:
-        """Improvement ratio: std of band-passed ``y`` over std of band-passed ``y - predict``."""
+        """Improvement ratio, as the pipeline's metrics compute it.
+
+        Std of band-passed ``y`` over std of band-passed ``y - predict(X)``, in the fitting band
+        applied once, filter edges trimmed
+        (:func:`aeromag.compensation.metrics.compensation_metrics`).
+
+        Parameters
+        ----------
+        X : array-like, shape (n, 4)
+            time [s], flux_x, flux_y, flux_z [nT].
+        y : array-like, shape (n,)
+            Scalar magnetometer [nT].
+        sample_weight : None
+            Not supported (scikit-learn's signature).
+
+        Returns
+        -------
+        float
+            Improvement ratio (higher is better).
+        """
         t, _ = self._split_X(X)
         yv = np.asarray(y, dtype=np.float64).ravel()
-        stretch = find_stretches(t, np.isfinite(yv), self.max_gap_s)
-        before = bandpass_stretches(yv, t, stretch, self.band, self.order)
-        after = bandpass_stretches(yv - self.predict(X), t, stretch, self.band, self.order)
-        return float(np.nanstd(before) / np.nanstd(after))
+        cfg = self._config()
+        stretch = find_stretches(t, np.isfinite(yv), cfg.max_gap_s)
+        return float(compensation_metrics(yv, yv - self.predict(X), t, stretch,
+                                          cfg)["improvement_ratio"])
