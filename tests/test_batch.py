@@ -195,11 +195,11 @@ def test_cli_no_filter_then_default_is_not_up_to_date(logs, tmp_path):
     assert r1.exit_code == 0, r1.output
     r2 = runner.invoke(app, args)
     assert r2.exit_code == 0, r2.output
-    assert "1 ok, 0 up to date" in r2.output
+    assert "1 ok, 0 with warnings, 0 up to date" in r2.output
     ref = _single(logs / "flight0.csv", tmp_path / "single")
     assert (tmp_path / "o" / "flight0_comp.csv").read_bytes() == ref.read_bytes()
     r3 = runner.invoke(app, args)
-    assert "0 ok, 1 up to date" in r3.output
+    assert "0 ok, 0 with warnings, 1 up to date" in r3.output
 
 
 def test_summary_counts_are_integers(logs, tmp_path):
@@ -257,3 +257,135 @@ def test_cli_extension_list_matches_the_library():
     from aeromag.workflows.batch import LOG_EXTENSIONS
 
     assert cli_batch.LOG_EXTENSIONS == LOG_EXTENSIONS
+
+
+# --------------------------------------------------------------------------- issue 15/16
+DATA = Path(__file__).resolve().parents[1] / "data_samples"
+
+
+def test_batch_mixed_folder_reports_each_file(tmp_path):
+    """Issue 15: a folder mixing good logs, a µT log, a log without mag, a too-short log and
+    a corrupt one: each reported for what it is (warnings column, warn status), none dropped
+    silently; duplicates are reported (issue 16)."""
+    d = tmp_path / "mix"
+    d.mkdir()
+    df = pd.read_csv(DATA / "survey.csv")
+    df.to_csv(d / "good.csv", index=False)
+    dup = pd.concat([df.iloc[:100], df.iloc[99:100], df.iloc[100:]], ignore_index=True)
+    dup.to_csv(d / "dups.csv", index=False)
+    micro = df.copy()
+    micro[["flux_x", "flux_y", "flux_z"]] /= 1000.0
+    micro.to_csv(d / "micro.csv", index=False)
+    df.drop(columns="mag").to_csv(d / "nomag.csv", index=False)
+    df.iloc[:13].to_csv(d / "short.csv", index=False)
+    raw = (DATA / "survey.csv").read_bytes()
+    (d / "corrupt.csv").write_bytes(raw[:20000] + b"\x00\xff garbage")
+    model = tmp_path / "aircraft.json"
+    calibrate_file(DATA / "calibration.csv", model)
+    summary = run_batch([d], tmp_path / "out", workers=2, progress=False, model=model)
+    st = {Path(r.input).name: r for r in summary.results}
+    assert st["good.csv"].status == "ok" and not st["good.csv"].warnings
+    assert st["dups.csv"].status == "warn"
+    assert any("dropped 1 exact duplicate row" in w for w in st["dups.csv"].warnings)
+    assert st["dups.csv"].n_rows == 2010
+    assert st["micro.csv"].status in ("warn", "failed")
+    assert "uT" in " ".join(st["micro.csv"].warnings) + str(st["micro.csv"].error)
+    assert st["nomag.csv"].status in ("warn", "failed")
+    assert st["short.csv"].status in ("warn", "failed")
+    assert st["corrupt.csv"].status == "failed"
+    assert "corrupt.csv: line 141: binary data" in st["corrupt.csv"].error
+    frame = pd.read_csv(tmp_path / "out" / "batch_summary.csv", keep_default_na=False)
+    row = frame.set_index("input").loc[str(d / "dups.csv")]
+    assert row["status"] == "warn" and "duplicate" in row["warnings"]
+    rep = json.loads((tmp_path / "out" / "dups_comp.json").read_text())
+    assert any("duplicate" in w for w in rep["warnings"])  # recorded in the file's JSON
+    summ = json.loads((tmp_path / "out" / "batch_summary.json").read_text())
+    assert summ["n_warn"] == sum(r.status == "warn" for r in summary.results)
+    assert not list((tmp_path / "out").glob(".*.tmp"))
+
+
+def test_metric_warnings():
+    from aeromag.workflows.batch import metric_warnings
+
+    assert metric_warnings({"improvement_ratio": 10.0, "residual_std_nT": 0.2}) == []
+    assert "< 1" in metric_warnings({"improvement_ratio": 0.5, "residual_std_nT": 0.2})[0]
+    assert "implausibly small" in metric_warnings({"improvement_ratio": 3,
+                                                   "residual_std_nT": 0.0})[0]
+    assert "implausible" in metric_warnings({"improvement_ratio": 3,
+                                             "residual_std_nT": 500.0})[0]
+    assert "no residual" in metric_warnings({"improvement_ratio": None})[0]
+
+
+def _descendants(pid: int) -> set[int]:
+    """Every live descendant of ``pid`` (from /proc)."""
+    children: dict[int, list[int]] = {}
+    for st in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = st.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        children.setdefault(int(fields[1]), []).append(int(st.parent.name))
+    out, todo = set(), [pid]
+    while todo:
+        for c in children.get(todo.pop(), []):
+            if c not in out:
+                out.add(c)
+                todo.append(c)
+    return out
+
+
+def _alive(pids: set[int]) -> set[int]:
+    alive = set()
+    for p in pids:
+        try:
+            stat = Path(f"/proc/{p}/stat").read_text()
+        except OSError:
+            continue
+        if stat.rsplit(")", 1)[1].split()[0] != "Z":
+            alive.add(p)
+    return alive
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+@pytest.mark.parametrize("sig", ["SIGKILL", "SIGINT"])
+def test_batch_workers_die_with_the_parent_and_ctrl_c_is_prompt(tmp_path, sig):
+    """Issue 16: killing only the batch parent (timeout, OOM killer) left its workers running
+    for 60 s or more, and Ctrl-C drained the queue for ~10 s."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    d = tmp_path / "in"
+    d.mkdir()
+    raw = (DATA / "survey.csv").read_bytes()
+    for i in range(10):
+        (d / f"s{i}.csv").write_bytes(raw)
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "aeromag", "batch", str(d), "-o", str(out),
+                             "--workers", "2"], cwd=tmp_path, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE)
+    kids: set[int] = set()
+    t_end = time.monotonic() + 60
+    while time.monotonic() < t_end and len(kids) < 3 and proc.poll() is None:
+        kids |= _descendants(proc.pid)
+        time.sleep(0.1)
+    assert proc.poll() is None and len(kids) >= 2, "the batch did not start its workers"
+    time.sleep(0.5)
+    t0 = time.monotonic()
+    proc.send_signal(getattr(signal, sig))
+    proc.wait(30)
+    while _alive(kids) and time.monotonic() - t0 < 15:
+        time.sleep(0.1)
+    took = time.monotonic() - t0
+    assert not _alive(kids), f"workers still running {took:.1f} s after {sig}"
+    assert took < 8.0
+    if sig == "SIGINT":
+        assert proc.returncode != 0
+        assert "Traceback" not in proc.stderr.read().decode()
+    # nothing half-written: every output is complete or absent, no temporaries stay
+    # (after SIGKILL only the parent died; the workers cleaned up their own files)
+    assert not list(out.glob(".*.tmp")) if out.exists() else True
+    for csv in out.glob("*_comp.csv") if out.exists() else []:
+        assert csv.with_suffix(".json").exists()
+        assert len(pd.read_csv(csv)) == 2010

@@ -49,7 +49,7 @@ def _print_summary(summary) -> None:  # noqa: ANN001 - BatchSummary
         return "" if x is None else format(x, spec)
 
     for r in summary.results:
-        style = {"ok": "green", "skipped": "dim", "failed": "red"}[r.status]
+        style = {"ok": "green", "warn": "yellow", "skipped": "dim", "failed": "red"}[r.status]
         table.add_row(Path(r.input).name, f"[{style}]{r.status}[/{style}]",
                       fmt(r.seconds, ".1f"), "" if r.n_rows is None else str(r.n_rows),
                       fmt(r.improvement_ratio, ".2f"), fmt(r.residual_std_nT, ".4f"),
@@ -58,8 +58,12 @@ def _print_summary(summary) -> None:  # noqa: ANN001 - BatchSummary
     console.print(table)
     n_ok = sum(r.status == "ok" for r in summary.results)
     n_skip = sum(r.status == "skipped" for r in summary.results)
-    console.print(f"{n_ok} ok, {n_skip} up to date, {len(summary.failed)} failed in "
-                  f"{summary.seconds:.1f} s; summary: {summary.summary_csv}", highlight=False)
+    console.print(f"{n_ok} ok, {len(summary.warned)} with warnings, {n_skip} up to date,"
+                  f" {len(summary.failed)} failed in {summary.seconds:.1f} s; summary:"
+                  f" {summary.summary_csv}", highlight=False)
     err = Console(stderr=True, highlight=False)
+    for r in summary.warned:
+        for w in r.warnings:
+            err.print(f"warning: {Path(r.input).name}: {w}", markup=False, soft_wrap=True)
     for r in summary.failed:
         err.print(f"error: {r.error}", markup=False, soft_wrap=True)

@@ -67,6 +67,7 @@ class _WarningCapture(logging.Handler):
     def __init__(self, sink: list[str], forward_level: int) -> None:
         super().__init__(logging.DEBUG)
         self.sink = sink
+        self.stack = _stack()  # the sets of the thread that opened the capture
         self.forward_level = forward_level
 
     def emit(self, record: logging.LogRecord) -> None:
@@ -75,8 +76,9 @@ class _WarningCapture(logging.Handler):
                 msg = clean(record.getMessage())
             except Exception:  # noqa: BLE001 - a bad format string must not break a run
                 msg = clean(str(record.msg))
-            if msg not in self.sink:
-                self.sink.append(msg)
+            sink = self.stack[-1].warnings if self.stack else self.sink  # innermost set
+            if msg not in sink:
+                sink.append(msg)
         if record.levelno < self.forward_level:
             return
         try:  # names from files echoed without their control characters

@@ -27,12 +27,14 @@ Engines: a local process pool (default, ``workers`` processes), or Dask distribu
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import glob
 import hashlib
 import json
 import logging
 import os
+import sys
 import time
 import traceback
 from collections.abc import Callable, Iterable, Sequence
@@ -68,8 +70,9 @@ class FileResult:
     ----------
     input : str
         The input path.
-    status : {"ok", "skipped", "failed"}
-        What happened.
+    status : {"ok", "warn", "skipped", "failed"}
+        What happened: ``warn`` is a success whose results need a look (a warning recorded in
+        the file's report, an improvement ratio below 1, an implausible residual).
     outputs : list of str
         Files written (or found up to date when skipped).
     error : str or None
@@ -82,6 +85,8 @@ class FileResult:
         Compensation metrics of the report (interface.md).
     flagged_legs : int or None
         Legs with an alarm (with a plan).
+    warnings : list of str
+        The warnings of this file (those recorded in its reports, and the batch's own checks).
     """
 
     input: str
@@ -93,6 +98,7 @@ class FileResult:
     improvement_ratio: float | None = None
     residual_std_nT: float | None = None
     flagged_legs: int | None = None
+    warnings: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -111,6 +117,11 @@ class BatchSummary:
         return [r for r in self.results if r.status == "failed"]
 
     @property
+    def warned(self) -> list[FileResult]:
+        """The inputs that succeeded with warnings (status ``warn``)."""
+        return [r for r in self.results if r.status == "warn"]
+
+    @property
     def ok(self) -> bool:
         """True when no input failed."""
         return not self.failed
@@ -121,6 +132,7 @@ class BatchSummary:
         for r in self.results:
             d = asdict(r)
             d["outputs"] = ";".join(r.outputs)
+            d["warnings"] = " | ".join(r.warnings)
             rows.append(d)
         cols = list(FileResult.__dataclass_fields__)
         frame = pd.DataFrame(rows, columns=cols)
@@ -313,7 +325,7 @@ def _refuse_overwriting_inputs(sources: Sequence[tuple[Path, str]],
     outputs : sequence of Path
         Every file the run may write.
     """
-    from ..compensate import check_outputs
+    from .compensate import check_outputs
 
     existing: dict[tuple[int, int], Path] = {}
     for o in outputs:
@@ -352,8 +364,8 @@ def process_file(job: dict[str, Any]) -> dict[str, Any]:
     dict
         The fields of a :class:`FileResult`.
     """
-    from ..compensate import compensate_file
     from ..io import json_path_for, write_json
+    from ..io.outputs import output_set
 
     t0 = time.perf_counter()
     inp = Path(job["input"])
@@ -365,23 +377,16 @@ def process_file(job: dict[str, Any]) -> dict[str, Any]:
         names["fingerprint"].unlink(missing_ok=True)
     except OSError as exc:
         log.debug("%s: %s", names["fingerprint"], exc)
+    warnings: list[str] = []
     try:
-        if job.get("chunk_rows") and job.get("model") is not None:
-            from ..chunked import apply_model_chunked
-
-            report = apply_model_chunked(inp, names["comp"], job["model"], job["cfg"],
-                                         chunk_rows=job["chunk_rows"], columns=job["columns"],
-                                         units=job["units"], fmt=job["fmt"])
-            res["n_rows"] = int(report.get("n_rows", 0)) or None
-        else:
-            out = compensate_file(inp, names["comp"], job["cfg"], model=job["model"],
-                                  columns=job["columns"], units=job["units"], fmt=job["fmt"])
-            report = out.report
-            res["n_rows"] = len(out.data) if out.data is not None else None
+        with output_set(separate=True):  # this file's CSV and JSON together, or neither
+            report = _compensate_one(job, inp, names, res)
         m = report.get("metrics", {})
         res["improvement_ratio"] = m.get("improvement_ratio")
         res["residual_std_nT"] = m.get("residual_std_nT")
         res["outputs"] += [str(names["comp"]), str(json_path_for(names["comp"]))]
+        warnings += [str(w) for w in report.get("warnings") or []]
+        warnings += metric_warnings(m)
     except AeromagError as exc:
         errors.append(str(exc))
     except Exception as exc:  # noqa: BLE001 - isolate every file, whatever breaks
@@ -389,22 +394,28 @@ def process_file(job: dict[str, Any]) -> dict[str, Any]:
         errors.append(f"{inp}: internal error {type(exc).__name__}: {exc}".splitlines()[0])
     if job.get("plan") is not None:
         try:
-            from ..track import track_file
+            from .track import track_file
 
-            tr = track_file(inp, job["plan"], names["track"], columns=job["columns"],
-                            units=job["units"], fmt=job["fmt"], **(job.get("track") or {}))
+            with output_set(separate=True):
+                tr = track_file(inp, job["plan"], names["track"], columns=job["columns"],
+                                units=job["units"], fmt=job["fmt"], **(job.get("track") or {}))
             res["flagged_legs"] = sum(1 for leg in tr.report.get("legs", [])
                                       if leg.get("flagged"))
             res["outputs"] += [str(names["track"]), str(json_path_for(names["track"]))]
+            warnings += [f"track: {w}" for w in tr.report.get("warnings") or []]
         except AeromagError as exc:
             errors.append(f"track: {exc}")
         except Exception as exc:  # noqa: BLE001
             errors.append(f"track: {inp}: internal error {type(exc).__name__}: {exc}"
                           .splitlines()[0])
+    res["warnings"] = list(dict.fromkeys(warnings))
     if errors:
         res["status"] = "failed"
         res["error"] = " | ".join(errors)
-    elif job.get("fingerprint") is not None:
+    else:
+        if res["warnings"]:
+            res["status"] = "warn"
+    if not errors and job.get("fingerprint") is not None:
         try:
             write_json(job["fingerprint"], names["fingerprint"])
         except OSError as exc:  # the outputs are good; the next run just redoes this file
@@ -412,6 +423,60 @@ def process_file(job: dict[str, Any]) -> dict[str, Any]:
                         " process this file again", names["fingerprint"], exc)
     res["seconds"] = time.perf_counter() - t0
     return res
+
+
+def _compensate_one(job: dict[str, Any], inp: Path, names: dict[str, Path],
+                    res: dict[str, Any]) -> dict[str, Any]:
+    """Run the compensation of one file (chunked with a model when asked); its report."""
+    from .compensate import compensate_file
+
+    if job.get("chunk_rows") and job.get("model") is not None:
+        from .chunked import apply_model_chunked
+
+        report = apply_model_chunked(inp, names["comp"], job["model"], job["cfg"],
+                                     chunk_rows=job["chunk_rows"], columns=job["columns"],
+                                     units=job["units"], fmt=job["fmt"])
+        res["n_rows"] = int(report.get("n_rows", 0)) or None
+        return report
+    out = compensate_file(inp, names["comp"], job["cfg"], model=job["model"],
+                          columns=job["columns"], units=job["units"], fmt=job["fmt"])
+    res["n_rows"] = len(out.data) if out.data is not None else None
+    return out.report
+
+
+#: Band-passed residual [nT] above which a compensated log is implausible (a survey's is
+#: well under 1 nT; tens of nT mean a wrong model, unit or column).
+IMPLAUSIBLE_RESIDUAL_NT = 50.0
+
+
+def metric_warnings(metrics: dict[str, Any]) -> list[str]:
+    """The batch's own checks of a compensation's metrics (each a warning of the file).
+
+    Parameters
+    ----------
+    metrics : dict
+        The report's ``metrics`` (``improvement_ratio``, ``residual_std_nT``).
+
+    Returns
+    -------
+    list of str
+        An improvement ratio below 1 (the compensation adds interference), or a residual
+        that is missing, zero, or above :data:`IMPLAUSIBLE_RESIDUAL_NT`.
+    """
+    out = []
+    ratio, resid = metrics.get("improvement_ratio"), metrics.get("residual_std_nT")
+    if ratio is not None and ratio == ratio and ratio < 1.0:
+        out.append(f"improvement ratio {ratio:.3g} < 1: the compensation adds variation;"
+                   " check the model and the columns")
+    if resid is None or resid != resid:
+        out.append("no residual could be computed (too few band-passed samples?)")
+    elif resid <= 1e-6:
+        out.append(f"residual std {resid:.3g} nT is implausibly small (a log too short for"
+                   " the band-pass filter?)")
+    elif resid > IMPLAUSIBLE_RESIDUAL_NT:
+        out.append(f"residual std {resid:.4g} nT is implausible for a compensated survey"
+                   f" (> {IMPLAUSIBLE_RESIDUAL_NT:g} nT): check units (--units) and columns")
+    return out
 
 
 # --------------------------------------------------------------------------- engines
@@ -422,7 +487,9 @@ def _run_local(jobs: list[dict[str, Any]], workers: int,
             done(process_file(j))
         return
     ctx = get_context("forkserver") if "forkserver" in _start_methods() else None
-    with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=ctx) as ex:
+    ex = ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=ctx,
+                             initializer=_worker_init, initargs=(os.getpid(),))
+    try:
         futs = {ex.submit(process_file, j): j for j in jobs}
         for f in as_completed(futs):
             try:
@@ -431,6 +498,78 @@ def _run_local(jobs: list[dict[str, Any]], workers: int,
                 j = futs[f]
                 done({"input": j["input"], "status": "failed", "outputs": [],
                       "error": f"{j['input']}: worker failed ({type(exc).__name__}: {exc})"})
+    except BaseException:
+        # Ctrl-C / SIGTERM: drop the queue and stop the workers now (each removes its
+        # temporary files on SIGTERM), instead of draining the queue.
+        _stop_workers(ex)
+        raise
+    ex.shutdown(wait=True)
+
+
+def _stop_workers(ex: ProcessPoolExecutor, grace_s: float = 5.0) -> None:
+    """Cancel what has not started and terminate the running workers (SIGTERM, then KILL)."""
+    procs = list(getattr(ex, "_processes", {}).values())
+    ex.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        with contextlib.suppress(Exception):
+            p.terminate()
+    deadline = time.monotonic() + grace_s
+    for p in procs:
+        with contextlib.suppress(Exception):
+            p.join(max(0.0, deadline - time.monotonic()))
+            if p.is_alive():
+                p.kill()
+
+
+#: Seconds between a worker's checks that the batch process is still alive.
+WATCHDOG_S = 0.25
+#: Seconds a worker whose batch process died gets to remove its temporary files.
+WORKER_GRACE_S = 2.0
+
+
+def _worker_init(parent_pid: int) -> None:
+    """In each worker: die with the batch process, and clean up on SIGTERM like on Ctrl-C.
+
+    On Linux the kernel sends SIGTERM when the worker's parent dies (``PR_SET_PDEATHSIG``);
+    everywhere a watchdog thread checks every :data:`WATCHDOG_S` that the batch process is
+    alive (killed by ``timeout`` or the out-of-memory killer, it cannot stop its workers
+    itself), then terminates the worker: SIGTERM raises ``SystemExit`` in its main thread, so
+    the file being written loses only its temporaries.
+    """
+    import signal
+    import threading
+
+    # Warnings reach the user through the summary (each file's 'warnings'), not as stray
+    # lines from the workers; errors still show.
+    logging.basicConfig(level=logging.ERROR)
+
+    def on_term(signum: int, frame: object) -> None:
+        raise SystemExit(128 + signum)
+
+    signal.signal(signal.SIGTERM, on_term)
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(Exception):
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, int(signal.SIGTERM), 0, 0, 0)  # PR_SET_PDEATHSIG
+
+    def watch() -> None:
+        while True:
+            time.sleep(WATCHDOG_S)
+            try:
+                os.kill(parent_pid, 0)
+            except ProcessLookupError:
+                break
+            except OSError:
+                continue
+        os.kill(os.getpid(), signal.SIGTERM)
+        # Clean-up time (SystemExit unwinds the file being written); then go, whatever the
+        # main thread does (the executor catches SystemExit and would wait for more work).
+        time.sleep(WORKER_GRACE_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="aeromag-watchdog", daemon=True).start()
 
 
 def _start_methods() -> list[str]:
@@ -526,9 +665,9 @@ def run_batch(
     BatchSummary
         Per-file results; ``batch_summary.csv``/``.json`` are written to ``out_dir``.
     """
-    from ..compensate import CompensationConfig
+    from ..compensation.config import CompensationConfig
+    from ..compensation.model import TLModel
     from ..io import write_csv, write_json
-    from ..tolles_lawson import TLModel
 
     t_start = time.perf_counter()
     cfg = cfg or CompensationConfig()
@@ -611,6 +750,7 @@ def run_batch(
          "plan": None if plan is None else str(plan), "seconds": summary.seconds,
          "fingerprint": fingerprint,
          "n_ok": sum(r.status == "ok" for r in summary.results),
+         "n_warn": len(summary.warned),
          "n_skipped": sum(r.status == "skipped" for r in summary.results),
          "n_failed": len(summary.failed),
          "files": [asdict(r) for r in summary.results]},
