@@ -182,3 +182,17 @@ def test_magnav_term_spellings():
     assert parse_terms("permanent,induced5,eddy8") == TERMS_16
     assert parse_terms(":permanent,:induced_5,:eddy_8") == TERMS_16
     assert len(parse_terms("p,i6,e9")) == 18
+
+
+def test_api_page_is_generated_from_all():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "docs" / "make_api.py"
+    spec = importlib.util.spec_from_file_location("make_api", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    page = mod.render()
+    for name in am.__all__:
+        if not name.startswith("__"):
+            assert f"`am.{name}`" in page, name
