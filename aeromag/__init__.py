@@ -52,6 +52,19 @@ _API: dict[str, str] = {
     "write_simulation": "aeromag.workflows.simulate",
     # quality control
     "compute_qc": "aeromag.qc",
+    "QCResult": "aeromag.qc",
+    "detect_maneuvers": "aeromag.qc",
+    "fom_table": "aeromag.qc",
+    "plot_pca_scores": "aeromag.plot.compensation",
+    "plot_explained_variance": "aeromag.plot.compensation",
+    "plot_timeseries": "aeromag.plot.compensation",
+    "plot_residuals": "aeromag.plot.compensation",
+    "plot_psd": "aeromag.plot.compensation",
+    "plot_term_contributions": "aeromag.plot.compensation",
+    "plot_fom": "aeromag.plot.compensation",
+    "plot_map": "aeromag.plot.compensation",
+    "write_report": "aeromag.workflows.report",
+    "build_report": "aeromag.workflows.report",
     # track check
     "check_track": "aeromag.track",
     # online estimation: recursive least squares with forgetting, compass calibration

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from aeromag.compensation.pipeline import compensate
@@ -60,3 +61,59 @@ def test_missing_inputs_raise(res):
         pc.plot_pca_scores({"segments": [{"id": 0, "scores": None}]})
     with pytest.raises(InputError):
         pc.plot_map(r.data.drop(columns=["lat"]))
+
+
+def test_envelope_keeps_extremes_and_gaps():
+    rng = np.random.default_rng(0)
+    n = 1_000_000
+    x = np.arange(n) * 0.1
+    y = rng.normal(size=n)
+    y[123_456] = 50.0
+    st = np.zeros(n, dtype=np.int64)
+    st[600_000:] = 1  # a gap: never drawn across
+    ex, ey = pc.envelope(x, y, columns=1000, breaks=st)
+    assert len(ex) < 5000 and np.nanmax(ey) == 50.0 and np.nanmin(ey) == y.min()
+    assert np.isnan(ey).sum() == 1
+    short = pc.envelope(x[:100], y[:100])
+    assert np.array_equal(short[1], y[:100])
+
+
+def test_time_axes_are_utc_or_flight_relative(res):
+    r, _ = res
+    x, label, is_date = pc.time_axis(np.array([1.7e9, 1.7e9 + 1.0]))
+    assert is_date and "UTC" in label
+    x, label, is_date = pc.time_axis(np.array([100.0, 101.0]))
+    assert not is_date and x[0] == 0.0 and "since start" in label
+    d = r.data.copy()
+    d["time"] += 1.714551e9  # epoch seconds
+    fig = pc.plot_timeseries(d)
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    assert ax.xaxis.get_offset_text().get_text() in ("", "2024-May-01")  # no +1.7e9 offset
+    assert "UTC" in ax.get_xlabel()
+    assert all("e+09" not in t.get_text() for t in ax.get_xticklabels())
+
+
+def test_map_in_metres_with_dropped_lines(res):
+    r, _ = res
+    fig = pc.plot_map(r.data)
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == "east (m)" and ax.get_ylabel() == "north (m)"
+    labels = [t.get_text() for t in ax.texts]
+    assert any(s.startswith("line") or s.startswith("segment") for s in labels)
+
+
+def test_figures_display_in_jupyter_without_matplotlib_inline(res):
+    """Issue 15 item 12: a returned figure renders as PNG through IPython's formatter."""
+    import matplotlib
+    from IPython.core.interactiveshell import InteractiveShell
+
+    backend = matplotlib.get_backend()
+    r, _ = res
+    import aeromag as am
+
+    fig = am.plot_pca_scores(r)
+    fmt, _ = InteractiveShell.instance().display_formatter.format(fig)
+    assert fmt["image/png"].startswith(PNG) if isinstance(fmt["image/png"], bytes) \
+        else fmt["image/png"]
+    assert matplotlib.get_backend() == backend  # no backend switch

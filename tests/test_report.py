@@ -108,3 +108,85 @@ def test_report_without_json(out_csv, tmp_path):
     qc = json.loads((page.parent / "qc.json").read_text())
     assert "pca_scores.png" in qc["figures_skipped"]
     assert Path(page).exists()
+
+
+def test_report_contents(page):
+    """Issue 15 items 3, 4, 13: headline kept/all, FOM, the model applied, per-line table."""
+    text = page.read_text(encoding="utf-8")
+    for s in ("kept segments", "all data", "Model applied", "fitted on this log",
+              "Lines and segments", "model file residual", "Figure of Merit", "FOM after",
+              "id='residuals'", "id='map'"):
+        assert s in text, s
+    qc = json.loads((page.parent / "qc.json").read_text())
+    assert qc["fom"]["applicable"] is True and qc["fom"]["reason"] is None
+    seg = qc["segments"]
+    assert len(seg) == 12 and all(s["kept"] for s in seg)
+    for s in seg:  # the qc's residual is the model file's
+        assert s["residual_std_nT"] == pytest.approx(s["model_residual_std_nT"], rel=1e-6)
+    assert "residuals.png" in qc["figures"]
+
+
+def test_report_on_a_survey_says_why_there_is_no_fom(tmp_path):
+    from aeromag.synthetic import simulate_survey
+
+    df, _ = simulate_survey(seed=2)
+    df.to_csv(tmp_path / "s.csv", index=False)
+    compensate_file(tmp_path / "s.csv", tmp_path / "out.csv")
+    page = build_report(tmp_path / "out.csv", tmp_path / "rep")
+    qc = json.loads((page.parent / "qc.json").read_text())
+    assert qc["fom"]["applicable"] is False and qc["fom"]["fom_after_nT"] is None
+    assert "fom.png" in qc["figures_skipped"]
+    text = page.read_text(encoding="utf-8")
+    assert "FOM not applicable" in text and "FOM before" not in text
+
+
+def test_report_on_an_uncompensated_log(tmp_path):
+    df, _ = simulate_calibration(seed=7, n_boxes=1)
+    df.to_csv(tmp_path / "raw.csv", index=False)
+    r = CliRunner().invoke(app, ["report", str(tmp_path / "raw.csv"), "-o", str(tmp_path / "r")])
+    assert r.exit_code == 1
+    assert "run `aeromag compensate" in r.output and "Traceback" not in r.output
+    assert not (tmp_path / "r" / "report.html").exists()
+
+
+def test_progress_callback(out_csv, tmp_path):
+    calls = []
+    build_report(out_csv, tmp_path / "p", progress=lambda d, t, s: calls.append((d, t, s)))
+    done = [c[0] for c in calls]
+    assert done == sorted(done) and done[-1] == calls[-1][1] and len(calls) >= 5
+
+
+def test_progress_bar_draws_on_a_terminal():
+    import io
+
+    from rich.console import Console
+
+    from aeromag.cli import _progress
+
+    with _progress.progress_bar("x", enabled=False) as cb:
+        cb(1, 2, "a")  # a no-op off a terminal
+    buf = io.StringIO()
+    orig = Console.__init__
+
+    def fake(self, *a, **k):
+        k.update(file=buf, force_terminal=True, width=80)
+        k.pop("stderr", None)
+        orig(self, *a, **k)
+
+    Console.__init__ = fake
+    try:
+        with _progress.progress_bar("aeromag report", enabled=True) as cb:
+            cb(1, 3, "quality metrics")
+            cb(3, 3, "report.html")
+    finally:
+        Console.__init__ = orig
+    assert "aeromag report" in buf.getvalue()
+
+
+def test_subprocess_report(out_csv, tmp_path):
+    import sys
+
+    p = subprocess.run([sys.executable, "-m", "aeromag", "report", str(out_csv), "-o",
+                        str(tmp_path / "sp")], capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    assert (tmp_path / "sp" / "report.html").exists()

@@ -53,13 +53,16 @@ def test_compensate_plot_option_and_no_fom_by_default(cal, tmp_path):
     assert json.loads(out.with_suffix(".json").read_text())["qc"]["fom"]["n_maneuvers"] == 12
 
 
-def test_result_plot_methods_return_figures(cal, tmp_path):
+def test_plot_functions_take_the_result_and_return_figures(cal, tmp_path):
+    import aeromag as am
+
     _, df = cal
     res = compensate(df)
     for name in ("plot_pca_scores", "plot_explained_variance", "plot_timeseries", "plot_psd",
-                 "plot_term_contributions", "plot_fom", "plot_map"):
-        fig = getattr(res, name)()
+                 "plot_term_contributions", "plot_fom", "plot_map", "plot_residuals"):
+        fig = getattr(am, name)(res)
         assert isinstance(fig, Figure), name
-    assert res.qc().metrics["improvement_ratio"] > 1
-    page = res.write_report(tmp_path / "r")
+        assert fig._repr_png_().startswith(b"\x89PNG"), name  # shows itself in Jupyter
+    assert am.compute_qc(res).metrics["improvement_ratio"] > 1
+    page = am.write_report(res, tmp_path / "r")
     assert page.exists()

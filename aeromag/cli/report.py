@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from ._progress import progress_bar
 from .app import app, setup_logging, user_errors
 
 
@@ -34,8 +35,9 @@ def report(
     in -o DIR.
     """
     setup_logging(verbose)
-    with user_errors():
+    with user_errors(), progress_bar("aeromag report") as progress:
         from ..workflows.report import build_report
 
-        page = build_report(out_csv, output, report_json, maneuver_column=maneuver_column)
+        page = build_report(out_csv, output, report_json, maneuver_column=maneuver_column,
+                            progress=progress)
     typer.echo(str(page))

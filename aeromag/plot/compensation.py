@@ -2,9 +2,15 @@
 
 One function per figure; each has the form ``fig = plot_xxx(..., ax=None, path=None)``: it
 draws into ``ax`` when given (and returns its figure), otherwise into a new figure, and saves a
-PNG atomically when ``path`` is given.  Figures are created with :class:`matplotlib.figure.Figure`
-directly on the Agg canvas (no pyplot state, no global backend switch), so they work headless,
-in threads, scripts and notebooks alike.
+PNG atomically when ``path`` is given.  Figures are :class:`QCFigure` objects created directly
+on the Agg canvas (no pyplot state, no global backend switch, never ``matplotlib.use``), so they
+work headless, in threads, scripts and notebooks alike; in Jupyter a returned figure shows
+itself inline (``_repr_png_``), with or without ``%matplotlib inline``.
+
+Long logs are drawn decimated for display: each line is reduced to its minimum and maximum
+per pixel column (:func:`envelope`), so a figure of 2e7 samples costs what one of a few
+thousand does and looks the same.  Time axes are UTC when ``time`` holds epoch seconds, else
+seconds since the start of the log.
 
 * :func:`plot_pca_scores` - PCA score plot (PC1 vs PC2) of the segment coefficient vectors,
   kept / dropped segments and the screening decision boundary;
@@ -13,91 +19,51 @@ in threads, scripts and notebooks alike.
 * :func:`plot_psd` - power spectral density before / after;
 * :func:`plot_term_contributions` - permanent / induced / eddy parts of ``mag_tl``;
 * :func:`plot_fom` - FOM peak-to-peak bars per heading and manoeuvre, before / after;
-* :func:`plot_map` - the flight path coloured by the compensated field.
+* :func:`plot_residuals` - band-passed field before / after (the QC residual);
+* :func:`plot_map` - the flight in metres (east, north), coloured by the compensated field,
+  dropped segments marked.
 """
 
 from __future__ import annotations
 
 import logging
-import os
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 from matplotlib.axes import Axes
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Ellipse
 from scipy import signal
 
+from .._core.filters import sampling_rate
+from .._core.runs import run_bounds
+from .._core.stretches import find_stretches
+from ..compensation.terms import BIAS, EDDY_9, INDUCED_6, PERMANENT, design_matrix
 from ..errors import InputError
-from ..filters import run_bounds, sampling_rate
-from ..io import atomic_path
-from ..segments import find_stretches
-from ..tolles_lawson import EDDY_9, INDUCED_6, PERMANENT, design_matrix
+from ._style import (
+    DPI,
+    QCFigure,
+    _data,
+    _finish,
+    _format_time,
+    _line,
+    _PathLike,
+    _report,
+    _target,
+    envelope,
+    figure_png,
+    new_figure,
+    save_figure,
+    time_axis,
+)
+
+__all__ = ["DPI", "QCFigure", "envelope", "figure_png", "new_figure", "plot_explained_variance",
+           "plot_fom", "plot_map", "plot_pca_scores", "plot_psd", "plot_residuals",
+           "plot_term_contributions", "plot_timeseries", "save_figure", "term_contributions",
+           "time_axis"]
 
 log = logging.getLogger(__name__)
-
-#: Resolution of saved PNGs [dots per inch].
-DPI = 150
-_PathLike = str | os.PathLike[str]
-
-
-def new_figure(figsize: tuple[float, float] = (7.0, 4.5)) -> tuple[Figure, Axes]:
-    """A new figure with one axes on an Agg canvas (no pyplot, no window).
-
-    Parameters
-    ----------
-    figsize : (float, float)
-        Size [inch].
-
-    Returns
-    -------
-    fig : Figure
-    ax : Axes
-    """
-    fig = Figure(figsize=figsize, layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig, fig.add_subplot(1, 1, 1)
-
-
-def _target(ax: Axes | None, figsize: tuple[float, float]) -> tuple[Figure, Axes]:
-    if ax is None:
-        return new_figure(figsize)
-    return ax.figure, ax  # type: ignore[return-value]
-
-
-def save_figure(fig: Figure, path: _PathLike, dpi: int = DPI) -> Path:
-    """Write a figure as PNG atomically (a partial file never appears).
-
-    Parameters
-    ----------
-    fig : Figure
-        The figure.
-    path : path-like
-        Output file.
-    dpi : int
-        Resolution [dots per inch].
-
-    Returns
-    -------
-    Path
-    """
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    if fig.canvas is None or not isinstance(fig.canvas, FigureCanvasAgg):
-        FigureCanvasAgg(fig)
-    with atomic_path(p) as tmp:
-        fig.savefig(tmp, format="png", dpi=dpi)
-    log.info("wrote %s", p)
-    return p
-
-
-def _finish(fig: Figure, path: _PathLike | None) -> Figure:
-    if path is not None:
-        save_figure(fig, path)
-    return fig
 
 
 def _segments_frame(report: dict[str, Any]) -> pd.DataFrame:
@@ -110,7 +76,7 @@ def _segments_frame(report: dict[str, Any]) -> pd.DataFrame:
 
 # --------------------------------------------------------------------------- PCA
 def plot_pca_scores(
-    report: dict[str, Any], *, ax: Axes | None = None, path: _PathLike | None = None,
+    report: Any, *, ax: Axes | None = None, path: _PathLike | None = None,
     annotate: bool = True,
 ) -> Figure:
     """PCA score plot: each segment's scores on PC1 (x) and PC2 (y), kept vs dropped.
@@ -123,8 +89,9 @@ def plot_pca_scores(
 
     Parameters
     ----------
-    report : dict
-        Compensation report with ``segments[*].scores``/``kept`` and ``screening``.
+    report : dict or CompensationResult
+        Compensation report (or the result holding it) with ``segments[*].scores``/``kept``
+        and ``screening``.
     ax : Axes, optional
         Where to draw.
     path : path-like, optional
@@ -136,6 +103,7 @@ def plot_pca_scores(
     -------
     Figure
     """
+    report = _report(report)
     seg = _segments_frame(report)
     scr = report.get("screening") or {}
     fig, ax = _target(ax, (6.0, 5.0))
@@ -186,14 +154,14 @@ def plot_pca_scores(
 
 
 def plot_explained_variance(
-    report: dict[str, Any], *, ax: Axes | None = None, path: _PathLike | None = None,
+    report: Any, *, ax: Axes | None = None, path: _PathLike | None = None,
 ) -> Figure:
     """Explained-variance ratio per principal component (bars) and cumulative (line).
 
     Parameters
     ----------
-    report : dict
-        Compensation report with ``screening.explained_variance_ratio``.
+    report : dict or CompensationResult
+        Compensation report (or the result holding it) with ``screening.explained_variance_ratio``.
     ax : Axes, optional
         Where to draw.
     path : path-like, optional
@@ -203,7 +171,7 @@ def plot_explained_variance(
     -------
     Figure
     """
-    scr = report.get("screening") or {}
+    scr = _report(report).get("screening") or {}
     evr = np.asarray(scr.get("explained_variance_ratio") or [], dtype=float)
     if evr.size == 0:
         raise InputError("the report has no explained-variance ratios (no PCA screening)")
@@ -233,21 +201,18 @@ def _field_before(data: pd.DataFrame) -> np.ndarray:
     return np.linalg.norm(data[["flux_x", "flux_y", "flux_z"]].to_numpy(dtype=np.float64), axis=1)
 
 
-def _with_gaps(t: np.ndarray, *ys: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Insert NaN at time gaps so lines are not drawn across them."""
-    st = find_stretches(t)
-    brk = np.flatnonzero(st[1:] != st[:-1]) + 1
-    return tuple(np.insert(np.asarray(a, dtype=float), brk, np.nan) for a in (t, *ys))
+def _stretches(data: pd.DataFrame) -> np.ndarray:
+    return find_stretches(data["time"].to_numpy(dtype=np.float64))
 
 
 def plot_timeseries(
-    data: pd.DataFrame, *, ax: Axes | None = None, path: _PathLike | None = None,
+    data: Any, *, ax: Axes | None = None, path: _PathLike | None = None,
 ) -> Figure:
     """Uncompensated (``mag``) and compensated (``mag_comp``) total field against time.
 
     Parameters
     ----------
-    data : DataFrame
+    data : DataFrame or CompensationResult
         Compensated log (``time`` [s], ``mag`` [nT] or the fluxgate, ``mag_comp`` [nT]).
     ax : Axes, optional
         Where to draw.
@@ -258,15 +223,80 @@ def plot_timeseries(
     -------
     Figure
     """
+    data = _data(data)
     fig, ax = _target(ax, (9.0, 4.0))
-    t, b, a = _with_gaps(data["time"].to_numpy(dtype=np.float64), _field_before(data),
-                         data["mag_comp"].to_numpy(dtype=np.float64))
-    ax.plot(t, b, color="0.55", lw=0.8, label="uncompensated (mag)")
-    ax.plot(t, a, color="C0", lw=0.9, label="compensated (mag_comp)")
-    ax.set_xlabel("time (s)")
+    x, label, is_date = time_axis(data["time"].to_numpy(dtype=np.float64))
+    st = _stretches(data)
+    _line(ax, x, _field_before(data), st, color="0.55", lw=0.8, label="uncompensated (mag)")
+    _line(ax, x, data["mag_comp"].to_numpy(dtype=np.float64), st, color="C0", lw=0.9,
+          label="compensated (mag_comp)")
+    _format_time(ax, is_date, label)
+    ax.ticklabel_format(axis="y", useOffset=False, style="plain")
     ax.set_ylabel("total field (nT)")
     ax.set_title("Uncompensated vs compensated total field")
     ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3)
+    return _finish(fig, path)
+
+
+def plot_residuals(
+    time_s: Any, before_bp: np.ndarray | None = None, after_bp: np.ndarray | None = None, *,
+    kept: np.ndarray | None = None, band_hz: tuple[float, float] | None = None,
+    ax: Axes | None = None, path: _PathLike | None = None,
+) -> Figure:
+    """Band-passed field before (``mag``) and after (``mag - mag_tl``) compensation.
+
+    Both are filtered the same way (in the fitting band, each segment piece on its own, see
+    :func:`aeromag.qc.residuals.piece_residuals`), so the figure compares like with like.
+    Samples of dropped segments are drawn in red.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,), or CompensationResult
+        Times [s]; or a compensation, whose residuals are computed
+        (:func:`aeromag.qc.compute_qc`).
+    before_bp, after_bp : ndarray, shape (n,)
+        Band-passed fields [nT] (NaN where not filtered).
+    kept : ndarray of bool, shape (n,), optional
+        Samples of kept segments.
+    band_hz : (float, float), optional
+        The band, for the title [Hz].
+    ax : Axes, optional
+        Where to draw.
+    path : path-like, optional
+        Save the figure there (PNG).
+
+    Returns
+    -------
+    Figure
+    """
+    if before_bp is None or after_bp is None:
+        from ..qc import compute_qc, kept_mask
+
+        q = compute_qc(time_s, fit=False, fom=False)
+        data = _data(time_s)
+        before_bp, after_bp = q.residuals.before_bp, q.residuals.after_bp
+        kept = kept_mask(data) if kept is None else kept
+        band_hz = tuple(q.metrics["band_hz"]) if band_hz is None else band_hz
+        time_s = data["time"].to_numpy()
+    fig, ax = _target(ax, (9.0, 4.0))
+    t = np.asarray(time_s, dtype=np.float64)
+    x, label, is_date = time_axis(t)
+    st = find_stretches(t)
+    k = np.ones(len(t), dtype=bool) if kept is None else np.asarray(kept, dtype=bool)
+    b = np.asarray(before_bp, dtype=np.float64)
+    a = np.asarray(after_bp, dtype=np.float64)
+    _line(ax, x, b, st, color="0.6", lw=0.7, label="before: mag")
+    _line(ax, x, np.where(k, a, np.nan), st, color="C0", lw=0.8,
+          label="after: mag - mag_tl (kept segments)")
+    if (~k).any():
+        _line(ax, x, np.where(k, np.nan, a), st, color="C3", lw=0.8,
+              label="after (dropped segments)")
+    _format_time(ax, is_date, label)
+    ax.set_ylabel("band-passed field (nT)")
+    band = f" {band_hz[0]:g}-{band_hz[1]:g} Hz" if band_hz else ""
+    ax.set_title(f"Band-passed{band} field before and after compensation")
+    ax.legend(loc="upper right", fontsize=8)
     ax.grid(alpha=0.3)
     return _finish(fig, path)
 
@@ -291,14 +321,14 @@ def _welch(x: np.ndarray, t: np.ndarray, nperseg: int) -> tuple[np.ndarray, np.n
 
 
 def plot_psd(
-    data: pd.DataFrame, *, band_hz: tuple[float, float] | None = None, nperseg: int = 512,
+    data: Any, *, band_hz: tuple[float, float] | None = None, nperseg: int = 512,
     ax: Axes | None = None, path: _PathLike | None = None,
 ) -> Figure:
     """Power spectral density (Welch, per stretch) of the field before and after compensation.
 
     Parameters
     ----------
-    data : DataFrame
+    data : DataFrame or CompensationResult
         Compensated log.
     band_hz : (float, float), optional
         Fitting band to shade [Hz].
@@ -314,6 +344,9 @@ def plot_psd(
     Figure
         PSD in nT^2/Hz against frequency [Hz], log-log.
     """
+    if band_hz is None and _report(data).get("band_hz"):
+        band_hz = tuple(_report(data)["band_hz"])
+    data = _data(data)
     fig, ax = _target(ax, (7.0, 4.5))
     t = data["time"].to_numpy(dtype=np.float64)
     f, pb = _welch(_field_before(data), t, nperseg)
@@ -333,8 +366,12 @@ def plot_psd(
     return _finish(fig, path)
 
 
-def term_contributions(data: pd.DataFrame, terms: Any, coef: Any) -> pd.DataFrame:
+def term_contributions(data: pd.DataFrame, terms: Any, coef: Any,
+                       block: int = 200_000) -> pd.DataFrame:
     """Permanent, induced and eddy parts of the modelled interference.
+
+    Built block by block (a 16-column design matrix of the whole log never exists); each block
+    is taken with a few samples of context so derivatives at its ends are the whole log's.
 
     Parameters
     ----------
@@ -344,6 +381,8 @@ def term_contributions(data: pd.DataFrame, terms: Any, coef: Any) -> pd.DataFram
         Term names of the model.
     coef : array_like
         Coefficients [nT; eddy nT*s].
+    block : int
+        Samples per block.
 
     Returns
     -------
@@ -357,29 +396,37 @@ def term_contributions(data: pd.DataFrame, terms: Any, coef: Any) -> pd.DataFram
     flux = data[["flux_x", "flux_y", "flux_z"]].to_numpy(dtype=np.float64)
     ok = np.all(np.isfinite(flux), axis=1)
     st = find_stretches(t, ok)
-    A = np.full((len(t), len(terms)), np.nan)
-    A[ok] = design_matrix(flux[ok], t[ok], terms, stretch=st[ok])
-    groups = {"permanent": PERMANENT, "induced": INDUCED_6, "eddy": EDDY_9, "bias": ("bias",)}
-    out = {}
-    for name, members in groups.items():
-        idx = [j for j, x in enumerate(terms) if x in members]
-        if idx:
-            out[name] = A[:, idx] @ c[idx]
+    groups = {"permanent": PERMANENT, "induced": INDUCED_6, "eddy": EDDY_9, "bias": BIAS}
+    idx = {g: [j for j, x in enumerate(terms) if x in m] for g, m in groups.items()}
+    idx = {g: v for g, v in idx.items() if v}
+    n = len(t)
+    out = {g: np.full(n, np.nan) for g in idx}
+    pad = 2
+    for a in range(0, n, block):
+        b = min(n, a + block)
+        lo, hi = max(0, a - pad), min(n, b + pad)
+        sel = ok[lo:hi]
+        if not sel.any():
+            continue
+        A = np.full((hi - lo, len(terms)), np.nan)
+        A[sel] = design_matrix(flux[lo:hi][sel], t[lo:hi][sel], terms, stretch=st[lo:hi][sel])
+        for g, j in idx.items():
+            out[g][a:b] = (A[:, j] @ c[j])[a - lo:b - lo]
     return pd.DataFrame(out, index=data.index)
 
 
 def plot_term_contributions(
-    data: pd.DataFrame, report: dict[str, Any], *, ax: Axes | None = None,
+    data: Any, report: dict[str, Any] | None = None, *, ax: Axes | None = None,
     path: _PathLike | None = None,
 ) -> Figure:
     """Permanent, induced and eddy contributions to ``mag_tl`` against time.
 
     Parameters
     ----------
-    data : DataFrame
+    data : DataFrame or CompensationResult
         Log with ``time`` and the fluxgate.
-    report : dict
-        Report or model dictionary with ``terms`` and ``coef``.
+    report : dict, optional
+        Report or model dictionary with ``terms`` and ``coef`` (default: the result's).
     ax : Axes, optional
         Where to draw.
     path : path-like, optional
@@ -389,13 +436,22 @@ def plot_term_contributions(
     -------
     Figure
     """
+    if report is None:
+        report = _report(data)
+    report = _report(report)
+    data = _data(data)
+    if not {"flux_x", "flux_y", "flux_z"} <= set(data.columns):
+        raise InputError("the term contributions need flux_x, flux_y, flux_z")
+    if not report.get("terms") or not report.get("coef"):
+        raise InputError("the report has no model (terms, coef)")
     parts = term_contributions(data, report["terms"], report["coef"])
     fig, ax = _target(ax, (9.0, 4.0))
-    t = data["time"].to_numpy(dtype=np.float64)
+    x, label, is_date = time_axis(data["time"].to_numpy(dtype=np.float64))
+    st = _stretches(data)
     for j, name in enumerate(parts.columns):
-        tt, y = _with_gaps(t, parts[name].to_numpy())
-        ax.plot(tt, y, lw=0.9, color=f"C{j}", label=f"{name} (std {np.nanstd(y):.2f} nT)")
-    ax.set_xlabel("time (s)")
+        y = parts[name].to_numpy()
+        _line(ax, x, y, st, lw=0.9, color=f"C{j}", label=f"{name} (std {np.nanstd(y):.2f} nT)")
+    _format_time(ax, is_date, label)
     ax.set_ylabel("interference (nT)")
     ax.set_title("Term contributions to the modelled interference")
     ax.legend(loc="best", fontsize=8)
@@ -405,7 +461,7 @@ def plot_term_contributions(
 
 # --------------------------------------------------------------------------- FOM
 def plot_fom(
-    fom: pd.DataFrame, *, ax: Axes | None = None, path: _PathLike | None = None,
+    fom: Any, *, ax: Axes | None = None, path: _PathLike | None = None,
 ) -> Figure:
     """FOM bar chart: peak-to-peak per heading and manoeuvre, before and after compensation.
 
@@ -414,8 +470,9 @@ def plot_fom(
 
     Parameters
     ----------
-    fom : DataFrame
-        Output of :func:`aeromag.qc.fom_table`.
+    fom : DataFrame or CompensationResult
+        Output of :func:`aeromag.qc.fom_table`, or a compensation of a calibration flight
+        (its FOM is computed; an error says why when it has no complete box).
     ax : Axes, optional
         Where to draw.
     path : path-like, optional
@@ -425,8 +482,15 @@ def plot_fom(
     -------
     Figure
     """
-    from ..maneuvers import CARDINALS, MANEUVERS
+    from ..qc.maneuvers import CARDINALS, MANEUVERS
 
+    if not isinstance(fom, pd.DataFrame) and fom is not None:  # a compensation result
+        from ..qc import compute_qc
+
+        q = compute_qc(fom, fit=False)
+        if not q.metrics["fom"]["applicable"]:
+            raise InputError(q.metrics["fom"]["reason"])
+        fom = q.fom
     if fom is None or len(fom) == 0:
         raise InputError("no manoeuvres: no FOM chart")
     fig, ax = _target(ax, (9.0, 4.5))
@@ -453,42 +517,75 @@ def plot_fom(
 
 # --------------------------------------------------------------------------- map
 def plot_map(
-    data: pd.DataFrame, *, column: str = "mag_comp", ax: Axes | None = None,
-    path: _PathLike | None = None,
+    data: Any, *, column: str = "mag_comp", ax: Axes | None = None,
+    path: _PathLike | None = None, max_points: int = 200_000,
 ) -> Figure:
-    """Flight path (longitude, latitude) coloured by the compensated field.
+    """The flight in metres (east, north of its first fix), coloured by the compensated field.
+
+    Positions go through the one geodesy module (:mod:`aeromag._core.geodesy`, exact WGS84);
+    samples of segments the screening dropped are drawn as grey crosses and labelled with their
+    line (or segment) number.
 
     Parameters
     ----------
-    data : DataFrame
-        Log with ``lat``, ``lon`` [deg] and ``column`` [nT].
+    data : DataFrame or CompensationResult
+        Log with ``lat``, ``lon`` [deg] (``alt`` [m] when present) and ``column`` [nT];
+        ``segment``/``segment_kept`` (and ``line``) mark the dropped segments.
     column : str
         Column used for the colour (default ``mag_comp``).
     ax : Axes, optional
         Where to draw.
     path : path-like, optional
         Save the figure there (PNG).
+    max_points : int
+        Most points drawn (a regular subsample beyond).
 
     Returns
     -------
     Figure
     """
+    from .._core.geodesy import geodetic_to_ned
+    from ..qc.labels import kept_mask, segment_labels
+
+    data = _data(data)
     if not {"lat", "lon", column} <= set(data.columns):
         raise InputError(f"the map needs columns lat, lon and {column}")
-    fig, ax = _target(ax, (6.5, 6.0))
     lat = data["lat"].to_numpy(dtype=np.float64)
     lon = data["lon"].to_numpy(dtype=np.float64)
     v = data[column].to_numpy(dtype=np.float64)
     ok = np.isfinite(lat) & np.isfinite(lon) & np.isfinite(v)
     if not ok.any():
         raise InputError("no sample with a position and a compensated field to map")
-    lo, hi = np.percentile(v[ok], [2, 98])
-    sc = ax.scatter(lon[ok], lat[ok], c=v[ok], s=4, cmap="viridis", vmin=lo, vmax=hi)
+    step = max(1, int(ok.sum() // max_points))
+    idx = np.flatnonzero(ok)[::step]
+    alt = data["alt"].to_numpy(dtype=np.float64)[idx] if "alt" in data.columns \
+        else np.zeros(len(idx))
+    alt = np.where(np.isfinite(alt), alt, 0.0)
+    ned = geodetic_to_ned(lat[idx], lon[idx], alt, (float(lat[idx[0]]), float(lon[idx[0]]),
+                                                    float(alt[0])))
+    north, east = ned[:, 0], ned[:, 1]
+    kept = kept_mask(data)[idx]
+    fig, ax = _target(ax, (6.5, 6.0))
+    vk = v[idx][kept]
+    lo, hi = np.percentile(vk if vk.size else v[idx], [2, 98])
+    sc = ax.scatter(east[kept], north[kept], c=vk, s=4, cmap="viridis", vmin=lo, vmax=hi)
     fig.colorbar(sc, ax=ax, label=f"{column} (nT)")
-    ax.set_xlabel("longitude (°)")
-    ax.set_ylabel("latitude (°)")
-    ax.set_aspect(1.0 / max(np.cos(np.deg2rad(np.nanmean(lat[ok]))), 1e-3))
-    ax.ticklabel_format(useOffset=False)
-    ax.set_title(f"Flight coloured by {column}")
+    if (~kept).any():
+        ax.scatter(east[~kept], north[~kept], s=6, c="0.5", marker="x", lw=0.6,
+                   label="dropped segments")
+        seg = segment_labels(data)[idx]
+        name = data["line"].to_numpy()[idx] if "line" in data.columns else seg
+        for sid in np.unique(seg[~kept]):
+            j = np.flatnonzero((seg == sid) & ~kept)
+            mid = j[len(j) // 2]
+            ax.annotate(f"line {name[mid]}" if "line" in data.columns else f"segment {sid}",
+                        (east[mid], north[mid]), fontsize=8, color="C3",
+                        textcoords="offset points", xytext=(4, 4))
+        ax.legend(loc="best", fontsize=8)
+    ax.set_xlabel("east (m)")
+    ax.set_ylabel("north (m)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.ticklabel_format(useOffset=False, style="plain")
+    ax.set_title(f"Flight coloured by {column} (origin: first fix)")
     ax.grid(alpha=0.3)
     return _finish(fig, path)

@@ -12,11 +12,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from .._core.runs import run_bounds
 from ..errors import InputError
-from .maneuvers import CARDINALS, ManeuverResult, detect_maneuvers
+from .maneuvers import CARDINALS, MANEUVERS, ManeuverResult, detect_maneuvers
 from .noise import band_passed
 
-__all__ = ["fom_summary", "fom_table"]
+__all__ = ["fom_not_applicable", "fom_summary", "fom_table", "not_applicable"]
 
 
 def fom_table(
@@ -76,17 +77,28 @@ def fom_table(
     mid = maneuvers.labels["maneuver_id"].to_numpy()
     tab = maneuvers.table[["id", "box", "heading_leg", "heading", "maneuver", "t_start",
                            "t_end"]].copy()
-    inm = mid >= 0
+    a, b, ids = run_bounds(mid)  # each manoeuvre is one run of samples
+    pos = np.searchsorted(ids, tab["id"].to_numpy())
+    found = (pos < len(ids)) & (ids[np.minimum(pos, max(len(ids) - 1, 0))] ==
+                                tab["id"].to_numpy()) if len(ids) else np.zeros(len(tab), bool)
     for name, x in cols.items():
         xf = band_passed(x, t, band_hz, order, max_gap_s)
-        s = pd.Series(xf[inm]).groupby(mid[inm])
-        ptp = (s.max() - s.min()).reindex(tab["id"]).to_numpy()
+        ptp = np.full(len(tab), np.nan)
+        if len(ids):
+            with np.errstate(invalid="ignore"):
+                hi = np.fmax.reduceat(xf, a)  # NaN (filter edges) ignored, as pandas does
+                lo = np.fmin.reduceat(xf, a)
+            ptp[found] = (hi - lo)[pos[found]]
         tab[f"ptp_{name}_nT"] = ptp
     return tab.reset_index(drop=True)
 
 
 def fom_summary(table: pd.DataFrame) -> dict[str, Any]:
-    """Box FOM (sum of the 12 peak-to-peak values) before/after (and truth).
+    """Box FOM (sum of the 12 peak-to-peak values) before/after (and truth), complete boxes only.
+
+    A FOM is the sum over the 12 manoeuvres of a calibration box (pitch, roll and yaw on each
+    of the four headings); a box missing any of them has no FOM (a survey flight has none),
+    and then the summary says why instead of giving a number.
 
     Parameters
     ----------
@@ -96,31 +108,35 @@ def fom_summary(table: pd.DataFrame) -> dict[str, Any]:
     Returns
     -------
     dict
-        ``boxes`` (per box: ``box``, ``n_maneuvers``, ``complete``, ``fom_before_nT``,
-        ``fom_after_nT``...), ``fom_before_nT``/``fom_after_nT`` (mean over complete boxes, or
-        over all boxes when none is complete), ``fom_reduction`` (before / after),
-        ``complete_boxes`` and ``per_maneuver`` (12-entry table ``heading``/``maneuver`` ->
-        mean peak-to-peak over the boxes used).
+        ``applicable`` (a complete box exists), ``reason`` (why not, else None), ``boxes``
+        (per box: ``box``, ``n_maneuvers``, ``complete``, ``missing`` (``"W pitch"``...),
+        ``fom_before_nT``, ``fom_after_nT``... for complete boxes), ``complete_boxes``,
+        ``fom_before_nT``/``fom_after_nT`` (mean over complete boxes, None when none),
+        ``fom_reduction`` (before / after), ``n_maneuvers`` and ``per_maneuver`` (heading,
+        manoeuvre -> mean peak-to-peak over the complete boxes).
     """
     cols = [c for c in ("before", "after", "truth") if f"ptp_{c}_nT" in table.columns]
     boxes = []
     for b, g in table.groupby("box"):
         pairs = set(zip(g["heading_leg"], g["maneuver"], strict=True))
-        e: dict[str, Any] = {"box": int(b), "n_maneuvers": len(g), "complete": len(pairs) == 12}
+        missing = [f"{CARDINALS[h]} {m}" for h in range(4) for m in MANEUVERS
+                   if (h, m) not in pairs]
+        e: dict[str, Any] = {"box": int(b), "n_maneuvers": len(g), "complete": not missing,
+                             "missing": missing}
         for c in cols:
-            e[f"fom_{c}_nT"] = float(np.nansum(g[f"ptp_{c}_nT"]))
+            e[f"fom_{c}_nT"] = float(np.nansum(g[f"ptp_{c}_nT"])) if not missing else None
         boxes.append(e)
     complete = [e["box"] for e in boxes if e["complete"]]
-    use = complete or [e["box"] for e in boxes]
-    out: dict[str, Any] = {"boxes": boxes, "complete_boxes": complete,
-                           "n_maneuvers": len(table)}
+    out: dict[str, Any] = {"applicable": bool(complete), "reason": None, "boxes": boxes,
+                           "complete_boxes": complete, "n_maneuvers": len(table)}
     for c in cols:
-        vals = [e[f"fom_{c}_nT"] for e in boxes if e["box"] in use]
+        vals = [e[f"fom_{c}_nT"] for e in boxes if e["complete"]]
         out[f"fom_{c}_nT"] = float(np.mean(vals)) if vals else None
     fa = out.get("fom_after_nT")
     fb = out.get("fom_before_nT")
     out["fom_reduction"] = float(fb / fa) if fa and fb is not None else None
-    sub = table[table["box"].isin(use)]
+    sub = table[table["box"].isin(complete)]
+    out["per_maneuver"] = []
     if len(sub):
         agg = sub.groupby(["heading_leg", "maneuver"])[[f"ptp_{c}_nT" for c in cols]].mean()
         out["per_maneuver"] = [
@@ -128,8 +144,44 @@ def fom_summary(table: pd.DataFrame) -> dict[str, Any]:
              **{k: float(v) for k, v in row.items()}}
             for (h, m), row in agg.iterrows()
         ]
-    else:
-        out["per_maneuver"] = []
     if not complete:
-        out["note"] = "no complete box of 12 manoeuvres: the FOM is over the manoeuvres found"
+        worst = min(boxes, key=lambda e: len(e["missing"])) if boxes else None
+        out["reason"] = not_applicable(
+            f"no complete calibration box: {len(boxes)} box(es) found, the most complete"
+            f" (box {worst['box']}) lacks {', '.join(worst['missing'])}" if worst else
+            "no manoeuvre found")
     return out
+
+
+def not_applicable(why: str) -> str:
+    """The sentence the report and JSON give when there is no FOM.
+
+    Parameters
+    ----------
+    why : str
+        What is missing.
+
+    Returns
+    -------
+    str
+    """
+    return (f"FOM not applicable: {why}. A FOM needs a complete calibration box (pitch, roll"
+            " and yaw manoeuvres on each of the four headings); survey flights have none.")
+
+
+def fom_not_applicable(why: str) -> dict[str, Any]:
+    """The ``fom`` block of a flight without a complete box: no numbers, the reason.
+
+    Parameters
+    ----------
+    why : str
+        What is missing (e.g. "no pitch/roll/yaw manoeuvre found").
+
+    Returns
+    -------
+    dict
+        ``applicable`` False, ``reason``, ``fom_before_nT``/``fom_after_nT`` None.
+    """
+    return {"applicable": False, "reason": not_applicable(why), "fom_before_nT": None,
+            "fom_after_nT": None, "fom_reduction": None, "boxes": [], "complete_boxes": [],
+            "n_maneuvers": 0, "per_maneuver": []}

@@ -45,6 +45,7 @@ from .._core.rotations import rotate_body_to_ned
 from .._core.runs import run_bounds
 from .._core.stretches import find_stretches
 from ..errors import InputError
+from ._windows import _run_index, _run_sums, moving_mean
 
 __all__ = ["CARDINALS", "MANEUVERS", "ManeuverResult", "detect_heading_legs",
            "detect_maneuvers", "moving_mean"]
@@ -122,76 +123,6 @@ def complete_boxes(table: pd.DataFrame) -> list[int]:
 
 
 # --------------------------------------------------------------------------- helpers
-def moving_mean(x: np.ndarray, stretch: np.ndarray, half_width: int) -> np.ndarray:
-    """Centred moving mean within each stretch (windows shrink at stretch ends), vectorised.
-
-    One cumulative sum; the full windows are one slice difference over the whole array, and
-    only the ``half_width`` samples at each end of every stretch are gathered.
-
-    Parameters
-    ----------
-    x : ndarray, shape (n,) or (n, m)
-        Samples (finite on valid samples).
-    stretch : ndarray of int, shape (n,)
-        Stretch labels; negative = invalid (output NaN).
-    half_width : int
-        Half window in samples (window ``2 * half_width + 1``).
-
-    Returns
-    -------
-    ndarray
-        Same shape as ``x``.
-    """
-    xv = np.asarray(x, dtype=np.float64)
-    x2 = xv if xv.ndim == 2 else xv[:, None]
-    n, m = x2.shape
-    lab = np.asarray(stretch)
-    h = int(half_width)
-    out = np.full((n, m), np.nan)
-    starts, stops, _ = run_bounds(lab)
-    if len(starts) == 0:
-        return out if xv.ndim == 2 else out[:, 0]
-    cs = np.empty((n + 1, m))
-    cs[0] = 0.0
-    fin = np.isfinite(x2)
-    np.cumsum(x2 if fin.all() else np.where(fin, x2, 0.0), axis=0, out=cs[1:])
-    w = 2 * h + 1
-    if n > 2 * h:  # full windows everywhere, then the stretch ends are redone
-        np.subtract(cs[w:], cs[: n + 1 - w], out=out[h: n - h])
-        out[h: n - h] /= w
-    k = np.arange(h)
-    lens = (stops - starts)[:, None]
-    sel = k < lens
-    run = np.broadcast_to(np.arange(len(starts))[:, None], sel.shape)[sel]
-    run = np.concatenate([run, run])  # the h samples at each end of every stretch
-    idx = np.concatenate([(starts[:, None] + k)[sel], (stops[:, None] - 1 - k)[sel]])
-    if n <= 2 * h:  # no full window anywhere: every sample of every stretch
-        idx = np.flatnonzero(lab >= 0)
-        run = np.searchsorted(starts, idx, side="right") - 1
-    lo = np.maximum(idx - h, starts[run])
-    hi = np.minimum(idx + h + 1, stops[run])
-    out[idx] = (cs[hi] - cs[lo]) / (hi - lo)[:, None]
-    out[lab < 0] = np.nan
-    return out if xv.ndim == 2 else out[:, 0]
-
-
-def _run_index(n: int, starts: np.ndarray, stops: np.ndarray) -> np.ndarray:
-    """Index of the (disjoint, ordered) run holding each sample, -1 outside every run."""
-    mark = np.zeros(n + 1, dtype=np.int64)
-    j = np.arange(1, len(starts) + 1, dtype=np.int64)
-    mark[starts] += j
-    mark[stops] -= j
-    return np.cumsum(mark[:-1]) - 1
-
-
-def _run_sums(x: np.ndarray, starts: np.ndarray, stops: np.ndarray) -> np.ndarray:
-    """Sums of ``x`` (shape (n,) or (n, m)) over the runs ``[starts, stops)``."""
-    if len(starts) == 0:
-        return np.zeros((0,) + x.shape[1:])
-    cs = np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)])
-    return cs[stops] - cs[starts]
-
-
 def _heading_source(df: pd.DataFrame, declination_deg: float) -> tuple[np.ndarray, str]:
     if "heading" in df.columns and df["heading"].notna().any():
         return df["heading"].to_numpy(dtype=np.float64), "attitude"

@@ -30,10 +30,11 @@ from ..compensation.metrics import compensation_metrics
 from ..compensation.terms import TERMS_16
 from ..errors import AeromagError, InputError
 from .diagnostics import fit_diagnostics
-from .fom import fom_summary, fom_table
-from .labels import segment_labels
+from .fom import fom_not_applicable, fom_summary, fom_table
+from .labels import kept_mask, segment_labels
 from .maneuvers import CARDINALS, ManeuverResult, detect_maneuvers
 from .noise import band_passed, fourth_difference_noise, grouped_std
+from .residuals import PieceResiduals, piece_residuals
 
 __all__ = ["QCResult", "compute_qc", "quality_metrics"]
 
@@ -56,6 +57,8 @@ class QCResult:
         Per-segment residual std, kept flag and cross-validated residual.
     notes : list of str
         Why something could not be computed.
+    residuals : PieceResiduals or None
+        The band-passed fields the residual metrics used (per segment piece).
     """
 
     metrics: dict[str, Any]
@@ -63,6 +66,7 @@ class QCResult:
     maneuvers: ManeuverResult | None
     segments: pd.DataFrame
     notes: list[str] = field(default_factory=list)
+    residuals: PieceResiduals | None = field(default=None, repr=False)
 
 
 def compute_qc(
@@ -90,7 +94,8 @@ def compute_qc(
     maneuver_column : str, optional
         Column naming the manoeuvre of each sample (instead of detection).
     fit : bool
-        Compute the fit diagnostics (VIF, condition number, CV); needs the fluxgate.
+        Fit diagnostics (VIF, condition number, CV): those the fit measured when the model
+        was fitted on this log (the report's ``fit`` block), else rebuilt from the log.
     fom : bool
         Detect manoeuvres and compute the FOM (a calibration flight); False skips it unless
         ``maneuvers`` or ``maneuver_column`` is given.
@@ -127,7 +132,7 @@ def _compute(
     data: pd.DataFrame, report: dict[str, Any], cfg: CompensationConfig, *,
     maneuvers: ManeuverResult | None, maneuver_column: str | None, fit: bool, fom_on: bool,
     base_metrics: dict[str, Any] | None = None, comp_bp: np.ndarray | None = None,
-    segment: np.ndarray | None = None, fs_hz: float | None = None,
+    segment: np.ndarray | None = None, fs_hz: float | None = None, legacy: bool = False,
 ) -> QCResult:
     terms = tuple(report.get("terms") or TERMS_16)
     if base_metrics is None:
@@ -135,7 +140,7 @@ def _compute(
     notes: list[str] = []
     t = data["time"].to_numpy(dtype=np.float64)
     if "mag_comp" not in data.columns:
-        raise InputError("the log has no 'mag_comp' column; run 'aeromag compensate' first")
+        raise InputError("the log has no 'mag_comp' column; run `aeromag compensate` first")
     if "mag" in data.columns:
         mag = data["mag"].to_numpy(dtype=np.float64)
     else:
@@ -143,75 +148,114 @@ def _compute(
                              axis=1)
     comp = data["mag_comp"].to_numpy(dtype=np.float64)
     band = cfg.band_hz
-    if base_metrics is None:
-        st = find_stretches(t, np.isfinite(mag) & np.isfinite(comp), cfg.max_gap_s)
-        base = compensation_metrics(mag, comp, t, st, cfg)
-    else:
-        base = base_metrics
-    metrics: dict[str, Any] = {
-        "band_hz": list(band),
-        "improvement_ratio": base["improvement_ratio"],
-        "residual_std_nT": base["residual_std_nT"],
-        "std_before_nT": base["std_before_nT"],
-    }
-    if comp_bp is None:
-        trim = (0.5 / band[0]) if cfg.trim_s is None else cfg.trim_s
-        comp_bp = band_passed(comp, t, band, cfg.order, cfg.max_gap_s, trim_s=trim,
-                              fs_hz=fs_hz)
     seg = segment_labels(data) if segment is None else np.asarray(segment)
-    seg_std = grouped_std(comp_bp, seg)
+    has_tl = "mag_tl" in data.columns
+    raw_after = mag - data["mag_tl"].to_numpy(dtype=np.float64) if has_tl else comp
+    metrics: dict[str, Any] = {"band_hz": list(band)}
+    pieces = None
+    if legacy:
+        # The pipeline's qc block until it calls compute_qc: band-passed mag_comp per stretch.
+        if base_metrics is None:
+            st = find_stretches(t, np.isfinite(mag) & np.isfinite(comp), cfg.max_gap_s)
+            base_metrics = compensation_metrics(mag, comp, t, st, cfg)
+        metrics.update(improvement_ratio=base_metrics["improvement_ratio"],
+                       residual_std_nT=base_metrics["residual_std_nT"],
+                       std_before_nT=base_metrics["std_before_nT"])
+        if comp_bp is None:
+            trim = (0.5 / band[0]) if cfg.trim_s is None else cfg.trim_s
+            comp_bp = band_passed(comp, t, band, cfg.order, cfg.max_gap_s, trim_s=trim,
+                                  fs_hz=fs_hz)
+        seg_std = grouped_std(comp_bp, seg)
+        resid_bp = comp_bp
+        band_before = base_metrics["std_before_nT"]
+        band_after = base_metrics["residual_std_nT"]
+    else:
+        if not has_tl:
+            notes.append("no mag_tl column: residuals are band-passed mag_comp (low-passed)")
+        pieces = piece_residuals(t, mag, mag - raw_after, seg, kept_mask(data), band, cfg.order,
+                                 trim_s=cfg.trim_s, max_gap_s=cfg.max_gap_s, fs_hz=fs_hz)
+        k, a = pieces.kept, pieces.all
+        metrics.update(
+            definition=("rms of mag and of mag - mag_tl band-passed in band_hz (zero-phase"
+                        " Butterworth), each segment piece (one segment within one continuous"
+                        f" stretch) filtered on its own, {pieces.trim_s:g} s trimmed at its"
+                        " ends; headline over the kept segments, all_data over every piece"),
+            improvement_ratio=k["improvement_ratio"], residual_std_nT=k["residual_std_nT"],
+            std_before_nT=k["std_before_nT"], n_samples=k["n_samples"],
+            all_data=a)
+        if base_metrics:
+            metrics["compensation_metrics"] = base_metrics
+        seg_std = pieces.by_segment
+        resid_bp = pieces.after_bp
+        band_before = a["std_before_nT"]
+        band_after = a["residual_std_nT"]
     metrics["residual_std_by_segment_nT"] = {str(k): v for k, v in seg_std.items()}
-    # Noise levels.
-    raw_after = mag - data["mag_tl"].to_numpy(dtype=np.float64) if "mag_tl" in data.columns \
-        else comp
     metrics["noise"] = {
         "band_hz": list(band),
-        "band_std_before_nT": base["std_before_nT"],
-        "band_std_after_nT": base["residual_std_nT"],
+        "band_std_before_nT": band_before,
+        "band_std_after_nT": band_after,
         "fourth_difference_before_nT": fourth_difference_noise(mag, t, cfg.max_gap_s),
         "fourth_difference_after_nT": fourth_difference_noise(raw_after, t, cfg.max_gap_s),
     }
     # Manoeuvres, heading legs, FOM.
     fom_tab = None
+    skipped = "manoeuvre detection skipped (no FOM): run 'aeromag report' or --fom"
     if maneuvers is None and not fom_on and maneuver_column is None:
-        notes.append("manoeuvre detection skipped (no FOM): run 'aeromag report' or --fom")
+        notes.append(skipped)
     elif maneuvers is None:
         try:
             maneuvers = detect_maneuvers(data, maneuver_column=maneuver_column,
                                          max_gap_s=cfg.max_gap_s)
         except AeromagError as exc:
             notes.append(f"manoeuvre detection failed: {exc}")
+    fom_block: dict[str, Any] | None = None if legacy else fom_not_applicable(
+        "not computed for this run (FOM is for calibration flights: `aeromag calibrate`,"
+        " --fom, or `aeromag report`)")
     if maneuvers is not None:
         hl = maneuvers.labels["heading_leg"].to_numpy()
         metrics["residual_std_by_heading_nT"] = {
-            CARDINALS[k]: v for k, v in grouped_std(comp_bp, hl).items()}
+            CARDINALS[k]: v for k, v in grouped_std(resid_bp, hl).items()}
         metrics["maneuvers"] = {
             "method": maneuvers.method, "n_legs": len(maneuvers.legs),
             "n_maneuvers": len(maneuvers.table), "complete_boxes": maneuvers.complete_boxes,
             "heading_offset_deg": maneuvers.heading_offset_deg, "notes": maneuvers.notes}
         if len(maneuvers.table):
             fom_tab = fom_table(data, maneuvers, band_hz=band, order=cfg.order,
-                            max_gap_s=cfg.max_gap_s)
-            summary = fom_summary(fom_tab)
-            summary["table"] = _records(fom_tab)
-            metrics["fom"] = summary
+                                max_gap_s=cfg.max_gap_s)
+            fom_block = fom_summary(fom_tab)
+            fom_block["table"] = _records(fom_tab)
+            if not fom_block["applicable"]:
+                notes.append(fom_block["reason"])
         else:
+            why = "no pitch/roll/yaw manoeuvre found (not a calibration flight?)"
             notes.append("no pitch/roll/yaw manoeuvre found: no FOM (not a calibration flight?)")
-            metrics["fom"] = None
-    else:
-        metrics["fom"] = None
+            fom_block = None if legacy else fom_not_applicable(why)
+    elif not legacy and fom_on:
+        fom_block = fom_not_applicable("the manoeuvres could not be detected")
+    metrics["fom"] = fom_block
     segs = pd.DataFrame({"segment": list(seg_std), "residual_std_nT": list(seg_std.values())})
-    if fit and {"flux_x", "flux_y", "flux_z"} <= set(data.columns):
+    if pieces is not None:
+        segs["n"] = [pieces.n_by_segment[s] for s in seg_std]
+    fitted = report.get("fit") or {}
+    if fit and not legacy and fitted.get("vif"):  # the fit measured them on its own data
+        metrics["fit"] = {"source": "the fit (model file)", **{
+            k: fitted.get(k) for k in ("condition_number", "condition_number_scaled", "vif",
+                                       "max_vif", "cv_residual_std_nT", "cv_ratio")},
+            "fit_residual_std_nT": fitted.get("residual_std_nT"),
+            "n_segments_kept": fitted.get("n_segments_fitted")}
+    elif fit and {"flux_x", "flux_y", "flux_z"} <= set(data.columns):
         try:
             diag, cv = fit_diagnostics(data, cfg, terms)
             metrics["fit"] = diag
+            if pieces is not None:
+                cv = cv.drop(columns=["n"])
             segs = cv.merge(segs, on="segment", how="outer")
         except AeromagError as exc:
             notes.append(f"fit diagnostics failed: {exc}")
     metrics["notes"] = notes
     for n in notes:
         log.info("qc: %s", n)
-    return QCResult(metrics, fom_tab, maneuvers, segs, notes)
+    return QCResult(metrics, fom_tab, maneuvers, segs, notes, pieces)
 
 
 def quality_metrics(
@@ -257,7 +301,7 @@ def quality_metrics(
     rep = report or {}
     cfg = cfg if cfg is not None else _config_of(rep)
     return _compute(data, rep, cfg, maneuvers=maneuvers, maneuver_column=maneuver_column,
-                    fit=fit, fom_on=detect, **legacy).metrics
+                    fit=fit, fom_on=detect, legacy=bool(legacy), **legacy).metrics
 
 
 def _config_of(report: dict[str, Any]) -> CompensationConfig:

@@ -2,11 +2,15 @@
 
 ``aeromag report OUT.csv -o DIR`` (and ``--plot DIR`` on compensate/calibrate) end here:
 
-* :func:`build_report` reads ``OUT.csv`` and the ``OUT.json`` beside it;
+* :func:`load_compensated` reads ``OUT.csv`` and the ``OUT.json`` beside it into a
+  :class:`~aeromag.compensation.result.CompensationResult` and its configuration;
 * :func:`write_report` computes the QC metrics (:func:`aeromag.qc.compute_qc`), draws every
-  figure that the data allow (:mod:`aeromag.plot.compensation`), and writes the PNGs,
-  ``qc.json`` and ``report.html`` (figures embedded as base64 ``data:`` URIs, so the page is a
-  single file that opens anywhere).  Every file is written atomically.
+  figure the data allow (:mod:`aeromag.plot.compensation`, decimated for display), and writes
+  the PNGs, ``qc.json`` and ``report.html`` (figures embedded as base64 ``data:`` URIs, so the
+  page is one file that opens anywhere).  Every file is written atomically.
+
+Progress is reported through an optional callback ``progress(done, total, step)`` (the command
+line draws it as a progress bar); nothing here prints.
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ import json
 import logging
 import os
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -31,56 +36,83 @@ from ..compensation.result import CompensationResult
 from ..errors import AeromagError, InputError
 from ..io import atomic_path, json_path_for, read_log, write_json
 from ..plot import compensation as pc
-from ..qc import QCResult, compute_qc
+from ..qc import QCResult, compute_qc, kept_mask, segment_labels
 
 __all__ = ["FIGURES", "build_report", "load_compensated", "render_html", "write_report"]
 
 log = logging.getLogger(__name__)
 
+#: ``progress(done, total, step)``: called as the report advances.
+Progress = Callable[[int, int, str], None]
+
 #: Figure files written by :func:`write_report`, with their captions.
 FIGURES: dict[str, str] = {
+    "residuals.png": "Band-passed field before (mag) and after (mag - mag_tl) compensation, in"
+                     " the fitting band, each segment filtered on its own; dropped segments red",
+    "timeseries.png": "Uncompensated vs compensated total field",
+    "map.png": "Flight in metres (east, north of the first fix) coloured by the compensated"
+               " field; dropped segments marked",
     "pca_scores.png": "PCA score plot of the segment coefficient vectors (PC1 vs PC2) with the"
                       " screening decision boundary",
     "explained_variance.png": "Explained variance of the principal components",
-    "timeseries.png": "Uncompensated vs compensated total field",
     "psd.png": "Power spectral density before and after compensation",
     "term_contributions.png": "Permanent, induced and eddy contributions to the interference",
     "fom.png": "Figure of Merit: peak-to-peak per heading and manoeuvre",
-    "map.png": "Flight coloured by the compensated field",
 }
 
+#: Columns the report uses (others in the log are not read).
+_COLUMNS = ("time", "mag", "mag_tl", "mag_comp", "segment", "segment_kept", "line", "flux_x",
+            "flux_y", "flux_z", "heading", "pitch", "roll", "lat", "lon", "alt",
+            "truth_mag_tl", "maneuver")
 
-def _figures(data: pd.DataFrame, report: dict[str, Any], qc: QCResult,
-             band: tuple[float, float]) -> dict[str, Any]:
-    """Callables drawing each figure (some may raise InputError when data are missing)."""
+
+def _figures(result: CompensationResult, qc: QCResult, band: tuple[float, float]
+             ) -> dict[str, Callable[[], Any]]:
+    """Callables drawing each figure (some raise InputError when data are missing)."""
+    data, report = result.data, result.report
+
+    def residuals() -> Any:
+        if qc.residuals is None:
+            raise InputError("no band-passed residuals")
+        return pc.plot_residuals(data["time"].to_numpy(), qc.residuals.before_bp,
+                                 qc.residuals.after_bp, kept=kept_mask(data), band_hz=band)
+
+    def fom() -> Any:
+        if not (qc.metrics.get("fom") or {}).get("applicable"):
+            raise InputError((qc.metrics.get("fom") or {}).get("reason") or "no FOM")
+        return pc.plot_fom(qc.fom)
+
     return {
-        "pca_scores.png": lambda p: pc.plot_pca_scores(report, path=p),
-        "explained_variance.png": lambda p: pc.plot_explained_variance(report, path=p),
-        "timeseries.png": lambda p: pc.plot_timeseries(data, path=p),
-        "psd.png": lambda p: pc.plot_psd(data, band_hz=band, path=p),
-        "term_contributions.png": lambda p: pc.plot_term_contributions(data, report, path=p),
-        "fom.png": lambda p: pc.plot_fom(qc.fom, path=p),
-        "map.png": lambda p: pc.plot_map(data, path=p),
+        "residuals.png": residuals,
+        "timeseries.png": lambda: pc.plot_timeseries(data),
+        "map.png": lambda: pc.plot_map(data),
+        "pca_scores.png": lambda: pc.plot_pca_scores(report),
+        "explained_variance.png": lambda: pc.plot_explained_variance(report),
+        "psd.png": lambda: pc.plot_psd(data, band_hz=band),
+        "term_contributions.png": lambda: pc.plot_term_contributions(data, report),
+        "fom.png": fom,
     }
 
 
 def write_report(
     result: CompensationResult, out_dir: Any, *legacy: Any,
-    config: CompensationConfig | None = None, title: str | None = None, **qc_kw: Any,
+    config: CompensationConfig | None = None, title: str | None = None,
+    progress: Progress | None = None, **qc_kw: Any,
 ) -> Path:
     """Compute QC, write the figures, ``qc.json`` and ``report.html`` into ``out_dir``.
 
     Parameters
     ----------
     result : CompensationResult
-        A compensation (:func:`aeromag.compensate.compensate`, or :func:`load_compensated` on
-        ``OUT.csv``).
+        A compensation (:func:`aeromag.compensate`, or :func:`load_compensated` on ``OUT.csv``).
     out_dir : path-like
         Output folder (created when missing).
     config : CompensationConfig, optional
         The configuration it was compensated with (default: the result's).
     title : str, optional
         Page title (default: the report's source).
+    progress : callable, optional
+        ``progress(done, total, step)``, called after each step.
     **qc_kw
         Passed to :func:`aeromag.qc.compute_qc` (e.g. ``maneuver_column``).
 
@@ -101,34 +133,103 @@ def write_report(
             config = _config_from(result.report)
     elif legacy:
         raise TypeError("write_report(result, out_dir): too many positional arguments")
-    data, report = result.data, result.report
+    if result.data is None:
+        raise InputError("this result holds no compensated data (use compensate())")
+    report = result.report
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    draws = _figures(result, None, (0.0, 0.0))  # names only, for the step count
+    total = 2 + len(draws)
+    step = 0
+
+    def advance(what: str) -> None:
+        nonlocal step
+        step += 1
+        if progress is not None:
+            progress(step, total, what)
+
     qc = compute_qc(result, config=config, **qc_kw)
+    advance("quality metrics")
     band = tuple(qc.metrics["band_hz"])
-    written: dict[str, Path] = {}
+    pngs: dict[str, bytes] = {}
     skipped: dict[str, str] = {}
-    for name, draw in _figures(data, report, qc, band).items():
+    for name, draw in _figures(result, qc, band).items():
         try:
-            draw(out / name)
-            written[name] = out / name
+            pngs[name] = pc.figure_png(draw())
         except (AeromagError, KeyError) as exc:
             skipped[name] = str(exc)
             log.info("report: %s skipped: %s", name, exc)
-    qc.metrics["figures"] = sorted(written)
+        advance(name)
+    for name, data in pngs.items():
+        with atomic_path(out / name) as tmp:
+            Path(tmp).write_bytes(data)
+    qc.metrics["figures"] = sorted(pngs)
     qc.metrics["figures_skipped"] = skipped
+    qc.metrics["segments"] = segment_rows(result, qc)
     write_json(qc.metrics, out / "qc.json")
-    page = render_html(qc.metrics, report, written, title=title)
+    page = render_html(qc.metrics, report, pngs, title=title)
     html_path = out / "report.html"
     with atomic_path(html_path) as tmp:
-        tmp.write_text(page, encoding="utf-8")
-    log.info("wrote %s (%d figures)", html_path, len(written))
+        Path(tmp).write_text(page, encoding="utf-8")
+    advance("report.html")
+    log.info("wrote %s (%d figures)", html_path, len(pngs))
     return html_path
+
+
+def segment_rows(result: CompensationResult, qc: QCResult) -> list[dict[str, Any]]:
+    """One row per segment: line, time span, samples, kept, why dropped, residuals.
+
+    Parameters
+    ----------
+    result : CompensationResult
+        The compensation (its data and report).
+    qc : QCResult
+        Its quality control.
+
+    Returns
+    -------
+    list of dict
+        ``segment``, ``line``, ``t_start``/``t_end`` [s], ``n``, ``kept``, ``reason``,
+        ``residual_std_nT`` (qc: band-passed ``mag - mag_tl`` of the segment) and
+        ``model_residual_std_nT`` (the model file's).
+    """
+    data = result.data
+    seg = segment_labels(data)
+    t = data["time"].to_numpy(dtype=np.float64)
+    rep = {int(s["id"]): s for s in result.report.get("segments") or [] if "id" in s}
+    by_seg = qc.metrics.get("residual_std_by_segment_nT") or {}
+    kept = kept_mask(data)
+    ok = seg >= 0
+    rows = []
+    if ok.any():
+        ids, first = np.unique(seg[ok], return_index=True)
+        last = len(seg[ok]) - 1 - np.unique(seg[ok][::-1], return_index=True)[1]
+        idx = np.flatnonzero(ok)
+        counts = np.bincount(np.searchsorted(ids, seg[ok]), minlength=len(ids))
+        for j, sid in enumerate(ids.tolist()):
+            e = rep.get(sid, {})
+            line = e.get("line")
+            if line is None and "line" in data.columns:
+                line = data["line"].iloc[idx[first[j]]]
+            reason = e.get("reason") or e.get("drop_reason") or e.get("why")
+            if isinstance(reason, dict):
+                reason = reason.get("text") or json.dumps(reason)
+            k = bool(e["kept"]) if "kept" in e else bool(kept[idx[first[j]]])
+            rows.append({
+                "segment": sid, "line": None if line is None or pd.isna(line) else
+                (int(line) if float(line).is_integer() else float(line)),
+                "t_start": float(t[idx[first[j]]]), "t_end": float(t[idx[last[j]]]),
+                "n": int(counts[j]), "kept": k,
+                "reason": None if k else (reason or "dropped by the PCA screening"),
+                "residual_std_nT": by_seg.get(str(sid)),
+                "model_residual_std_nT": e.get("residual_std")})
+    return rows
 
 
 def build_report(
     out_csv: str | os.PathLike[str], out_dir: str | os.PathLike[str],
-    report_json: str | os.PathLike[str] | None = None, **qc_kw: Any,
+    report_json: str | os.PathLike[str] | None = None, *, progress: Progress | None = None,
+    **qc_kw: Any,
 ) -> Path:
     """Build the QC report of a compensated log written by ``aeromag compensate``.
 
@@ -141,6 +242,8 @@ def build_report(
     report_json : path-like, optional
         The report (default ``OUT.json`` beside ``OUT.csv``; without it the default
         configuration is assumed and the PCA figures are skipped).
+    progress : callable, optional
+        ``progress(done, total, step)``.
     **qc_kw
         Passed to :func:`aeromag.qc.compute_qc`.
 
@@ -150,7 +253,7 @@ def build_report(
         The HTML page.
     """
     result, config = load_compensated(out_csv, report_json)
-    return write_report(result, out_dir, config=config, **qc_kw)
+    return write_report(result, out_dir, config=config, progress=progress, **qc_kw)
 
 
 def load_compensated(
@@ -170,25 +273,45 @@ def load_compensated(
     result : CompensationResult
     config : CompensationConfig
         The configuration recorded in the report (defaults for what it lacks).
+
+    Raises
+    ------
+    InputError
+        When the log is not compensated (no ``mag_comp``): run ``aeromag compensate`` first.
     """
     src = Path(out_csv)
-    data = read_log(src, required=("time", "mag_comp"))
     rj = Path(report_json) if report_json is not None else json_path_for(src)
+    try:
+        data = read_log(src, required=("time",))
+    except InputError as exc:
+        raise InputError(str(exc)) from None
+    if "mag_comp" not in data.columns:
+        raise InputError(f"{src}: no mag_comp column: this log is not compensated; run"
+                         f" `aeromag compensate {src} -o OUT.csv` first, then"
+                         " `aeromag report OUT.csv -o DIR`")
+    drop = [c for c in data.columns if c not in _COLUMNS]
+    if drop:
+        data = data.drop(columns=drop)
     report: dict[str, Any] = {}
     if rj.exists():
         try:
             report = json.loads(rj.read_text(encoding="utf-8"))
         except (OSError, ValueError) as exc:
             raise InputError(f"{rj}: not a readable JSON report ({exc}); rerun"
-                             " 'aeromag compensate'") from None
+                             " `aeromag compensate`") from None
     elif report_json is not None:
         raise InputError(f"{rj}: file not found")
     else:
         log.warning("%s: no report beside the log; default configuration assumed", rj)
     report.setdefault("source", str(src))
     config = _config_from(report)
-    model = TLModel.from_dict(report, source=str(rj)) if report.get("coef") else None
-    return CompensationResult(data, model, report), config
+    model = None
+    if report.get("coef"):
+        try:
+            model = TLModel.from_dict(report, source=str(rj))
+        except AeromagError:
+            model = None
+    return CompensationResult(data, model, report, config=config), config
 
 
 def _config_from(report: dict[str, Any]) -> CompensationConfig:
@@ -207,8 +330,10 @@ max-width:1100px;color:#222;padding:0 1em}
 h1{font-size:1.5em}h2{font-size:1.2em;margin-top:1.6em;border-bottom:1px solid #ccc}
 table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;padding:.25em .6em;
 text-align:right}th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}
+tr.dropped td{background:#fdecea}
 figure{margin:1em 0}figure img{max-width:100%;border:1px solid #eee}
-figcaption{font-size:.9em;color:#555}.note{color:#a60}
+figcaption{font-size:.9em;color:#555}.note{color:#a60}.na{color:#a60;font-weight:600}
+.small{font-size:.9em;color:#555}
 """
 
 
@@ -226,24 +351,38 @@ def _fmt(v: Any, digits: int = 4) -> str:
     return html.escape(str(v))
 
 
-def _table(rows: list[list[Any]], header: list[str]) -> str:
+def _table(rows: list[list[Any]], header: list[str], classes: list[str] | None = None) -> str:
     h = "".join(f"<th>{html.escape(c)}</th>" for c in header)
-    body = "".join("<tr>" + "".join(f"<td>{_fmt(c)}</td>" for c in r) + "</tr>" for r in rows)
+    cls = classes or [""] * len(rows)
+    body = "".join((f"<tr class='{c}'>" if c else "<tr>")
+                   + "".join(f"<td>{_fmt(v)}</td>" for v in r) + "</tr>"
+                   for r, c in zip(rows, cls, strict=True))
     return f"<table><thead><tr>{h}</tr></thead><tbody>{body}</tbody></table>"
 
 
-def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[str, Path],
+def _time(t: float | None) -> str:
+    """A time for the tables: UTC when epoch seconds, else seconds."""
+    if t is None or not np.isfinite(t):
+        return "–"
+    if 1e9 <= t < 4.1e9:
+        import datetime as dt
+
+        return dt.datetime.fromtimestamp(t, dt.UTC).strftime("%H:%M:%S")
+    return f"{t:.1f}"
+
+
+def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[str, Any],
                 *, title: str | None = None) -> str:
     """The self-contained HTML page: metrics tables and base64-embedded PNG figures.
 
     Parameters
     ----------
     metrics : dict
-        QC metrics (:func:`aeromag.qc.quality_metrics`).
+        QC metrics (:func:`aeromag.qc.compute_qc`), with ``segments`` rows.
     report : dict
-        The compensation report (source, coefficients, screening).
+        The compensation report (source, model, screening).
     figures : dict
-        Figure file name -> path of the PNG to embed.
+        Figure file name -> PNG bytes (or the path of a PNG) to embed.
     title : str, optional
         Page title.
 
@@ -253,21 +392,29 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
         HTML5 document.
     """
     title = title or f"aeromag compensation report: {report.get('source', '')}"
+    band = metrics["band_hz"]
     parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
              f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
              f"<h1>{html.escape(title)}</h1>",
-             f"<p>aeromag {html.escape(__version__)}; band {metrics['band_hz'][0]:g}–"
-             f"{metrics['band_hz'][1]:g} Hz</p>"]
+             f"<p class='small'>aeromag {html.escape(__version__)}; fitting band "
+             f"{band[0]:g}–{band[1]:g} Hz</p>"]
     fom = metrics.get("fom") or {}
     fit = metrics.get("fit") or {}
     noise = metrics.get("noise") or {}
-    rows = [
-        ["FOM before (nT)", fom.get("fom_before_nT")],
-        ["FOM after (nT)", fom.get("fom_after_nT")],
-        ["FOM reduction (before / after)", fom.get("fom_reduction")],
-        ["improvement ratio", metrics.get("improvement_ratio")],
-        ["residual std (nT, band-passed)", metrics.get("residual_std_nT")],
-        ["std before (nT, band-passed)", metrics.get("std_before_nT")],
+    alld = metrics.get("all_data") or {}
+    rows: list[list[Any]] = [
+        ["improvement ratio (band-passed mag / mag - mag_tl)",
+         metrics.get("improvement_ratio"), alld.get("improvement_ratio")],
+        ["residual (nT, band-passed mag - mag_tl)", metrics.get("residual_std_nT"),
+         alld.get("residual_std_nT")],
+        ["before (nT, band-passed mag)", metrics.get("std_before_nT"),
+         alld.get("std_before_nT")],
+        ["samples", metrics.get("n_samples"), alld.get("n_samples")],
+    ]
+    parts.append("<h2>Summary</h2>" + _table(rows, ["metric", "kept segments", "all data"]))
+    if metrics.get("definition"):
+        parts.append(f"<p class='small'>{html.escape(metrics['definition'])}.</p>")
+    more = [
         ["4th-difference noise before / after (nT)",
          f"{_fmt(noise.get('fourth_difference_before_nT'))} / "
          f"{_fmt(noise.get('fourth_difference_after_nT'))}"],
@@ -276,45 +423,73 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
         ["leave-one-segment-out CV residual (nT)", fit.get("cv_residual_std_nT")],
         ["in-sample fit residual (nT)", fit.get("fit_residual_std_nT")],
     ]
-    if fom.get("fom_truth_nT") is not None:
-        rows.insert(2, ["FOM of the true interference (nT)", fom.get("fom_truth_nT")])
     scr = report.get("screening") or {}
-    if scr:
-        rows.append(["segments kept / fitted", f"{scr.get('n_kept', '–')} / "
+    if scr.get("n_segments") is not None:
+        more.append(["segments kept / fitted", f"{scr.get('n_kept', '–')} / "
                      f"{scr.get('n_segments', '–')}"])
-        rows.append(["dropped segments", ", ".join(map(str, scr.get("dropped", []))) or "none"])
-    parts.append("<h2>Summary</h2>" + _table(rows, ["metric", "value"]))
-    if fom.get("per_maneuver"):
-        pm = fom["per_maneuver"]
-        keys = [k for k in ("ptp_before_nT", "ptp_after_nT", "ptp_truth_nT") if k in pm[0]]
-        parts.append("<h2>Figure of Merit (peak-to-peak per manoeuvre, nT)</h2>")
-        parts.append(_table([[r["heading"], r["maneuver"], *(r[k] for k in keys)] for r in pm],
-                            ["heading", "manoeuvre", *[k[4:-3] for k in keys]]))
-        boxes = fom.get("boxes", [])
-        if boxes:
-            bk = [k for k in ("fom_before_nT", "fom_after_nT", "fom_truth_nT") if k in boxes[0]]
-            parts.append(_table([[b["box"], b["n_maneuvers"], b["complete"],
-                                  *(b[k] for k in bk)] for b in boxes],
-                                ["box", "manoeuvres", "complete", *bk]))
+    parts.append(_table(more, ["diagnostic", "value"]))
+    # FOM: numbers only for complete calibration boxes.
+    parts.append("<h2>Figure of Merit</h2>")
+    if fom.get("applicable"):
+        frows = [["FOM before (nT)", fom.get("fom_before_nT")],
+                 ["FOM after (nT)", fom.get("fom_after_nT")],
+                 ["FOM reduction (before / after)", fom.get("fom_reduction")],
+                 ["complete boxes", ", ".join(map(str, fom.get("complete_boxes", [])))]]
+        if fom.get("fom_truth_nT") is not None:
+            frows.insert(2, ["FOM of the true interference (nT)", fom.get("fom_truth_nT")])
+        parts.append(_table(frows, ["metric", "value"]))
+        pm = fom.get("per_maneuver") or []
+        if pm:
+            keys = [k for k in ("ptp_before_nT", "ptp_after_nT", "ptp_truth_nT") if k in pm[0]]
+            parts.append(_table([[r["heading"], r["maneuver"], *(r[k] for k in keys)]
+                                 for r in pm],
+                                ["heading", "manoeuvre", *[f"{k[4:-3]} (nT p-p)" for k in keys]]))
+    else:
+        parts.append(f"<p class='na'>{html.escape(fom.get('reason') or 'FOM not applicable')}"
+                     "</p>")
+    # The model that was applied.
+    parts.append("<h2>Model applied</h2>")
+    src = report.get("model_source")
+    origin = ("fitted on this log" if src in (None, "fitted") else f"saved model: {src}")
+    fitb = report.get("fit") or {}
+    mrows = [["model", origin], ["terms", len(report.get("terms") or [])],
+             ["band (Hz)", f"{band[0]:g}–{band[1]:g}"]]
+    if fitb:
+        mrows += [["fit samples", fitb.get("n_samples")],
+                  ["segments fitted", fitb.get("n_segments_fitted")],
+                  ["fit residual (nT)", fitb.get("residual_std_nT")]]
+    parts.append(_table(mrows, ["", "value"]))
+    if report.get("terms") and report.get("coef"):
+        parts.append(_table(
+            [[t, c] for t, c in zip(report["terms"], report["coef"], strict=True)],
+            ["term", "coefficient (nT; eddy nT·s)"]))
+    # Per line.
+    segs = metrics.get("segments") or []
+    if segs:
+        parts.append("<h2>Lines and segments</h2>")
+        parts.append(_table(
+            [[s["segment"], s["line"], _time(s["t_start"]), _time(s["t_end"]), s["n"],
+              s["kept"], s["residual_std_nT"], s["model_residual_std_nT"], s["reason"] or ""]
+             for s in segs],
+            ["segment", "line", "start", "end", "samples", "kept", "residual (nT)",
+             "model file residual (nT)", "why dropped"],
+            ["dropped" if not s["kept"] else "" for s in segs]))
     by_h = metrics.get("residual_std_by_heading_nT") or {}
     if by_h:
-        parts.append("<h2>Residual std per heading (nT)</h2>"
-                     + _table([[k, v] for k, v in by_h.items()], ["heading", "residual std"]))
+        parts.append("<h2>Residual per heading (nT)</h2>"
+                     + _table([[k, v] for k, v in by_h.items()], ["heading", "residual"]))
     if fit.get("vif"):
         parts.append("<h2>Variance inflation factors</h2>"
                      + _table([[k, v] for k, v in fit["vif"].items()], ["term", "VIF"]))
-    if report.get("terms") and report.get("coef"):
-        parts.append("<h2>Coefficients</h2>" + _table(
-            [[t, c] for t, c in zip(report["terms"], report["coef"], strict=True)],
-            ["term", "coefficient (nT; eddy nT·s)"]))
     notes = list(metrics.get("notes") or [])
     notes += [f"{k} not drawn: {v}" for k, v in (metrics.get("figures_skipped") or {}).items()]
     if notes:
         parts.append("<h2>Notes</h2><ul>" + "".join(
             f"<li class='note'>{html.escape(n)}</li>" for n in notes) + "</ul>")
     parts.append("<h2>Figures</h2>")
-    for name, path in figures.items():
-        b64 = base64.b64encode(Path(path).read_bytes()).decode("ascii")
+    for name, png in figures.items():
+        data = png if isinstance(png, bytes | bytearray) else Path(png).read_bytes()
+        b64 = base64.b64encode(data).decode("ascii")
         cap = html.escape(FIGURES.get(name, name))
         parts.append(f"<figure id='{html.escape(Path(name).stem)}'><img alt='{cap}' "
                      f"src='data:image/png;base64,{b64}'><figcaption>{cap}</figcaption>"

@@ -1,0 +1,231 @@
+"""The one figure style of :mod:`aeromag.plot`: figures, saving, time axes, display decimation.
+
+Every plot function has the form ``fig = plot_xxx(..., ax=None, path=None)``: it draws into
+``ax`` when given (and returns its figure), otherwise into a new :class:`QCFigure` on the Agg
+canvas (no pyplot state, no window, never ``matplotlib.use``), and saves a PNG atomically when
+``path`` is given.  A :class:`QCFigure` displays itself in Jupyter (``_repr_png_``), with or
+without ``%matplotlib inline``.
+
+Long lines are drawn as their min/max envelope per pixel column (:func:`envelope`); time axes
+are UTC for epoch seconds, else seconds since the start of the log (:func:`time_axis`).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import io as _io
+import logging
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from .._core.runs import run_bounds
+from ..errors import InputError
+
+__all__ = ["DISPLAY_COLUMNS", "DPI", "QCFigure", "envelope", "figure_png", "new_figure",
+           "save_figure", "time_axis"]
+
+log = logging.getLogger(__name__)
+
+#: Resolution of saved PNGs [dots per inch].
+DPI = 150
+_PathLike = str | os.PathLike[str]
+
+#: Pixel columns a line is reduced to for display (min and max per column).
+DISPLAY_COLUMNS = 2000
+
+
+class QCFigure(Figure):
+    """A matplotlib figure that displays itself in Jupyter (``_repr_png_``), on any backend."""
+
+    def _repr_png_(self) -> bytes:
+        return figure_png(self, dpi=100)
+
+
+def new_figure(figsize: tuple[float, float] = (7.0, 4.5)) -> tuple[Figure, Axes]:
+    """A new figure with one axes on an Agg canvas (no pyplot, no window).
+
+    Parameters
+    ----------
+    figsize : (float, float)
+        Size [inch].
+
+    Returns
+    -------
+    fig : QCFigure
+    ax : Axes
+    """
+    fig = QCFigure(figsize=figsize, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig, fig.add_subplot(1, 1, 1)
+
+
+def _target(ax: Axes | None, figsize: tuple[float, float]) -> tuple[Figure, Axes]:
+    if ax is None:
+        return new_figure(figsize)
+    return ax.figure, ax  # type: ignore[return-value]
+
+
+def figure_png(fig: Figure, dpi: int = DPI) -> bytes:
+    """A figure as PNG bytes.
+
+    Parameters
+    ----------
+    fig : Figure
+        The figure.
+    dpi : int
+        Resolution [dots per inch].
+
+    Returns
+    -------
+    bytes
+    """
+    if fig.canvas is None or not isinstance(fig.canvas, FigureCanvasAgg):
+        FigureCanvasAgg(fig)
+    buf = _io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return buf.getvalue()
+
+
+def save_figure(fig: Figure, path: _PathLike, dpi: int = DPI) -> Path:
+    """Write a figure as PNG atomically (a partial file never appears).
+
+    Parameters
+    ----------
+    fig : Figure
+        The figure.
+    path : path-like
+        Output file.
+    dpi : int
+        Resolution [dots per inch].
+
+    Returns
+    -------
+    Path
+    """
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    data = figure_png(fig, dpi)
+    tmp = p.with_name(f".{p.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_bytes(data)
+        os.replace(tmp, p)
+    finally:
+        tmp.unlink(missing_ok=True)
+    log.info("wrote %s", p)
+    return p
+
+
+def _finish(fig: Figure, path: _PathLike | None) -> Figure:
+    if path is not None:
+        save_figure(fig, path)
+    return fig
+
+
+# --------------------------------------------------------------------------- display helpers
+def time_axis(time_s: np.ndarray) -> tuple[np.ndarray, str, bool]:
+    """Times for an axis: UTC dates for epoch seconds, else seconds since the start.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,)
+        Times [s]; values from 2001-09-09 (1e9 s) on are taken as UNIX epoch seconds (UTC).
+
+    Returns
+    -------
+    x : ndarray of float
+        matplotlib date numbers (days since 1970-01-01 UTC) or seconds since the first sample.
+    label : str
+        Axis label.
+    is_date : bool
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    fin = t[np.isfinite(t)]
+    t0 = float(fin[0]) if fin.size else 0.0
+    if fin.size and 1e9 <= t0 < 4.1e9:
+        start = _dt.datetime.fromtimestamp(t0, _dt.UTC).strftime("%Y-%m-%d")
+        return t / 86400.0, f"time (UTC, {start})", True
+    return t - t0, "time since start of log (s)", False
+
+
+def _format_time(ax: Axes, is_date: bool, label: str) -> None:
+    ax.set_xlabel(label)
+    if is_date:
+        import matplotlib.dates as mdates
+
+        ax.xaxis_date(tz=_dt.UTC)
+        loc = mdates.AutoDateLocator(tz=_dt.UTC)
+        ax.xaxis.set_major_locator(loc)
+        ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(loc, tz=_dt.UTC))
+    else:
+        ax.ticklabel_format(axis="x", useOffset=False, style="plain")
+
+
+def envelope(x: np.ndarray, y: np.ndarray, columns: int = DISPLAY_COLUMNS,
+             breaks: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Min/max envelope of a line for display: two points per pixel column and per stretch.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+        Abscissae, increasing.
+    y : ndarray, shape (n,)
+        Ordinates; NaN breaks the line.
+    columns : int
+        Pixel columns across the x range; a line of at most ``4 * columns`` points is kept.
+    breaks : ndarray of int, optional
+        Stretch label per sample (the line is never drawn across a change of label).
+
+    Returns
+    -------
+    x, y : ndarray
+        The points to draw (NaN between stretches).
+    """
+    xf = np.asarray(x, dtype=np.float64)
+    yv = np.asarray(y, dtype=np.float64)
+    lab = np.zeros(len(yv), dtype=np.int64) if breaks is None else np.asarray(breaks)
+    lab = np.where(np.isfinite(yv) & np.isfinite(xf), lab, -1)
+    good = lab >= 0
+    if not good.any():
+        return np.zeros(0), np.zeros(0)
+    if len(yv) > 4 * columns:
+        lo, hi = float(np.min(xf[good])), float(np.max(xf[good]))
+        width = (hi - lo) / columns if hi > lo else 1.0
+        col = np.clip(((xf - lo) / width).astype(np.int64), 0, columns - 1)
+        a, b, _ = run_bounds(np.where(good, col + columns * (lab - lab[good].min()), -1))
+        px = np.column_stack([xf[a], xf[b - 1]]).ravel()
+        py = np.column_stack([np.minimum.reduceat(np.where(good, yv, np.inf), a),
+                              np.maximum.reduceat(np.where(good, yv, -np.inf), a)]).ravel()
+        seg = np.repeat(lab[a], 2)
+    else:
+        px, py, seg = xf[good], yv[good], lab[good]
+    brk = np.flatnonzero(seg[1:] != seg[:-1]) + 1
+    return np.insert(px, brk, np.nan), np.insert(py, brk, np.nan)
+
+
+def _line(ax: Axes, x: np.ndarray, y: np.ndarray, st: np.ndarray | None = None,
+          **kw: Any) -> None:
+    ex, ey = envelope(x, y, breaks=st)
+    ax.plot(ex, ey, **kw)
+
+
+def _report(obj: Any) -> dict[str, Any]:
+    """The report of a :class:`~aeromag.compensation.result.CompensationResult`, or ``obj``."""
+    rep = getattr(obj, "report", obj)
+    return rep if isinstance(rep, dict) else {}
+
+
+def _data(obj: Any) -> pd.DataFrame:
+    """The compensated log of a result, or ``obj`` itself (a DataFrame)."""
+    if isinstance(obj, pd.DataFrame):
+        return obj
+    data = getattr(obj, "data", None)
+    if data is None:
+        raise InputError("this result holds no compensated data (use am.compensate())")
+    return data
