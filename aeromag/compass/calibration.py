@@ -174,16 +174,30 @@ def excitation_windows(time_s: np.ndarray, heading_deg: np.ndarray, pitch_deg: n
     a, b = a[use], b[use]
     if not len(a):
         return []
-    # Moments per window from cumulative sums (all windows at once).
+    # Moments per window, all windows at once: sums over [a, b) by reduceat when the windows
+    # follow each other (the usual case), else from cumulative sums.
     uz = np.where(ok[:, None], u, 0.0)
-    cols = np.column_stack([ok.astype(float), uz, (uz[:, :, None] * uz[:, None, :]).reshape(n, 9)])
-    c = np.vstack([np.zeros((1, cols.shape[1])), np.cumsum(cols, axis=0)])
-    s = c[b] - c[a]
+    iu, ju = np.triu_indices(3)
+    cols = np.empty((n, 10))
+    cols[:, 0] = ok
+    cols[:, 1:4] = uz
+    np.multiply(uz[:, iu], uz[:, ju], out=cols[:, 4:])
+    contiguous = bool(np.array_equal(a[1:], b[:-1]))
+    if contiguous:
+        idx = np.r_[a, b[-1]] if b[-1] < n else a
+        s = np.add.reduceat(cols, idx, axis=0)[:len(a)]
+    else:
+        c = np.vstack([np.zeros((1, cols.shape[1])), np.cumsum(cols, axis=0)])
+        s = c[b] - c[a]
+    del cols
     cnt = s[:, 0]
+    s2 = np.empty((len(a), 3, 3))
+    s2[:, iu, ju] = s[:, 4:]
+    s2[:, ju, iu] = s[:, 4:]
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = s[:, 1:4] / cnt[:, None]
-        cov = (s[:, 4:].reshape(-1, 3, 3) - cnt[:, None, None] * mean[:, :, None]
-               * mean[:, None, :]) / (cnt - 1)[:, None, None]
+        cov = (s2 - cnt[:, None, None] * mean[:, :, None] * mean[:, None, :]) \
+            / (cnt - 1)[:, None, None]
     good = cnt > 3
     exc = np.zeros(len(a))
     if good.any():
@@ -200,7 +214,6 @@ def excitation_windows(time_s: np.ndarray, heading_deg: np.ndarray, pitch_deg: n
         r = hi - lo
         return np.where(np.isfinite(r), r, 0.0)
 
-    contiguous = np.array_equal(a[1:], b[:-1])
     if contiguous:
         rr, pr, hr = ranges(roll_deg), ranges(pitch_deg), ranges(hdg)
     else:  # some windows skipped (fewer than 4 samples): one window at a time
@@ -325,8 +338,11 @@ class CompassCalibration:
         before = self.rls.theta.copy()
         res = self.rls.run(phi, np.asarray(ref_body_nT, dtype=np.float64) / self.f0)
         th = res.theta  # (n, 4, 3), after each sample
-        prior = np.concatenate([before[None], th[:-1]])  # before each sample
-        cal = np.einsum("ki,kij->kj", phi, prior) * self.f0
+        cal = np.empty((len(phi), 3))  # with the estimate before each sample
+        if len(phi):
+            cal[0] = phi[0] @ before
+            cal[1:] = np.einsum("ki,kij->kj", phi[1:], th[:-1])
+        cal *= self.f0
         cal[~np.isfinite(phi).all(axis=1)] = np.nan
         return CompassResult(
             flux_cal_nT=cal, matrix=self.matrix, offset_nT=self.offset_nT,
