@@ -161,6 +161,9 @@ OPTIONS: list[Option] = [
     _o("units", "--units", list[str] | None, None,
        "Convert a field column or group (flux, mag) from nT/uT/mT/G to nT.", _READERS,
        metavar="NAME=UNIT"),
+    _o("allow_truncated", "--allow-truncated", bool, False, "Drop a last row cut short (a log "
+       "that ended in the middle of a row) with a warning in OUT.json, instead of refusing the "
+       "log.", _READERS),
     # the fit and its checks
     _o("ridge", "--ridge", float, 0.0, "Relative ridge parameter (0 = plain LS).", _COMP,
        config="ridge"),
@@ -310,7 +313,10 @@ def command(name: str, **typer_kw: Any) -> Callable[[Callable[[Options], None]],
         params = [o.parameter(name) for o in rows]
 
         def run(**values: Any) -> None:
-            body(Options(name, values))
+            from ..io.log import reading_options
+
+            with reading_options(allow_truncated=bool(values.get("allow_truncated"))):
+                body(Options(name, values))
 
         run.__name__ = name
         run.__doc__ = body.__doc__

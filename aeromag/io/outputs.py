@@ -70,6 +70,16 @@ class _WarningCapture(logging.Handler):
         self.stack = _stack()  # the sets of the thread that opened the capture
         self.forward_level = forward_level
 
+    def _level_of(self, name: str) -> int:
+        """The effective level the record's logger had before the capture began."""
+        lg: logging.Logger | None = logging.getLogger(name)
+        while lg is not None:
+            lvl = self.forward_level if lg.name == "aeromag" else lg.level
+            if lvl:
+                return lvl
+            lg = lg.parent  # type: ignore[assignment]
+        return logging.WARNING
+
     def emit(self, record: logging.LogRecord) -> None:
         if record.levelno >= logging.WARNING:
             try:
@@ -79,7 +89,7 @@ class _WarningCapture(logging.Handler):
             sink = self.stack[-1].warnings if self.stack else self.sink  # innermost set
             if msg not in sink:
                 sink.append(msg)
-        if record.levelno < self.forward_level:
+        if record.levelno < self._level_of(record.name):
             return
         try:  # names from files echoed without their control characters
             record.msg, record.args = clean(record.getMessage()), None
@@ -101,7 +111,8 @@ def _capture_warnings(sink: list[str]) -> Iterator[None]:
         yield  # an enclosing set captures already (into its own list)
         return
     level, propagate = lg.level, lg.propagate
-    h = _WarningCapture(sink, lg.getEffectiveLevel())
+    # forward_level: the level set on "aeromag" itself (0: inherited from the root)
+    h = _WarningCapture(sink, level or logging.getLogger().getEffectiveLevel())
     lg.setLevel(min(lg.getEffectiveLevel(), logging.WARNING))
     lg.propagate = False
     lg.addHandler(h)

@@ -42,7 +42,7 @@ from .csv import (
 from .formats import detect_format, read_table_rows
 from .formats.parquet import parquet_error
 from .messages import clean
-from .outputs import register_input
+from .outputs import recorded_warnings, register_input
 from .rows import ROWS_ATTR, row_location, rows_after_header, rows_numbered, shift_rows
 
 log = logging.getLogger(__name__)
@@ -149,8 +149,10 @@ def _csv_batches(path: Path, columns: list[str] | None, batch_rows: int,
         short = short_row(path, header_line, n)
         if short is None or not short[2] or len(skipped) > 1:
             raise InputError(_diagnose_csv(path, header_line, n, None))
-        log.warning("%s: line %d: the last row is cut short (%d of %d fields: the log ended in"
-                    " the middle of a row); dropped it", path, short[0], short[1], n)
+        msg = (f"{path}: line {short[0]}: the last row is cut short ({short[1]} of {n} fields:"
+               " the log ended in the middle of a row); dropped it")
+        if msg not in recorded_warnings():  # once, not once per pass of the chunked mode
+            log.warning("%s", msg)
 
 
 def _diagnose_csv(path: Path, header_line: int, n: int, exc: BaseException | None) -> str:
