@@ -69,6 +69,7 @@ ANGLES = (6, 7, 8)
 #: Measurement models the filter knows (``NavFilter(sensors=...)``).
 ALL_SENSORS = ("gps_pos", "gps_vel", "range", "flow", "baro", "gravity", "mag")
 _RANGE_RECENT_S = 1.0
+_MAX_BATCH = 512  # IMU samples per propagation call at most
 
 
 @dataclass
@@ -708,6 +709,15 @@ class NavFilter:
         else:
             qok = np.ones(r_flow_all.size, bool)
         r_baro = _decimate_rows(t, rows_of(inputs.baro_alt, 1), c.baro_interval_s)
+        if not c.baro_with_range and r_range.size and r_baro.size and "range" in self.sensors:
+            # Barometer samples while the rangefinder is valid are not fused: no epoch for them.
+            rv = np.asarray(inputs.range_m, float)[r_range]
+            t_ok = t[r_range[(rv >= c.range_min_m) & (rv <= c.range_max_m)]]
+            k = np.searchsorted(t_ok, t[r_baro], side="right") - 1
+            recent = (k >= 0) & (t[r_baro] - t_ok[np.maximum(k, 0)] < _RANGE_RECENT_S)
+            if "baro" in self.innovations:
+                self.innovations["baro"].n_gated += int(recent.sum())
+            r_baro = r_baro[~recent]
         r_mag = _decimate_rows(t, rows_of(flux, 3), c.mag_interval_s)
         # Flow: body rate averaged over the interval since the previous flow sample.
         flow_gyro = np.zeros((r_flow_all.size, 3))
@@ -771,6 +781,10 @@ class NavFilter:
             nonlocal pos
             hi = int(np.searchsorted(imu_rows, upto_row, side="right"))
             if hi <= pos:
+                return
+            if hi - pos > _MAX_BATCH:   # bounded memory on long stretches without epochs
+                advance(int(imu_rows[pos + _MAX_BATCH - 1]))
+                advance(upto_row)
                 return
             rows = imu_rows[pos:hi]
             pos = hi
