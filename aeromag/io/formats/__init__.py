@@ -261,11 +261,14 @@ def output_format(path: str | os.PathLike[str]) -> str:
     Raises
     ------
     InputError
-        For any other extension (never a CSV under another name).
+        For any other extension (never a CSV under another name), or a path that is not a
+        regular file path (see :func:`aeromag.io.outputs.check_output_path`).
     """
     from ..messages import clean
+    from ..outputs import check_output_path
 
     p = Path(path)
+    check_output_path(p)  # a folder, device or FIFO: say so first
     ext = p.suffix.lower()
     f = extensions().get(ext)
     if f is None or REGISTRY[f].write is None:
