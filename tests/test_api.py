@@ -196,3 +196,14 @@ def test_api_page_is_generated_from_all():
     for name in am.__all__:
         if not name.startswith("__"):
             assert f"`am.{name}`" in page, name
+
+
+def test_maneuver_spelling_with_old_aliases():
+    from aeromag import synthetic
+
+    assert synthetic.MANEUVERS == synthetic.MANOEUVRES == ("pitch", "roll", "yaw")
+    assert synthetic.MANEUVER_AMPLITUDE_DEG is synthetic.MANOEUVRE_AMPLITUDE_DEG
+    new, _ = synthetic.simulate_calibration(seed=1, n_boxes=1, maneuver_s=8.0)
+    old, _ = synthetic.simulate_calibration(seed=1, n_boxes=1, manoeuvre_s=8.0)
+    assert new.equals(old) and len(new) < len(synthetic.simulate_calibration(seed=1,
+                                                                              n_boxes=1)[0])

@@ -49,8 +49,8 @@ def solve_normal(
         raise FitError("the fit matrix has non-finite values; check the fluxgate and mag columns")
     if np.any(d <= 0):
         raise FitError(
-            "a model term never varies in the fitting band (constant fluxgate or no manoeuvres);"
-            " fly manoeuvres, widen --band or choose fewer --terms"
+            "a model term never varies in the fitting band (constant fluxgate or no maneuvers);"
+            " fly maneuvers, widen --band or choose fewer --terms"
         )
     ev = np.linalg.eigvalsh(gram)
     cond = float(np.sqrt(ev[-1] / ev[0])) if ev[0] > 0 else float("inf")
@@ -61,13 +61,13 @@ def solve_normal(
     if ridge <= 0 and not (evs[0] > 1e-14 * evs[-1]):
         raise FitError(
             f"the fit is ill-conditioned (scaled condition number {cond_s:.3g}); the terms are"
-            " collinear: add manoeuvres, use --ridge 1e-3, or choose fewer --terms"
+            " collinear: add maneuvers, use --ridge 1e-3, or choose fewer --terms"
         )
     g = gs + ridge * np.eye(len(d))
     try:
         z = np.linalg.solve(g, rhs * inv)
     except np.linalg.LinAlgError:
-        raise FitError("the fit matrix is singular; add manoeuvres or use --ridge") from None
+        raise FitError("the fit matrix is singular; add maneuvers or use --ridge") from None
     return z * inv, cond, cond_s
 
 

@@ -192,7 +192,7 @@ OPTIONS: list[Option] = [
        "longer ones split stretches.", _COMP, metavar="S", config="max_interp_s"),
     _o("fmt", "--format", str | None, None, "Input format (default: from the extension and "
        "contents; see docs/formats.md).", _READERS, metavar="FORMAT"),
-    _o("fom", "--fom", bool, False, "Detect manoeuvres and report the Figure of Merit (for a "
+    _o("fom", "--fom", bool, False, "Detect maneuvers and report the Figure of Merit (for a "
        "calibration-style flight).", {"compensate"}, config="fom",
        to_config=lambda v: v or None),
     _o("plot", "--plot", Path | None, None,

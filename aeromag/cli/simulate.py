@@ -25,7 +25,7 @@ def _mission_files(out_dir: Path, seed: int, small: bool) -> dict[str, Path]:
 _HELP = (
     "Write synthetic flights, plans and their ground truth.\n\n"
     "Files written to the output folder: calibration.csv (boxes on the four cardinal headings "
-    "with pitch/roll/yaw manoeuvres, one line per manoeuvre, turns cut out), survey.csv "
+    "with pitch/roll/yaw maneuvers, one line per maneuver, turns cut out), survey.csv "
     "(parallel lines over buried dipoles, gusty attitude), plan.csv (survey waypoints: start "
     "and end of each line) and truth.json (TL coefficients, Earth field, noise levels, faults)."
     "\n\n"

@@ -140,5 +140,5 @@ def _check_plausible(data: pd.DataFrame, metrics: dict[str, Any], prep: Prepared
         log.warning(
             "%s: the fitted model leaves more band-passed variation than it removes"
             " (improvement ratio %.3g < 1): the fit is unreliable; calibrate on a flight with"
-            " manoeuvres and use --model", prep.source, ratio)
+            " maneuvers and use --model", prep.source, ratio)
 

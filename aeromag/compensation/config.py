@@ -231,11 +231,11 @@ class CompensationConfig:
         Filter edge dropped at each end of every segment piece before fitting [s]; default
         ``0.25 / band_hz[0]``.
     fom : bool or None
-        Detect manoeuvres and report the Figure of Merit in the ``qc`` block; None = on for
+        Detect maneuvers and report the Figure of Merit in the ``qc`` block; None = on for
         calibration (:func:`calibrate_file`), off otherwise.
     max_condition : float
         Largest scaled condition number (columns of unit norm) of the final, unregularised fit;
-        above it the fit is refused as ill-conditioned.  A box calibration with manoeuvres
+        above it the fit is refused as ill-conditioned.  A box calibration with maneuvers
         gives about 1e2; straight-and-level flight with 1 degree of attitude jitter about 3e5,
         where coefficients come out at 1e5 nT and the unfiltered ``mag_tl`` carries that
         error as level shifts between headings.  A ridge (``ridge > 0``) lifts the limit.

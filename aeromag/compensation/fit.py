@@ -68,7 +68,7 @@ def solve_fit(gram: np.ndarray, rhs: np.ndarray, *, ridge: float, max_condition:
         raise FitError(
             f"{source}: the fit is ill-conditioned (scaled condition number {cond_s:.3g}"
             f" > {max_condition:.3g}): the attitude varies too little to separate the TL"
-            " terms (no manoeuvres?); calibrate on a flight with pitch/roll/yaw manoeuvres and"
+            " terms (no maneuvers?); calibrate on a flight with pitch/roll/yaw maneuvers and"
             " apply it with --model, or regularise with --ridge 1e-3, or fit fewer --terms"
         )
     return coef, cond, cond_s
@@ -108,7 +108,7 @@ def check_interference(mag_tl_nT: np.ndarray, field_nT: float, max_interference:
     if fitted:
         raise FitError(
             msg + ": this flight does not determine the TL terms at low frequency (too few"
-            " headings or manoeuvres); calibrate on a box flight with manoeuvres and apply"
+            " headings or maneuvers); calibrate on a box flight with maneuvers and apply"
             " it with --model, or regularise with --ridge 1e-3 (limit: --max-interference)"
         )
     log.warning("%s; check that the model belongs to this aircraft and sensor", msg)

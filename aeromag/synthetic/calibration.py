@@ -1,4 +1,4 @@
-"""The calibration flight: boxes on the four cardinal headings with pitch/roll/yaw manoeuvres."""
+"""The calibration flight: boxes on the four cardinal headings with pitch/roll/yaw maneuvers."""
 
 
 import logging
@@ -13,8 +13,8 @@ from .faults import _assemble, _check_nonneg, _check_positive, _common_truth, _r
 from .physics import (
     CAL_HEADINGS_DEG,
     DEFAULT_ORIGIN,
-    MANOEUVRE_AMPLITUDE_DEG,
-    MANOEUVRES,
+    MANEUVER_AMPLITUDE_DEG,
+    MANEUVERS,
     EarthField,
     _check_coef,
     _diurnal,
@@ -32,7 +32,7 @@ def simulate_calibration(
     seed: int = 0,
     rate_hz: float = 10.0,
     n_boxes: int = 2,
-    manoeuvre_s: float = 25.0,
+    maneuver_s: float = 25.0,
     noise_nT: float = 0.02,
     flux_noise_nT: float = 0.5,
     earth: EarthField | None = None,
@@ -47,13 +47,14 @@ def simulate_calibration(
     trim_pitch_deg: float = -3.0,
     diurnal_nT: float = 3.0,
     pos_noise_m: float = 0.02,
+    manoeuvre_s: float | None = None,
 ) -> tuple[pd.DataFrame, dict[str, Any]]:
-    """Simulate a calibration flight: boxes on the four cardinal headings with manoeuvres.
+    """Simulate a calibration flight: boxes on the four cardinal headings with maneuvers.
 
     Each box flies north, east, south and west (a square); on each heading the aircraft makes
-    a pitch (+-5 deg), a roll (+-10 deg) and a yaw (+-5 deg) oscillation of ``manoeuvre_s``
+    a pitch (+-5 deg), a roll (+-10 deg) and a yaw (+-5 deg) oscillation of ``maneuver_s``
     seconds each (a few cycles at a random period of 2.5-8 s, tapered at the ends), with small
-    turbulence on all axes.  Each manoeuvre is its own ``line`` (``12 * n_boxes`` segments,
+    turbulence on all axes.  Each maneuver is its own ``line`` (``12 * n_boxes`` segments,
     ids from 0).  No geology (a calibration is flown high over quiet ground).
 
     Parameters
@@ -64,8 +65,8 @@ def simulate_calibration(
         Sample rate [Hz].
     n_boxes : int
         Number of boxes (four headings each).
-    manoeuvre_s : float
-        Duration of each manoeuvre [s].
+    maneuver_s : float
+        Duration of each maneuver [s] (``manoeuvre_s``, the old spelling, is accepted too).
     noise_nT : float
         Scalar magnetometer white noise [nT rms].
     flux_noise_nT : float
@@ -110,7 +111,9 @@ def simulate_calibration(
         JSON-ready ground truth: terms, coef, earth field, noise levels, rate, seed, faults
         (``[{"segment", "kind", "params"}]``), segments and diurnal components.
     """
-    _check_positive(rate_hz=rate_hz, manoeuvre_s=manoeuvre_s, speed_mps=speed_mps)
+    if manoeuvre_s is not None:
+        maneuver_s = manoeuvre_s
+    _check_positive(rate_hz=rate_hz, maneuver_s=maneuver_s, speed_mps=speed_mps)
     _check_nonneg(noise_nT=noise_nT, flux_noise_nT=flux_noise_nT, turn_s=turn_s,
                   turbulence_deg=turbulence_deg, pos_noise_m=pos_noise_m)
     if int(n_boxes) < 1:
@@ -118,10 +121,10 @@ def simulate_calibration(
     earth = earth or EarthField()
     k = default_aircraft_coef() if coef is None else _check_coef(coef)
     rng, rng_noise, rng_fault = _streams(seed, 1)
-    m = int(round(manoeuvre_s * rate_hz))
+    m = int(round(maneuver_s * rate_hz))
     if m < 20:
-        raise InputError(f"manoeuvre_s: {manoeuvre_s} s at {rate_hz} Hz gives under 20 samples")
-    n_leg = len(MANOEUVRES) * m
+        raise InputError(f"maneuver_s: {maneuver_s} s at {rate_hz} Hz gives under 20 samples")
+    n_leg = len(MANEUVERS) * m
     gap = float(turn_s) if cut_turns else 0.0
 
     times, lines, enus, hdgs, pits, rols, mans, legs = [], [], [], [], [], [], [], []
@@ -139,15 +142,15 @@ def simulate_calibration(
             enus.append(pos + np.outer(tau * speed_mps, direction))
             att = {
                 ax: band_noise(rng, n_leg, rate_hz, 0.05, 1.5, turbulence_deg)
-                for ax in MANOEUVRES
+                for ax in MANEUVERS
             }
             man_col = np.empty(n_leg, dtype=object)
             line_col = np.empty(n_leg, dtype=int)
-            for j, man in enumerate(MANOEUVRES):
+            for j, man in enumerate(MANEUVERS):
                 sl = slice(j * m, (j + 1) * m)
                 period = float(rng.uniform(2.5, 8.0))
                 phase = float(rng.uniform(0, 2 * np.pi))
-                amp = MANOEUVRE_AMPLITUDE_DEG[man]
+                amp = MANEUVER_AMPLITUDE_DEG[man]
                 att[man][sl] += (
                     amp * _taper(m, ramp) * np.sin(2 * np.pi * tau[:m] / period + phase)
                 )
@@ -202,7 +205,7 @@ def simulate_calibration(
         flux_noise_nT=flux_noise_nT, pos_noise_m=pos_noise_m, origin=origin,
     )  # fmt: skip
     truth.update({
-        "n_boxes": int(n_boxes), "manoeuvre_s": float(manoeuvre_s), "cut_turns": bool(cut_turns),
+        "n_boxes": int(n_boxes), "manoeuvre_s": float(maneuver_s), "cut_turns": bool(cut_turns),
         "turn_s": float(gap), "speed_mps": float(speed_mps), "height_m": float(height_m),
         "headings_deg": list(CAL_HEADINGS_DEG), "faults": records, "segments": segments,
         "diurnal": diurnal_comps,

@@ -51,6 +51,10 @@ def _wrap_rad(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
+#: Flight phases of the simulator (``truth_phase``).
+_PHASES = ("ground", "climb", "hover", "leg", "transit", "land")
+
+
 def _body_rates(rec: np.ndarray, dt: float, noise_rad_s: float, seed: int
                 ) -> dict[str, np.ndarray]:
     """Body angular rates over each sampling interval, as a strapdown gyro logs them.
@@ -145,6 +149,10 @@ def simulate_mission(
     gust_tau_s: float = 4.0,
     hover_s: float = 10.0,
     gyro_noise_rad_s: float = 0.0,
+    waypoints_ned: np.ndarray | None = None,
+    home_ne_m: tuple[float, float] | None = None,
+    ground_s: float = 0.0,
+    refly_legs: tuple[int, ...] = (),
 ) -> tuple[pd.DataFrame, pd.DataFrame, dict[str, Any]]:
     """Simulate a lawn-mower survey mission with magnetic heading disturbances.
 
@@ -189,19 +197,44 @@ def simulate_mission(
         White noise added to the logged body rates ``gyro_x/y/z``, rad/s (0: the perfect gyro
         the heading filter uses; drawn from its own random stream so the other columns do not
         change).
+    waypoints_ned : ndarray, shape (m, 3), optional
+        The plan's waypoints in NED at ``origin`` [m] instead of the lawn-mower
+        (``n_lines``, ``line_m``, ``spacing_m`` then unused); the first must be (0, 0, 0).
+    home_ne_m : (float, float), optional
+        Take-off and landing point, north and east of the first waypoint [m]: the vehicle
+        climbs there, transits to the first waypoint, and after the last leg transits back
+        and lands there (default: take-off under the first waypoint, landing under the last).
+    ground_s : float
+        Time on the ground before take-off and after landing, s.
+    refly_legs : tuple of int
+        Legs flown twice: after the first pass the vehicle transits back to the leg's first
+        waypoint (off plan, along the leg reversed) and flies it again; a disturbance of the
+        leg acts on the first pass only.
 
     Returns
     -------
     log, plan : DataFrame
-        The mission log (canonical columns + ``truth_*``) and the plan (``lat``, ``lon``,
+        The mission log (canonical columns + ``truth_*``; with any of ``waypoints_ned``,
+        ``home_ne_m``, ``ground_s``, ``refly_legs`` also ``truth_phase``: ``ground``,
+        ``climb``, ``hover``, ``leg``, ``transit``, ``land``) and the plan (``lat``, ``lon``,
         ``alt``).
     truth : dict
         ``{"legs": [{"leg", "disturbance", "rate_G_s", "onset_time"}...], ...}``.
     """
     rng = np.random.default_rng(seed)
     dist = DEFAULT_DISTURBANCES if disturbances is None else dict(disturbances)
-    wps = plan_waypoints_ned(n_lines, line_m, spacing_m)
+    extended = (waypoints_ned is not None or home_ne_m is not None or ground_s > 0
+                or bool(refly_legs))
+    if waypoints_ned is None:
+        wps = plan_waypoints_ned(n_lines, line_m, spacing_m)
+    else:
+        wps = np.asarray(waypoints_ned, dtype=np.float64)
+        if wps.ndim != 2 or wps.shape[1] != 3 or len(wps) < 2 or np.any(wps[0] != 0.0):
+            raise ValueError("waypoints_ned must be (m >= 2, 3) NED metres starting at 0, 0, 0")
     n_legs = len(wps) - 1
+    home = (0.0, 0.0) if home_ne_m is None else (float(home_ne_m[0]), float(home_ne_m[1]))
+    refly = {int(k) for k in refly_legs}
+    reflown: set[int] = set()
     dt = 1.0 / fs_hz
     g = 9.81
     kd, kv, kp = 0.3, 1.5, 0.5
@@ -211,6 +244,12 @@ def simulate_mission(
                   b0 * math.sin(inc))
 
     max_steps = int((120.0 + n_legs * (line_m / speed_m_s + 3.0 * hover_s + 60.0)) * fs_hz)
+    if extended:
+        legs_m = np.linalg.norm(np.diff(wps, axis=0), axis=1)
+        total = float(legs_m.sum() + sum(2.0 * legs_m[k] for k in refly if k < n_legs)
+                      + 2.0 * (np.hypot(*home) + np.linalg.norm(wps[-1, :2] - np.array(home))))
+        max_steps = int((200.0 + 2.0 * ground_s + 2.0 * total / speed_m_s
+                         + (n_legs + 2 * len(refly)) * (3.0 * hover_s + 30.0)) * fs_hz)
     gust_a = math.exp(-dt / gust_tau_s)
     gust_b = gust_m_s * math.sqrt(1.0 - gust_a * gust_a)
     white = rng.standard_normal((max_steps, 2))
@@ -220,12 +259,16 @@ def simulate_mission(
         fnoise = lfilter([math.sqrt(1.0 - fa * fa)], [1.0, -fa], fnoise, axis=0)
 
     rec = np.full((max_steps, 17), np.nan)
-    pn, pe, pd_ = 0.0, 0.0, height_m
+    pn, pe, pd_ = home[0], home[1], height_m
     vn, ve, vd = 0.0, 0.0, 0.0
     psi = 0.0
     psi_est = 0.0
     wn, we = 0.0, 0.0
-    phase, leg, phase_t = "climb", -1, 0.0
+    phase, leg, phase_t = ("ground" if ground_s > 0 else "climb"), -1, 0.0
+    tr_a = tr_b = wps[0]
+    after_transit = "hover"
+    landed_t = -1.0
+    ground_ne: tuple[float, float] | None = None
     onset: dict[int, float] = {}
     start_t: dict[int, float] = {}
     delta = 0.0
@@ -236,15 +279,27 @@ def simulate_mission(
         # ---------------------------------------------------------------- guidance
         psi_des = psi_est
         an_c = ae_c = 0.0
-        if phase == "climb":
+        if phase == "ground":
+            vd_c = 0.0
+            if landed_t < 0 and t >= ground_s:
+                phase, phase_t = "climb", t
+            elif landed_t >= 0 and t - landed_t >= ground_s:
+                break
+        elif phase == "climb":
             vd_c = -2.0 if pd_ > 1.0 else -max(0.3, 2.0 * pd_)
             if pd_ <= 0.05:
                 phase, phase_t = "hover", t
                 vd_c = 0.0
-            an_c, ae_c = kv * (0.0 - vn) + kp * (0.0 - pn), kv * (0.0 - ve) + kp * (0.0 - pe)
+                if home_ne_m is not None:
+                    phase, tr_a, tr_b = "transit", np.array([home[0], home[1], 0.0]), wps[0]
+                    after_transit = "hover"
+            an_c = kv * (0.0 - vn) + kp * (home[0] - pn)
+            ae_c = kv * (0.0 - ve) + kp * (home[1] - pe)
         elif phase == "hover":
             target = wps[leg + 1] if leg >= 0 else wps[0]
             nxt = leg + 1
+            if leg >= 0 and leg in refly and leg not in reflown:
+                nxt = leg   # about to go back and fly it again
             if nxt < n_legs:
                 du = wps[nxt + 1] - wps[nxt]
                 psi_des = math.atan2(du[1], du[0])
@@ -252,15 +307,23 @@ def simulate_mission(
             ae_c = kv * (0.0 - ve) + kp * (target[1] - pe)
             vd_c = 0.5 * (target[2] - pd_)
             if t - phase_t >= (hover_s if leg >= 0 else 15.0):
-                if nxt < n_legs:
+                if nxt == leg:
+                    reflown.add(leg)
+                    phase, tr_a, tr_b = "transit", wps[leg + 1], wps[leg]
+                    after_transit, leg = "hover", leg - 1
+                elif nxt < n_legs:
                     phase, leg, phase_t = "leg", nxt, t
-                    start_t[leg] = t
-                    if leg in dist:
+                    start_t.setdefault(leg, t)
+                    if leg in dist and leg not in onset:
                         onset[leg] = t + onset_after_s
+                elif home_ne_m is not None and after_transit != "land":
+                    phase, tr_a, tr_b = "transit", wps[-1], np.array([home[0], home[1],
+                                                                    wps[-1][2]])
+                    after_transit = "land"
                 else:
                     phase, phase_t = "land", t
-        elif phase == "leg":
-            a, b = wps[leg], wps[leg + 1]
+        elif phase in ("leg", "transit"):
+            a, b = (wps[leg], wps[leg + 1]) if phase == "leg" else (tr_a, tr_b)
             un, ue = b[0] - a[0], b[1] - a[1]
             length = math.hypot(un, ue)
             un, ue = un / length, ue / length
@@ -272,15 +335,18 @@ def simulate_mission(
             vref = max(-speed_m_s, min(speed_m_s, 0.8 * rem))
             an_c = kd * vn + kv * (vref * un - vn) - kp * cn
             ae_c = kd * ve + kv * (vref * ue - ve) - kp * ce
-            vd_c = 0.5 * (a[2] - pd_)
+            vd_c = 0.5 * (a[2] + min(max(along / length, 0.0), 1.0) * (b[2] - a[2]) - pd_)
             if abs(rem) < 0.3 and math.hypot(vn, ve) < 0.3:
-                phase, phase_t = "hover", t
+                phase, phase_t = ("hover" if phase == "leg" else after_transit), t
         else:  # land
+            land_n, land_e = (home if home_ne_m is not None else (wps[-1][0], wps[-1][1]))
             vd_c = 1.0 if pd_ < height_m - 1.0 else 0.3
-            an_c = kv * (0.0 - vn) + kp * (wps[-1][0] - pn)
-            ae_c = kv * (0.0 - ve) + kp * (wps[-1][1] - pe)
+            an_c = kv * (0.0 - vn) + kp * (land_n - pn)
+            ae_c = kv * (0.0 - ve) + kp * (land_e - pe)
             if pd_ >= height_m:
-                break
+                if ground_s <= 0:
+                    break
+                phase, landed_t = "ground", t
         # ---------------------------------------------------------------- disturbance
         if phase == "leg" and leg in onset and onset[leg] <= t < onset[leg] + hold_s:
             rate = (FAST_RATE_G_S if dist[leg] == "fast" else SLOW_RATE_G_S) * 1e5
@@ -288,6 +354,10 @@ def simulate_mission(
         else:
             delta = 0.0
         # ---------------------------------------------------------------- dynamics
+        if phase == "ground" and ground_ne is None:
+            ground_ne = (pn, pe)
+        elif phase != "ground":
+            ground_ne = None
         dpsi = _wrap_rad(psi - psi_est)
         cd, sd = math.cos(dpsi), math.sin(dpsi)
         an = cd * an_c - sd * ae_c
@@ -311,8 +381,13 @@ def simulate_mission(
         pn += vn * dt
         pe += ve * dt
         pd_ += vd * dt
+        if phase == "ground":   # on the ground: still, level, no yaw
+            pn, pe, pd_ = ground_ne[0], ground_ne[1], height_m
+            vn, ve, vd, theta, phi = 0.0, 0.0, 0.0, 0.0, 0.0
         # yaw loop on the estimated heading; gyro is perfect
         rate_cmd = max(-0.5, min(0.5, 1.0 * _wrap_rad(psi_des - psi_est)))
+        if phase == "ground":
+            rate_cmd = 0.0
         psi = _wrap_rad(psi + rate_cmd * dt)
         # ---------------------------------------------------------------- magnetometer
         cth, sth, cph, sph = math.cos(theta), math.sin(theta), math.cos(phi), math.sin(phi)
@@ -332,7 +407,7 @@ def simulate_mission(
         rec[i] = (t, pn, pe, pd_, math.degrees(psi_est) % 360.0, math.degrees(theta),
                   math.degrees(phi), fx, fy, fz, xt, leg if phase == "leg" else -1,
                   math.degrees(psi) % 360.0, math.degrees(_wrap_rad(psi - psi_est)), delta,
-                  math.degrees(psi_mag) % 360.0, 0.0)
+                  math.degrees(psi_mag) % 360.0, _PHASES.index(phase))
     rec = rec[: i + 1]
     rec = rec[np.isfinite(rec[:, 0])]
     n = len(rec)
@@ -355,6 +430,8 @@ def simulate_mission(
         "truth_heading": rec[:, 12], "truth_dpsi_deg": rec[:, 13],
         "truth_disturbance_nT": rec[:, 14], "truth_mag_heading": rec[:, 15],
     })
+    if extended:
+        df["truth_phase"] = np.asarray(_PHASES, dtype=object)[rec[:, 16].astype(int)]
     plan = pd.DataFrame({"lat": plan_geo[:, 0], "lon": plan_geo[:, 1], "alt": plan_geo[:, 2]})
     legs = []
     for k in range(n_legs):

@@ -59,9 +59,12 @@ FAULT_KINDS: tuple[str, ...] = ("noise_burst", "onboard_source", "flux_bias", "s
 #: Default take-off point / local-frame origin: (lat [deg], lon [deg], alt [m, ellipsoidal]).
 DEFAULT_ORIGIN: tuple[float, float, float] = (46.80, 7.15, 600.0)
 
-#: Calibration manoeuvres in flight order on each heading and their amplitudes [deg].
-MANOEUVRES: tuple[str, ...] = ("pitch", "roll", "yaw")
-MANOEUVRE_AMPLITUDE_DEG: dict[str, float] = {"pitch": 5.0, "roll": 10.0, "yaw": 5.0}
+#: Calibration maneuvers in flight order on each heading and their amplitudes [deg].
+MANEUVERS: tuple[str, ...] = ("pitch", "roll", "yaw")
+MANEUVER_AMPLITUDE_DEG: dict[str, float] = {"pitch": 5.0, "roll": 10.0, "yaw": 5.0}
+#: The old spellings (kept for one release).
+MANOEUVRES = MANEUVERS
+MANOEUVRE_AMPLITUDE_DEG = MANEUVER_AMPLITUDE_DEG
 
 #: Nominal calibration headings [deg]; ``truth_heading_leg`` is the index (N=0, E=1, S=2, W=3).
 CAL_HEADINGS_DEG: tuple[float, ...] = (0.0, 90.0, 180.0, 270.0)
@@ -106,7 +109,7 @@ def default_aircraft_coef() -> np.ndarray:
     """Return the 16 Tolles-Lawson coefficients of a typical multirotor.
 
     Permanent terms of tens of nT, induced terms of tens of nT and eddy terms of a few nT*s,
-    so that attitude manoeuvres of +-5-10 deg give several nT peak-to-peak of interference.
+    so that attitude maneuvers of +-5-10 deg give several nT peak-to-peak of interference.
 
     Returns
     -------

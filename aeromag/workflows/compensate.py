@@ -128,7 +128,7 @@ class CompensationRun(CompensationResult):
         return pc.plot_term_contributions(self._data(), self.report, **kw)
 
     def plot_fom(self, **kw: Any) -> Any:
-        """FOM bars per heading and manoeuvre (calibration flights)."""
+        """FOM bars per heading and maneuver (calibration flights)."""
         from ..plot import compensation as pc
         from ..qc import fom_table
 

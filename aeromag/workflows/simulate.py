@@ -36,7 +36,7 @@ def write_simulation(
     rate_hz : float
         Sample rate [Hz].
     small : bool
-        The shipped sample size: one calibration box of 20 s manoeuvres (12 segments) and
+        The shipped sample size: one calibration box of 20 s maneuvers (12 segments) and
         ten 160 m survey lines (enough segments for PCA screening); otherwise two boxes of
         25 s and eight 400 m lines.
 
@@ -51,7 +51,7 @@ def write_simulation(
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a folder; give -o a folder")
     _check_positive(rate_hz=rate_hz)
-    cal_kw: dict[str, Any] = {"n_boxes": 1, "manoeuvre_s": 20.0} if small else {}
+    cal_kw: dict[str, Any] = {"n_boxes": 1, "maneuver_s": 20.0} if small else {}
     sur_kw: dict[str, Any] = {"n_lines": 10, "line_length_m": 160.0} if small else {}
     cal, cal_truth = simulate_calibration(seed=seed, rate_hz=rate_hz, faults=faults, **cal_kw)
     sur, sur_truth = simulate_survey(seed=seed, rate_hz=rate_hz, faults=faults, **sur_kw)
