@@ -62,11 +62,11 @@ from .deviation import leg_summary, track_alarm
 from .geometry import cross_track
 from .legs import (
     LegModel,
+    decode_legs,
     labels_from_column,
     leg_evidence,
     leg_passes,
     motion_velocity,
-    viterbi,
 )
 from .plan import validate_plan
 
@@ -226,9 +226,9 @@ def check_track(
         labels = labels_from_column(data, n_legs, src)
         how = "log column"
     else:
-        labels = viterbi(leg_evidence(ned, vel, wps, model), model.switch_cost)
+        labels = decode_legs(leg_evidence(ned, vel, wps, model), t, model)
         how = "assigned"
-        warnings += diagnose.plan_warnings(ned, vel, wps, labels, model, plan_src)
+        warnings += diagnose.plan_warnings(ned, vel, t, wps, labels, model, plan_src)
     labels[~ok] = -1
 
     xt, xh, xv, al = (np.full(n, np.nan) for _ in range(4))

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .legs import LegModel, estimate_altitude_offset, leg_evidence, viterbi
+from .legs import LegModel, decode_legs, estimate_altitude_offset, leg_evidence
 
 __all__ = ["DATUM_MIN_OFFSET_M", "altitude_offset", "plan_distance_m", "plan_warnings"]
 
@@ -96,14 +96,17 @@ def plan_distance_m(ned: np.ndarray, waypoints: np.ndarray) -> float:
     return best
 
 
-def plan_warnings(ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray, labels: np.ndarray,
-                  model: LegModel, plan_name: str = "the plan") -> list[str]:
+def plan_warnings(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray, waypoints: np.ndarray,
+                  labels: np.ndarray, model: LegModel, plan_name: str = "the plan"
+                  ) -> list[str]:
     """Say what to check when the log does not follow the plan.
 
     Parameters
     ----------
     ned, vel : ndarray, shape (n, 3)
         Positions [m] (datum offset removed) and velocities [m/s], NED.
+    time_s : ndarray, shape (n,)
+        Sample times, s.
     waypoints : ndarray, shape (m, 3)
         Plan waypoints, NED, m.
     labels : ndarray of int
@@ -132,7 +135,7 @@ def plan_warnings(ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray, label
                 f" {plan_name} (closest {dist:.0f} m): check that the plan is this flight's"
                 " (site, lat/lon order) and its altitude reference")
             return warns
-        rev = viterbi(leg_evidence(ned, vel, waypoints[::-1], model), model.switch_cost)
+        rev = decode_legs(leg_evidence(ned, vel, waypoints[::-1], model), time_s, model)
         n_rev = int((rev >= 0).sum())
         if n_rev > max(10, 5 * n_on):
             warns.append(
@@ -140,8 +143,8 @@ def plan_warnings(ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray, label
                 " backwards: check the waypoint order (is the plan reversed?)")
             return warns
         if not model.horizontal_only:
-            hor = viterbi(leg_evidence(ned, vel, waypoints, model, horizontal_only=True),
-                          model.switch_cost)
+            hor = decode_legs(leg_evidence(ned, vel, waypoints, model, horizontal_only=True),
+                              time_s, model)
             n_hor = int((hor >= 0).sum())
             if n_hor > max(10, 5 * n_on):
                 warns.append(

@@ -6,7 +6,7 @@ waypoint, in transit, landing).  Each sample's evidence for leg ``k`` against "o
 log-likelihood ratio built from what the vehicle does (all vectorised over samples and legs):
 
 ``e_k = bonus (2 g - 1)``               moving along the leg: ``g = sigmoid((v_a - min_speed_m_s)
-                                        / speed_softness_m_s) sigmoid((v_a - v_p) /
+                                        / speed_softness_m_s) sigmoid((v_a - r v_p) /
                                         direction_softness_m_s)``
     ``- 0.5 (d_h / s_h)^2``               horizontal distance to the leg's line
     ``- 0.5 (d_v / s_v)^2``               vertical distance (altitude near the planned one)
@@ -20,8 +20,11 @@ hovering (no speed), climbing or descending, crossing a leg and flying the line 
 transit back to re-fly a leg) are off plan.  "Off plan" has evidence 0.
 
 Transitions cost ``switch_cost`` (log-probability) to enter or leave a leg or to go from leg
-``k`` straight to leg ``k+1`` (a waypoint passed without stopping), and twice that between any
-other two legs; staying costs nothing.  The Viterbi path is the most likely labelling.  A leg
+``k`` straight to leg ``k+1`` (a waypoint passed without stopping); staying costs nothing.  The
+off-plan state remembers the last leg flown, so that a leg out of mission order costs
+``order_cost`` more (:func:`viterbi`): legs of the same geometry (a line flown back and forth)
+are told apart by their order, and a re-flown leg is cheap.  The Viterbi path is the most
+likely labelling.  A leg
 flown twice is two runs of its label (two *passes*).
 
 With ``horizontal_only`` the vertical term is left out (logs whose altitude cannot be trusted);
@@ -39,7 +42,8 @@ import pandas as pd
 from ..errors import InputError
 from .geometry import cross_track
 
-__all__ = ["DEFAULT_WAYPOINT_RADIUS_M", "LegModel", "assign_legs", "estimate_altitude_offset",
+__all__ = ["DEFAULT_WAYPOINT_RADIUS_M", "LegModel", "assign_legs", "decode_legs",
+           "estimate_altitude_offset",
            "leg_evidence", "labels_from_column", "leg_passes", "motion_velocity", "viterbi"]
 
 log = logging.getLogger(__name__)
@@ -65,8 +69,10 @@ class LegModel:
     speed_softness_m_s : float
         Width of the motion term's speed sigmoid, m/s.
     direction_softness_m_s : float
-        Width of the motion term's direction sigmoid (speed along the leg against speed
-        across it: half-way at 45 degrees), m/s.
+        Width of the motion term's direction sigmoid, m/s.
+    direction_ratio : float
+        ``r``: the direction sigmoid compares the speed along the leg with ``r`` times the
+        speed across it (half-way at ``atan(1 / r)``: 18 degrees from the leg for 3).
     velocity_window_s : float
         Time window of the velocity from positions, s (at least the two neighbours).
     bonus : float
@@ -75,30 +81,40 @@ class LegModel:
         Lowest evidence of one sample, nats.
     switch_cost : float
         Cost of a change of state, nats.
+    order_cost : float
+        Extra cost of entering a leg out of mission order, nats.
+    step_s : float
+        Finest time step of the decoding, s (faster logs are decoded in blocks).
     horizontal_only : bool
         Leave out the vertical term.
     """
 
     tolerance_m: float = 10.0
     vertical_tolerance_m: float = 10.0
-    end_margin_m: float = 2.0
+    end_margin_m: float = 0.5
     min_speed_m_s: float = 0.5
     speed_softness_m_s: float = 0.15
     direction_softness_m_s: float = 0.25
+    direction_ratio: float = 4.0
     velocity_window_s: float = 1.0
     bonus: float = 4.0
     floor: float = -10.0
     switch_cost: float = 8.0
+    order_cost: float = 40.0
+    step_s: float = 0.1
     horizontal_only: bool = False
 
     def __post_init__(self) -> None:
         for name in ("tolerance_m", "vertical_tolerance_m", "end_margin_m", "speed_softness_m_s",
-                     "direction_softness_m_s", "velocity_window_s", "bonus", "switch_cost"):
+                     "direction_softness_m_s", "direction_ratio", "velocity_window_s", "bonus",
+                     "switch_cost", "step_s"):
             v = getattr(self, name)
             if not np.isfinite(v) or v <= 0:
                 raise InputError(f"leg model: {name} = {v!r} must be a positive number")
         if not np.isfinite(self.min_speed_m_s) or self.min_speed_m_s < 0:
             raise InputError(f"leg model: min_speed_m_s = {self.min_speed_m_s!r} must be >= 0")
+        if not np.isfinite(self.order_cost) or self.order_cost < 0:
+            raise InputError(f"leg model: order_cost = {self.order_cost!r} must be >= 0")
         if not np.isfinite(self.floor) or self.floor >= 0:
             raise InputError(f"leg model: floor = {self.floor!r} must be negative")
 
@@ -190,7 +206,7 @@ def leg_evidence(ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray,
         va = v @ u
         vp = np.linalg.norm(v - va[:, None] * u, axis=1)
         m = (_sigmoid((va - model.min_speed_m_s) / model.speed_softness_m_s)
-             * _sigmoid((va - vp) / model.direction_softness_m_s))
+             * _sigmoid((va - model.direction_ratio * vp) / model.direction_softness_m_s))
         e = b * (2.0 * m - 1.0) - kh * h * h - ks * out * out
         if not horiz:
             e -= kv * vv * vv
@@ -198,12 +214,18 @@ def leg_evidence(ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray,
     return ev
 
 
-def viterbi(evidence: np.ndarray, switch_cost: float = 8.0) -> np.ndarray:
-    """Most likely state sequence of the "off plan / on leg k" model.
+def viterbi(evidence: np.ndarray, switch_cost: float = 8.0, order_cost: float | None = None
+            ) -> np.ndarray:
+    """Most likely state sequence of the "off plan / on leg k" model, in mission order.
 
-    State 0 is "off plan" (evidence 0), state ``k + 1`` is leg ``k``.  Entering or leaving a
-    leg, and going from leg ``k`` to leg ``k + 1``, cost ``switch_cost``; any other change of
-    leg costs twice that.  The path starts off plan or on any leg (at the entering cost).
+    States are "on leg k" (evidence ``e_k``) and "off plan, last leg flown j" (evidence 0;
+    ``j = -1`` before the first leg), so that the model knows the mission order: entering or
+    leaving a leg costs ``switch_cost``; entering leg ``k`` from off plan after leg ``j`` costs
+    ``order_cost`` more unless ``k`` is ``j + 1`` (the next leg) or ``j`` (the same leg again:
+    a re-flight or a resumed leg); going from leg ``k`` straight to leg ``k + 1`` (a waypoint
+    passed without stopping) costs ``switch_cost``, to any other leg ``2 switch_cost +
+    order_cost``.  Legs with the same geometry (a line flown back and forth) are then told
+    apart by their order.  The path starts off plan before the first leg.
 
     Parameters
     ----------
@@ -211,6 +233,8 @@ def viterbi(evidence: np.ndarray, switch_cost: float = 8.0) -> np.ndarray:
         Per-sample evidence for each leg, nats (see :func:`leg_evidence`).
     switch_cost : float
         Cost of a change of state, nats.
+    order_cost : float, optional
+        Extra cost of a leg out of mission order, nats (default ``2 switch_cost``).
 
     Returns
     -------
@@ -222,47 +246,90 @@ def viterbi(evidence: np.ndarray, switch_cost: float = 8.0) -> np.ndarray:
     if n == 0 or n_legs == 0:
         return np.full(n, -1, dtype=np.int64)
     c = float(switch_cost)
-    legs = np.arange(1, n_legs + 1)
-    back = np.empty((n, n_legs + 1), dtype=np.int16 if n_legs < 32000 else np.int32)
-    score = np.r_[0.0, np.full(n_legs, -c)]
-    score[1:] += e[0]
-    back[0] = 0
-    neg = np.array([-np.inf])
+    lam = 2.0 * c if order_cost is None else float(order_cost)
+    K = n_legs
+    # State index: 0..K are "off plan, last leg j = index - 1"; K + 1 + k is "leg k".
+    itype = np.int16 if 2 * K + 1 < 32000 else np.int32
+    back = np.empty((n, 2 * K + 1), dtype=itype)
+    idx_off = np.arange(K + 1)
+    idx_leg = K + 1 + np.arange(K)
+    cols = np.arange(K)
+    # Candidate predecessors of leg k: itself, leg k-1, off after leg k-1, off after leg k.
+    src_table = np.vstack([idx_leg, np.r_[idx_leg[0], idx_leg[:-1]], idx_off[:-1], idx_off[1:]])
+    cand = np.full((4, K), -np.inf)
+    off = np.full(K + 1, -np.inf)
+    off[0] = 0.0
+    leg = np.full(K, -np.inf)
+    leg[0] = -c
+    leg += e[0]
+    back[0] = np.r_[idx_off, idx_leg]
+    b_off = idx_off.copy()
     for i in range(1, n):
-        prev_off = score[0]
-        prev_legs = score[1:]
-        j = int(np.argmax(prev_legs))
-        best_leg = prev_legs[j]
-        # off plan: stay, or leave the best leg
-        if prev_off >= best_leg - c:
-            off, off_from = prev_off, 0
-        else:
-            off, off_from = best_leg - c, j + 1
-        # legs: stay / from off / from the previous leg / from the best other leg
-        cand_stay = prev_legs
-        cand_next = np.concatenate((neg, prev_legs[:-1])) - c
-        best = cand_stay
-        src = legs.copy()
-        m = cand_next > best
-        best = np.where(m, cand_next, best)
-        src = np.where(m, legs - 1, src)
-        from_off = prev_off - c
-        m = from_off > best
-        best = np.where(m, from_off, best)
-        src[m] = 0
-        from_any = best_leg - 2.0 * c
-        m = from_any > best
-        best = np.where(m, from_any, best)
-        src[m] = j + 1
-        score = np.concatenate(([off], best + e[i]))
-        back[i, 0] = off_from
-        back[i, 1:] = src
+        cand[0] = leg
+        np.subtract(leg[:-1], c, out=cand[1, 1:])
+        np.subtract(off[:-1], c, out=cand[2])
+        np.subtract(off[1:], c, out=cand[3])
+        a = cand.argmax(axis=0)
+        best = cand[a, cols]
+        src = src_table[a, cols]
+        jo = int(off.argmax())
+        jl = int(leg.argmax())
+        any_off, any_leg = off[jo] - c - lam, leg[jl] - 2.0 * c - lam
+        any_c, any_src = (any_off, jo) if any_off >= any_leg else (any_leg, K + 1 + jl)
+        m = any_c > best
+        if m.any():
+            best[m] = any_c
+            src[m] = any_src
+        # off plan after leg j: stay, or leave leg j
+        leave = leg - c
+        m = leave > off[1:]
+        b_off[1:] = np.where(m, idx_leg, idx_off[1:])
+        off[1:] = np.where(m, leave, off[1:])
+        leg = best + e[i]
+        back[i, : K + 1] = b_off
+        back[i, K + 1:] = src
     state = np.empty(n, dtype=np.int64)
-    s = int(np.argmax(score))
+    s_ = int(np.argmax(np.r_[off, leg]))
     for i in range(n - 1, -1, -1):
-        state[i] = s
-        s = int(back[i, s])
-    return state - 1
+        state[i] = s_
+        s_ = int(back[i, s_])
+    return np.where(state > K, state - K - 1, -1)
+
+
+def decode_legs(evidence: np.ndarray, time_s: np.ndarray, model: LegModel = LegModel()
+                ) -> np.ndarray:
+    """Viterbi over the evidence at no more than ``1 / model.step_s`` Hz.
+
+    Logs sampled faster than ``step_s`` are decoded in blocks of ``round(step_s / dt)``
+    samples (the mean evidence of a block, one state per block), so that the evidence of a
+    second of flight weighs the same at 10 Hz and at 1 kHz and the decoding stays fast; the
+    labels are then spread back to every sample.
+
+    Parameters
+    ----------
+    evidence : ndarray, shape (n, K)
+        See :func:`leg_evidence`.
+    time_s : ndarray, shape (n,)
+        Sample times, s.
+    model : LegModel
+        Parameters (``step_s``, ``switch_cost``, ``order_cost``).
+
+    Returns
+    -------
+    ndarray of int, shape (n,)
+        Leg per sample, -1 for off plan.
+    """
+    n = len(evidence)
+    t = np.asarray(time_s, dtype=np.float64)
+    dts = np.diff(t[np.isfinite(t)])
+    dt = float(np.median(dts)) if dts.size else model.step_s
+    b = max(1, int(round(model.step_s / dt))) if dt > 0 else 1
+    if b == 1:
+        return viterbi(evidence, model.switch_cost, model.order_cost)
+    nb = -(-n // b)
+    pad = np.full((nb * b - n, evidence.shape[1]), np.nan, dtype=np.float64)
+    blocks = np.nanmean(np.vstack([evidence, pad]).reshape(nb, b, -1), axis=1)
+    return np.repeat(viterbi(blocks, model.switch_cost, model.order_cost), b)[:n]
 
 
 def assign_legs(
@@ -299,7 +366,7 @@ def assign_legs(
     t = np.arange(len(p)) / 10.0 if time_s is None else np.asarray(time_s, dtype=np.float64)
     vel = motion_velocity(t, p, model.velocity_window_s)
     ev = leg_evidence(p, vel, np.asarray(waypoints, dtype=np.float64), model)
-    lab = viterbi(ev, model.switch_cost)
+    lab = decode_legs(ev, t, model)
     lab[~np.isfinite(p).all(axis=1)] = -1
     return lab
 
