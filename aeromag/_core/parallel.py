@@ -35,7 +35,7 @@ def _signal() -> Any:
 
 
 def _kernel() -> Any:
-    """scipy's in-place second-order-section kernel (``scipy.signal._sosfilt._sosfilt``).
+    """Scipy's in-place second-order-section kernel (``scipy.signal._sosfilt._sosfilt``).
 
     :func:`zero_phase_rows` calls it directly: scipy's public ``sosfiltfilt`` wraps the same
     kernel in copies and axis moves (about a quarter of its time on rows of 600-6000 samples).

@@ -12,8 +12,11 @@ from ._options import Options, command
 
 
 def _warm(screen: bool, log: Path | None = None, fmt: str | None = None) -> None:
-    """Start parsing ``log`` (a CSV) on a thread, then import what the run needs (scipy.signal,
-    and scikit-learn when screening) on this thread while it parses (see aeromag.io.warm)."""
+    """Parse ``log`` on a thread while this thread imports what the run needs.
+
+    The CSV is prefetched (see :mod:`aeromag.io.warm`); scipy.signal, and scikit-learn when
+    screening, are imported meanwhile.
+    """
     import importlib
 
     from ..io.warm import prefetch_csv

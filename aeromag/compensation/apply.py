@@ -60,10 +60,12 @@ def _apply(
     df: pd.DataFrame, model: TLModel, cfg: CompensationConfig, *, prep: Prepared | None,
     kept_segments: np.ndarray | None, source: str | None, release_flux: bool = False,
 ) -> tuple[pd.DataFrame, dict[str, Any], np.ndarray]:
-    """:func:`apply_model`, also returning the band-passed ``mag_comp`` (edges trimmed to NaN)
-    that the metrics were computed on, so the per-segment residuals and the QC block reuse it.
-    ``release_flux`` drops ``prep.flux`` once the model is evaluated (``compensate`` owns its
-    ``prep``; at 1e7 samples that frees 240 MB before the filters run).
+    """:func:`apply_model`, also returning the band-passed ``mag_comp`` the metrics used.
+
+    The band-passed ``mag_comp`` (edges trimmed to NaN) is reused by the per-segment residuals
+    and the QC block.  ``release_flux`` drops ``prep.flux`` once the model is evaluated
+    (``compensate`` owns its ``prep``; at 1e7 samples that frees 240 MB before the filters
+    run).
     """
     prep = prep or prepare(df, cfg, source=source)
     t = prep.time

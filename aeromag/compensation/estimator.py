@@ -1,10 +1,10 @@
-"""The Tolles-Lawson compensator as a scikit-learn estimator (``fit`` / ``predict`` /
-``transform`` / ``get_params``), so it can sit in a ``Pipeline``.
+"""The Tolles-Lawson compensator as a scikit-learn estimator, so it can sit in a ``Pipeline``.
 
-:meth:`TollesLawson.fit` runs the pipeline's own fit (:func:`aeromag.compensation.fit.fit_outcome`,
-one segment per stretch, no screening), so it refuses what ``aeromag calibrate`` refuses:
-a scaled condition number above ``max_condition`` and an interference above
-``max_interference`` of the Earth field.  Kept apart from :mod:`aeromag.compensation.model`
+``fit``, ``predict``, ``transform``, ``score``, ``get_params``: :meth:`TollesLawson.fit` runs
+the pipeline's own fit (:func:`aeromag.compensation.fit.fit_outcome`, one segment per
+stretch, no screening), so it refuses what ``aeromag calibrate`` refuses: a scaled condition
+number above ``max_condition`` and an interference above ``max_interference`` of the Earth
+field.  Kept apart from :mod:`aeromag.compensation.model`
 so that applying a saved model never imports scikit-learn.
 """
 

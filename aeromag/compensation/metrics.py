@@ -58,7 +58,8 @@ def _band_metrics(
     """:func:`compensation_metrics` and the band-passed ``mag_comp`` it used (NaN outside).
 
     ``stretch_bp`` and ``mag_bp``, when given, are the stretches of finite ``mag_comp`` and
-    ``mag`` already band-passed over them (computed here otherwise)."""
+    ``mag`` already band-passed over them (computed here otherwise).
+    """
     fs = sampling_rate(time_s) if fs_hz is None else fs_hz
     sos = butter_sos("bandpass", cfg.band_hz, fs, cfg.order)
     if stretch_bp is not None:

@@ -101,8 +101,9 @@ def predict_interference(
 def coefficient_forms(
     terms: Sequence[str], coef: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """The TL model as a vector and two 3 x 3 forms: ``A @ coef`` equals
-    ``c.p + (|B|/scale) (c^T M c + c^T N c') + bias``.
+    """Write the TL model as a vector and two 3 x 3 forms.
+
+    ``A @ coef`` equals ``c.p + (|B|/scale) (c^T M c + c^T N c') + bias``.
 
     Parameters
     ----------

@@ -117,8 +117,10 @@ def _every(x: np.ndarray, most: int = 100_000) -> int:
 
 
 def _warn_units(src: str, med: float, mag: np.ndarray | None) -> None:
-    """Warn (never convert) when field magnitudes do not look like nT (``med``: the median
-    fluxgate magnitude)."""
+    """Warn (never convert) when field magnitudes do not look like nT.
+
+    ``med`` is the median fluxgate magnitude, ``mag`` a subsample of the scalar.
+    """
     if not 1_000.0 <= med <= 200_000.0:
         log.warning(
             "%s: the fluxgate magnitude is %.4g, not an Earth field in nT (20000-70000);"

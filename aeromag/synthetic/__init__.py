@@ -1,5 +1,4 @@
-"""Simulators with ground truth.  They never import the fitting or filtering code, so they
-are true oracles for the tests.
+"""Simulators with ground truth: true oracles, they import no fitting or filtering code.
 
 Modules: ``physics`` (Earth field, attitude, the TL interference written independently of
 :mod:`aeromag.compensation`, dipoles, local geodesy), ``faults``, ``calibration``

@@ -402,8 +402,11 @@ def apply_model_chunked(
 
 def _fourth_differences(x: np.ndarray, t: np.ndarray, max_gap_s: float, a: int, b: int
                         ) -> np.ndarray:
-    """Fourth differences starting at rows ``a..b-1`` of a window, inside continuous finite
-    stretches only (as :func:`aeromag.qc.fourth_difference_noise` counts them)."""
+    """Fourth differences starting at rows ``a..b-1`` of a window.
+
+    Inside continuous finite stretches only, as :func:`aeromag.qc.fourth_difference_noise`
+    counts them.
+    """
     st = find_stretches(t, np.isfinite(x), max_gap_s)
     stop = min(b, len(x) - 4)
     if stop <= a:

@@ -165,8 +165,10 @@ def _run(res: CompensationResult) -> CompensationRun:
 
 
 def _add_qc(res: CompensationResult) -> None:
-    """Add the ``qc`` block (FOM only when ``cfg.fom``; the fit diagnostics are in
-    ``report["fit"]`` already) and, for an applied model, each segment's residual."""
+    """Add the ``qc`` block and, for an applied model, each segment's residual.
+
+    The FOM only when ``cfg.fom``; the fit diagnostics are in ``report["fit"]`` already.
+    """
     from ..qc import quality_metrics
 
     cfg = res.config
