@@ -38,24 +38,21 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.stats import chi2
 
-from .._core.rotations import dcm_body_to_ned
 from .config import NavConfig
-from .mechanization import GRAVITY, propagate
-from .models import (
-    h_baro,
-    h_flow,
-    h_gnss_pos,
-    h_gnss_vel,
-    h_gravity,
-    h_mag_heading,
-    h_range,
-    level_heading,
+from .fusion import _RANGE_RECENT_S, FusionMixin
+from .inputs import (
+    Epoch,
+    NavInputs,
+    decimate_rows,
+    magnetic_reference_from_log,
+    tilt_from_accel,
 )
+from .mechanization import GRAVITY, propagate
+from .models import level_heading
 from .ukf import DivergenceError, FilterResult, InnovationStats, UnscentedKalmanFilter
 
 log = logging.getLogger(__name__)
@@ -68,145 +65,10 @@ ACCEL_BIAS_NAMES = ("bax_ms2", "bay_ms2", "baz_ms2")
 ANGLES = (6, 7, 8)
 #: Measurement models the filter knows (``NavFilter(sensors=...)``).
 ALL_SENSORS = ("gps_pos", "gps_vel", "range", "flow", "baro", "gravity", "mag")
-_RANGE_RECENT_S = 1.0
 _MAX_BATCH = 512  # IMU samples per propagation call at most
 
 
-@dataclass
-class NavInputs:
-    """Sensor arrays on the rows of one multi-rate log (NaN where a sensor has no sample).
-
-    Attributes
-    ----------
-    time_s : ndarray, shape (N,)
-        Strictly increasing time, s.
-    gyro : ndarray, shape (N, 3)
-        Body rate, mean over the interval ending at the row, rad/s.
-    acc : ndarray, shape (N, 3)
-        Specific force, body axes, m/s².
-    flow : ndarray, shape (N, 2), optional
-        Optical flow, rad/s (``OPTICAL_FLOW_RAD`` convention).
-    flow_quality : ndarray, shape (N,), optional
-        Flow quality 0..255 (0 invalid); all valid when absent.
-    range_m : ndarray, shape (N,), optional
-        Downward rangefinder distance, m.
-    baro_alt : ndarray, shape (N,), optional
-        Barometric altitude, m (any datum).
-    flux : ndarray, shape (N, 3), optional
-        Magnetometer, body axes, nT.
-    gps_ned : ndarray, shape (N, 3), optional
-        GNSS position in the local NED frame, m.
-    gps_vel : ndarray, shape (N, 3), optional
-        GNSS velocity NED, m/s.
-    gps_use : ndarray of bool, shape (N,), optional
-        Which GNSS rows may be fused (all when absent).
-    heading_deg : ndarray, shape (N,), optional
-        An INS heading, used only to start when there is no magnetometer.
-    """
-
-    time_s: np.ndarray
-    gyro: np.ndarray
-    acc: np.ndarray
-    flow: np.ndarray | None = None
-    flow_quality: np.ndarray | None = None
-    range_m: np.ndarray | None = None
-    baro_alt: np.ndarray | None = None
-    flux: np.ndarray | None = None
-    gps_ned: np.ndarray | None = None
-    gps_vel: np.ndarray | None = None
-    gps_use: np.ndarray | None = None
-    heading_deg: np.ndarray | None = None
-
-
-def _tilt_from_accel(f: np.ndarray) -> tuple[float, float]:
-    """Roll and pitch (rad) of a body whose specific force is ``f`` (at rest: -g down)."""
-    roll = float(np.arctan2(-f[1], -f[2]))
-    pitch = float(np.arctan2(f[0], np.hypot(f[1], f[2])))
-    return roll, pitch
-
-
-def magnetic_reference_from_log(time_s: np.ndarray, acc: np.ndarray, gyro: np.ndarray,
-                                flux: np.ndarray, window_s: float = 60.0
-                                ) -> tuple[np.ndarray, int]:
-    """The Earth field's strength and inclination from the log itself.
-
-    Uses the rows of the first ``window_s`` seconds that have the IMU and the magnetometer
-    and where the vehicle is close to rest or level uniform flight (norm of the specific force
-    within 0.3 m/s² of g, body rate below 0.2 rad/s): the inclination is the angle between
-    the field and the accelerometer's "down".  The declination is unknown (0: the yaw is then
-    magnetic).
-
-    Parameters
-    ----------
-    time_s : ndarray, shape (N,)
-    acc, gyro, flux : ndarray, shape (N, 3)
-        Specific force (m/s²), body rate (rad/s), field (nT); NaN rows are skipped.
-    window_s : float
-        Length of the window from the first row, s.
-
-    Returns
-    -------
-    ned_nT : ndarray, shape (3,)
-        Reference field ``F (cos I, 0, sin I)``, nT.
-    n_used : int
-        Rows used (0: none qualified; ``ned_nT`` is NaN).
-    """
-    t = np.asarray(time_s, dtype=np.float64)
-    # The accelerometer and gyro at or before each row (forward fill).
-    ok_imu = np.isfinite(acc).all(axis=1) & np.isfinite(gyro).all(axis=1)
-    idx = np.maximum.accumulate(np.where(ok_imu, np.arange(len(t)), -1))
-    ok = (np.isfinite(flux).all(axis=1) & (idx >= 0) & (t <= t[0] + window_s))
-    rows = np.flatnonzero(ok)
-    if rows.size == 0:
-        return np.full(3, np.nan), 0
-    f = acc[idx[rows]]
-    w = gyro[idx[rows]]
-    m = flux[rows]
-    fn = np.linalg.norm(f, axis=1)
-    calm = (np.abs(fn - GRAVITY) < 0.3) & (np.linalg.norm(w, axis=1) < 0.2)
-    if calm.sum() < 5:
-        return np.full(3, np.nan), 0
-    f, m, fn = f[calm], m[calm], fn[calm]
-    mn = np.linalg.norm(m, axis=1)
-    sin_i = np.einsum("ij,ij->i", m, -f / fn[:, None]) / mn
-    F = float(np.median(mn))
-    inc = float(np.median(np.arcsin(np.clip(sin_i, -1, 1))))
-    return F * np.array([np.cos(inc), 0.0, np.sin(inc)]), int(calm.sum())
-
-
-def _decimate_rows(t: np.ndarray, rows: np.ndarray, interval_s: float) -> np.ndarray:
-    """The rows of ``rows`` kept when no two are closer than ``interval_s`` (greedy)."""
-    if interval_s <= 0 or rows.size == 0:
-        return rows
-    keep = []
-    last = -np.inf
-    for r, tr in zip(rows.tolist(), t[rows].tolist(), strict=True):
-        if tr - last >= interval_s - 1e-9:
-            keep.append(r)
-            last = tr
-    return np.asarray(keep, dtype=np.intp)
-
-
-@dataclass
-class _Epoch:
-    """What one row brings to fuse (filled by ``run`` in bulk or ``step`` online)."""
-
-    gps_pos: np.ndarray | None = None
-    gps_vel: np.ndarray | None = None
-    range_m: float | None = None
-    flow: np.ndarray | None = None
-    flow_gyro: np.ndarray | None = None
-    flow_interval_s: float = 0.1
-    flow_vel_lag: np.ndarray | None = None
-    baro: float | None = None
-    grav_acc: np.ndarray | None = None
-    grav_rate: np.ndarray | None = None
-    grav_interval_s: float = 0.1
-    flux: np.ndarray | None = None
-    extra: dict = field(default_factory=dict)
-
-
-class NavFilter:
+class NavFilter(FusionMixin):
     """Inertial navigation aided by flow, range, barometer, gravity, magnetic north and GNSS.
 
     Parameters
@@ -288,7 +150,7 @@ class NavFilter:
         """
         c = self.config
         self._dt_imu = float(imu_dt_s)
-        roll, pitch = _tilt_from_accel(np.asarray(acc_mean, dtype=np.float64))
+        roll, pitch = tilt_from_accel(np.asarray(acc_mean, dtype=np.float64))
         yaw_std = np.deg2rad(c.init_yaw_std_deg)
         if flux_mean is not None and np.all(np.isfinite(flux_mean)) and self.mag_ref is not None:
             decl = self._declination()
@@ -382,139 +244,6 @@ class NavFilter:
         return out
 
     # ------------------------------------------------------------------ update
-    def _fuse(self, t: float, e: _Epoch) -> None:
-        """Gate and fuse every measurement of one epoch in one joint update."""
-        c = self.config
-        ukf = self.ukf
-        x = ukf.x
-        C = dcm_body_to_ned(x[6], x[7], x[8])
-        cz = float(C[2, 2])
-        tilt_ok = cz >= np.cos(np.deg2rad(c.max_tilt_deg))
-        blocks: list[tuple[str, np.ndarray, object, np.ndarray, tuple[int, ...]]] = []
-        use = self.sensors
-        st = self.innovations
-        sh = c.gps_cep_m / 1.1774
-        if e.gps_pos is not None and "gps_pos" in use:
-            blocks.append(("gps_pos", e.gps_pos, h_gnss_pos,
-                           np.diag([sh**2, sh**2, c.gps_vert_noise_m**2]), ()))
-        if e.gps_vel is not None and "gps_vel" in use:
-            blocks.append(("gps_vel", e.gps_vel, h_gnss_vel,
-                           np.eye(3) * c.gps_vel_noise_ms**2, ()))
-        if e.range_m is not None and "range" in use:
-            r = e.range_m
-            if not (c.range_min_m <= r <= c.range_max_m) or not tilt_ok:
-                st["range"].n_gated += 1
-            elif not self._ground_set:
-                self._init_ground(r * cz)
-                self._last_range_t = t
-            else:
-                self._last_range_t = t
-                ig = self.ig
-                blocks.append(("range", np.array([r]), lambda X, ig=ig: h_range(X, ig),
-                               np.array([[c.range_noise_m**2]]), ()))
-        if e.flow is not None and "flow" in use:
-            dist = (x[self.ig] - x[2]) / max(cz, 1e-6) if self._ground_set else None
-            if not tilt_ok or dist is None or dist < c.flow_min_distance_m:
-                st["flow"].n_gated += 1
-            else:
-                dg, wm = self.ig, e.flow_gyro
-                lag = np.zeros(3) if e.flow_vel_lag is None else e.flow_vel_lag
-                var = ((c.flow_noise_ms / dist) ** 2
-                       + np.deg2rad(c.gyro_noise_dps) ** 2 * self._dt_imu
-                       / max(e.flow_interval_s, self._dt_imu))
-                blocks.append(("flow", e.flow,
-                               lambda X, dg=dg, wm=wm, lag=lag: h_flow(X, wm, dg, lag),
-                               np.eye(2) * var, ()))
-        if e.baro is not None and "baro" in use:
-            if not c.baro_with_range and t - self._last_range_t < _RANGE_RECENT_S:
-                st["baro"].n_gated += 1
-            elif self.baro_offset is None:
-                self.baro_offset = float(e.baro + x[2])
-            else:
-                off = self.baro_offset
-                blocks.append(("baro", np.array([e.baro]), lambda X, off=off: h_baro(X, off),
-                               np.array([[c.baro_noise_m**2]]), ()))
-        if e.grav_acc is not None and "gravity" in use:
-            v = x[3:6].copy()
-            prev, self._last_grav = self._last_grav, (t, v)
-            acc_est = (np.inf if prev is None or t <= prev[0]
-                       else float(np.linalg.norm(v - prev[1]) / (t - prev[0])))
-            if (abs(np.linalg.norm(e.grav_acc) - GRAVITY) > c.gravity_max_force_dev_ms2
-                    or np.linalg.norm(e.grav_rate) > np.deg2rad(c.gravity_max_rate_dps)
-                    or acc_est > c.gravity_max_accel_ms2):
-                st["gravity"].n_gated += 1
-            else:
-                var = ((c.accel_noise_g * GRAVITY) ** 2 * self._dt_imu
-                       / max(e.grav_interval_s, self._dt_imu) + c.gravity_noise_ms2**2)
-                ab = c.accel_bias
-                blocks.append(("gravity", e.grav_acc, lambda X, ab=ab: h_gravity(X, ab),
-                               np.eye(3) * var, ()))
-        if e.flux is not None and "mag" in use:
-            ref = self.mag_ref
-            mn = float(np.linalg.norm(e.flux))
-            fref = float(np.linalg.norm(ref)) if ref is not None else np.nan
-            ok = np.isfinite(fref) and abs(mn - fref) <= c.mag_field_tolerance * fref
-            if ok:
-                inc_ref = np.arcsin(ref[2] / fref)
-                inc = np.arcsin(np.clip((C @ e.flux)[2] / mn, -1, 1))
-                ok = abs(inc - inc_ref) <= np.deg2rad(c.mag_inclination_tolerance_deg)
-            if not ok:
-                st["mag"].n_gated += 1
-            else:
-                fl, decl = e.flux, self._declination()
-                blocks.append(("mag", np.zeros(1),
-                               lambda X, fl=fl, decl=decl: h_mag_heading(X, fl, decl),
-                               np.array([[np.deg2rad(c.mag_heading_noise_deg) ** 2]]), (0,)))
-        if blocks:
-            self._update_blocks(blocks)
-
-    def _update_blocks(self, blocks: list) -> None:
-        ukf = self.ukf
-        X, Wm, Wc = ukf.sigma_points()
-        preds = [np.asarray(h(X), dtype=np.float64) for _, _, h, _, _ in blocks]
-        keep = []
-        for b, Z in zip(blocks, preds, strict=True):
-            name, z, _, R, aidx = b
-            zp = Wm @ Z
-            dZ = Z - zp
-            nu = z - zp
-            if aidx:
-                ia = list(aidx)
-                zp[ia] = np.arctan2(Wm @ np.sin(Z[:, ia]), Wm @ np.cos(Z[:, ia]))
-                dZ = np.mod(Z - zp + np.pi, 2 * np.pi) - np.pi
-                nu = np.mod(z - zp + np.pi, 2 * np.pi) - np.pi
-            S = (Wc[:, None] * dZ).T @ dZ + R
-            nis = float(nu @ np.linalg.solve(S, nu))
-            if not np.isfinite(nis):
-                raise DivergenceError(f"filter diverged at t = {ukf.time_s:.3f} s: non-finite"
-                                      f" innovation of {name}")
-            stats = self.innovations[name]
-            n_rej = self._rejections.get(name, 0)
-            if nis > self._gate(z.size) and n_rej < self.config.max_rejections:
-                stats.n_rejected += 1
-                self._rejections[name] = n_rej + 1
-                continue
-            if n_rej >= self.config.max_rejections:
-                self._warn(f"{name}: {n_rej} measurements in a row failed the innovation gate;"
-                           " accepted the next one (the filter re-locks on it)")
-            self._rejections[name] = 0
-            stats.n_fused += 1
-            stats.nis_sum += nis
-            keep.append((z, Z, R, aidx))
-        if not keep:
-            return
-        z = np.concatenate([k[0] for k in keep])
-        Z = np.concatenate([k[1] for k in keep], axis=1)
-        R = np.zeros((z.size, z.size))
-        aidx: list[int] = []
-        o = 0
-        for zk, _, Rk, ak in keep:
-            m = zk.size
-            R[o:o + m, o:o + m] = Rk
-            aidx += [o + a for a in ak]
-            o += m
-        ukf.update_from_sigma(z, X, Z, Wm, Wc, R, tuple(aidx), name="_joint", gate=None)
-
     def _check(self, t: float, row: int | None = None) -> None:
         x, P = self.ukf.x, self.ukf.P
         where = f"t = {t:.3f} s" + ("" if row is None else f" (row {row})")
@@ -569,7 +298,7 @@ class NavFilter:
                 on["cum_ang"] = on["cum_ang"] + g * dt
                 on["cum_acc"] = on["cum_acc"] + a * dt
                 on["cum_v"] = on["cum_v"] + self.ukf.x[3:6] * dt
-        e = _Epoch()
+        e = Epoch()
         if gps_ned is not None and np.all(np.isfinite(gps_ned)):
             e.gps_pos = np.asarray(gps_ned, float)
         if gps_vel is not None and np.all(np.isfinite(gps_vel)):
@@ -708,7 +437,7 @@ class NavFilter:
             qok = np.isfinite(q) & (q >= max(c.flow_min_quality, 1))
         else:
             qok = np.ones(r_flow_all.size, bool)
-        r_baro = _decimate_rows(t, rows_of(inputs.baro_alt, 1), c.baro_interval_s)
+        r_baro = decimate_rows(t, rows_of(inputs.baro_alt, 1), c.baro_interval_s)
         if not c.baro_with_range and r_range.size and r_baro.size and "range" in self.sensors:
             # Barometer samples while the rangefinder is valid are not fused: no epoch for them.
             rv = np.asarray(inputs.range_m, float)[r_range]
@@ -718,7 +447,7 @@ class NavFilter:
             if "baro" in self.innovations:
                 self.innovations["baro"].n_gated += int(recent.sum())
             r_baro = r_baro[~recent]
-        r_mag = _decimate_rows(t, rows_of(flux, 3), c.mag_interval_s)
+        r_mag = decimate_rows(t, rows_of(flux, 3), c.mag_interval_s)
         # Flow: body rate averaged over the interval since the previous flow sample.
         flow_gyro = np.zeros((r_flow_all.size, 3))
         flow_T = np.full(r_flow_all.size, 0.1)
@@ -740,7 +469,7 @@ class NavFilter:
         # Gravity epochs ride on the other sensors' epochs when there are any (one update
         # instead of two), else on IMU rows; the interval means end at the last IMU sample.
         others = np.unique(np.concatenate([r_gpsp, r_gpsv, r_range, r_flow, r_baro, r_mag]))
-        r_grav = _decimate_rows(t, others if others.size else imu_rows[imu_rows > i0],
+        r_grav = decimate_rows(t, others if others.size else imu_rows[imu_rows > i0],
                                 c.gravity_interval_s)
         li_g = last_imu[r_grav]
         prev_g = np.r_[i0, li_g[:-1]]
@@ -805,7 +534,7 @@ class NavFilter:
         for r in epochs.tolist():
             advance(r)
             te = t[r]
-            e = _Epoch()
+            e = Epoch()
             j = lookup["gps_pos"].get(r)
             if j is not None:
                 e.gps_pos = gps_ned[r]

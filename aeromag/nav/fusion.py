@@ -1,0 +1,154 @@
+"""The measurement update of the navigation filter: gates, models and one joint update per
+epoch (a mixin of :class:`aeromag.nav.NavFilter`, kept apart to keep each file readable)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._core.rotations import dcm_body_to_ned
+from .inputs import Epoch
+from .mechanization import GRAVITY
+from .models import h_baro, h_flow, h_gnss_pos, h_gnss_vel, h_gravity, h_mag_heading, h_range
+from .ukf import DivergenceError
+
+__all__ = ["FusionMixin"]
+
+_RANGE_RECENT_S = 1.0
+
+
+class FusionMixin:
+    """``_fuse`` (gate every measurement of an epoch) and ``_update_blocks`` (one joint
+    unscented update with block-diagonal noise, each block gated on its own NIS)."""
+
+    def _fuse(self, t: float, e: Epoch) -> None:
+        """Gate and fuse every measurement of one epoch in one joint update."""
+        c = self.config
+        ukf = self.ukf
+        x = ukf.x
+        C = dcm_body_to_ned(x[6], x[7], x[8])
+        cz = float(C[2, 2])
+        tilt_ok = cz >= np.cos(np.deg2rad(c.max_tilt_deg))
+        blocks: list[tuple[str, np.ndarray, object, np.ndarray, tuple[int, ...]]] = []
+        use = self.sensors
+        st = self.innovations
+        sh = c.gps_cep_m / 1.1774
+        if e.gps_pos is not None and "gps_pos" in use:
+            blocks.append(("gps_pos", e.gps_pos, h_gnss_pos,
+                           np.diag([sh**2, sh**2, c.gps_vert_noise_m**2]), ()))
+        if e.gps_vel is not None and "gps_vel" in use:
+            blocks.append(("gps_vel", e.gps_vel, h_gnss_vel,
+                           np.eye(3) * c.gps_vel_noise_ms**2, ()))
+        if e.range_m is not None and "range" in use:
+            r = e.range_m
+            if not (c.range_min_m <= r <= c.range_max_m) or not tilt_ok:
+                st["range"].n_gated += 1
+            elif not self._ground_set:
+                self._init_ground(r * cz)
+                self._last_range_t = t
+            else:
+                self._last_range_t = t
+                ig = self.ig
+                blocks.append(("range", np.array([r]), lambda X, ig=ig: h_range(X, ig),
+                               np.array([[c.range_noise_m**2]]), ()))
+        if e.flow is not None and "flow" in use:
+            dist = (x[self.ig] - x[2]) / max(cz, 1e-6) if self._ground_set else None
+            if not tilt_ok or dist is None or dist < c.flow_min_distance_m:
+                st["flow"].n_gated += 1
+            else:
+                dg, wm = self.ig, e.flow_gyro
+                lag = np.zeros(3) if e.flow_vel_lag is None else e.flow_vel_lag
+                var = ((c.flow_noise_ms / dist) ** 2
+                       + np.deg2rad(c.gyro_noise_dps) ** 2 * self._dt_imu
+                       / max(e.flow_interval_s, self._dt_imu))
+                blocks.append(("flow", e.flow,
+                               lambda X, dg=dg, wm=wm, lag=lag: h_flow(X, wm, dg, lag),
+                               np.eye(2) * var, ()))
+        if e.baro is not None and "baro" in use:
+            if not c.baro_with_range and t - self._last_range_t < _RANGE_RECENT_S:
+                st["baro"].n_gated += 1
+            elif self.baro_offset is None:
+                self.baro_offset = float(e.baro + x[2])
+            else:
+                off = self.baro_offset
+                blocks.append(("baro", np.array([e.baro]), lambda X, off=off: h_baro(X, off),
+                               np.array([[c.baro_noise_m**2]]), ()))
+        if e.grav_acc is not None and "gravity" in use:
+            v = x[3:6].copy()
+            prev, self._last_grav = self._last_grav, (t, v)
+            acc_est = (np.inf if prev is None or t <= prev[0]
+                       else float(np.linalg.norm(v - prev[1]) / (t - prev[0])))
+            if (abs(np.linalg.norm(e.grav_acc) - GRAVITY) > c.gravity_max_force_dev_ms2
+                    or np.linalg.norm(e.grav_rate) > np.deg2rad(c.gravity_max_rate_dps)
+                    or acc_est > c.gravity_max_accel_ms2):
+                st["gravity"].n_gated += 1
+            else:
+                var = ((c.accel_noise_g * GRAVITY) ** 2 * self._dt_imu
+                       / max(e.grav_interval_s, self._dt_imu) + c.gravity_noise_ms2**2)
+                ab = c.accel_bias
+                blocks.append(("gravity", e.grav_acc, lambda X, ab=ab: h_gravity(X, ab),
+                               np.eye(3) * var, ()))
+        if e.flux is not None and "mag" in use:
+            ref = self.mag_ref
+            mn = float(np.linalg.norm(e.flux))
+            fref = float(np.linalg.norm(ref)) if ref is not None else np.nan
+            ok = np.isfinite(fref) and abs(mn - fref) <= c.mag_field_tolerance * fref
+            if ok:
+                inc_ref = np.arcsin(ref[2] / fref)
+                inc = np.arcsin(np.clip((C @ e.flux)[2] / mn, -1, 1))
+                ok = abs(inc - inc_ref) <= np.deg2rad(c.mag_inclination_tolerance_deg)
+            if not ok:
+                st["mag"].n_gated += 1
+            else:
+                fl, decl = e.flux, self._declination()
+                blocks.append(("mag", np.zeros(1),
+                               lambda X, fl=fl, decl=decl: h_mag_heading(X, fl, decl),
+                               np.array([[np.deg2rad(c.mag_heading_noise_deg) ** 2]]), (0,)))
+        if blocks:
+            self._update_blocks(blocks)
+
+    def _update_blocks(self, blocks: list) -> None:
+        ukf = self.ukf
+        X, Wm, Wc = ukf.sigma_points()
+        preds = [np.asarray(h(X), dtype=np.float64) for _, _, h, _, _ in blocks]
+        keep = []
+        for b, Z in zip(blocks, preds, strict=True):
+            name, z, _, R, aidx = b
+            zp = Wm @ Z
+            dZ = Z - zp
+            nu = z - zp
+            if aidx:
+                ia = list(aidx)
+                zp[ia] = np.arctan2(Wm @ np.sin(Z[:, ia]), Wm @ np.cos(Z[:, ia]))
+                dZ = np.mod(Z - zp + np.pi, 2 * np.pi) - np.pi
+                nu = np.mod(z - zp + np.pi, 2 * np.pi) - np.pi
+            S = (Wc[:, None] * dZ).T @ dZ + R
+            nis = float(nu @ np.linalg.solve(S, nu))
+            if not np.isfinite(nis):
+                raise DivergenceError(f"filter diverged at t = {ukf.time_s:.3f} s: non-finite"
+                                      f" innovation of {name}")
+            stats = self.innovations[name]
+            n_rej = self._rejections.get(name, 0)
+            if nis > self._gate(z.size) and n_rej < self.config.max_rejections:
+                stats.n_rejected += 1
+                self._rejections[name] = n_rej + 1
+                continue
+            if n_rej >= self.config.max_rejections:
+                self._warn(f"{name}: {n_rej} measurements in a row failed the innovation gate;"
+                           " accepted the next one (the filter re-locks on it)")
+            self._rejections[name] = 0
+            stats.n_fused += 1
+            stats.nis_sum += nis
+            keep.append((z, Z, R, aidx))
+        if not keep:
+            return
+        z = np.concatenate([k[0] for k in keep])
+        Z = np.concatenate([k[1] for k in keep], axis=1)
+        R = np.zeros((z.size, z.size))
+        aidx: list[int] = []
+        o = 0
+        for zk, _, Rk, ak in keep:
+            m = zk.size
+            R[o:o + m, o:o + m] = Rk
+            aidx += [o + a for a in ak]
+            o += m
+        ukf.update_from_sigma(z, X, Z, Wm, Wc, R, tuple(aidx), name="_joint", gate=None)
