@@ -123,6 +123,29 @@ def aeromag(argv: list[str], repeat: int, timeout: float) -> dict:
     return best(repeat, _AEROMAG, timeout, ARGV=[str(a) for a in argv])
 
 
+#: deinterf's peak memory per row of a 9-column log (1.68 GB at 1e6 rows, measured).
+DEINTERF_BYTES_PER_ROW = 1700
+
+
+def mem_available() -> float:
+    """Bytes of memory available now (``MemAvailable``), or inf when unknown."""
+    try:
+        with open("/proc/meminfo") as fh:
+            return next(int(ln.split()[1]) * 1024 for ln in fh if ln.startswith("MemAvailable"))
+    except (OSError, StopIteration):
+        return float("inf")
+
+
+def deinterf_fits(n: int) -> bool:
+    """Whether deinterf's fit of ``n`` rows fits in the memory available now (with room)."""
+    need = DEINTERF_BYTES_PER_ROW * n
+    if mem_available() < 1.5 * need:
+        print(f"deinterf at {n:.0e} rows needs about {need / 1e9:.0f} GB; only"
+              f" {mem_available() / 1e9:.0f} GB available: not run", file=sys.stderr)
+        return False
+    return True
+
+
 def have_deinterf() -> bool:
     p = subprocess.run([sys.executable, "-c", "import deinterf"], capture_output=True)
     return p.returncode == 0
@@ -193,7 +216,8 @@ def main() -> None:
         r["calibrate"] = aeromag(["calibrate", src, "-o", d / f"model_{n}.json"], rep,
                                  args.timeout)
         r["deinterf"] = (best(rep, _DEINTERF, args.timeout, SRC=str(src),
-                              OUT=str(d / f"deinterf_{n}.json")) if deinterf else None)
+                              OUT=str(d / f"deinterf_{n}.json"))
+                         if deinterf and deinterf_fits(n) else None)
         if not model.exists():
             raise SystemExit(f"no model from the calibration of {src}: {r['calibrate']}")
         r["floor"] = best(rep, _FLOOR, args.timeout, SRC=str(src), OUT=str(d / "floor.csv"))
@@ -213,7 +237,8 @@ def main() -> None:
                               "--no-decimate"], 1, args.timeout) if _has_no_decimate()
                      else None)
         r["deinterf"] = (best(1, _DEINTERF, args.timeout, SRC=str(src),
-                              OUT=str(d / f"deinterf1k_{n}.json")) if deinterf else None)
+                              OUT=str(d / f"deinterf1k_{n}.json"))
+                         if deinterf and deinterf_fits(n) else None)
         rows1k.append((n, src.stat().st_size / 1e6, n * width / 1e6, r))
         log(f"1 kHz {n}: {json.dumps(r)}")
 
