@@ -232,6 +232,8 @@ def read_csv(path: Path, spare_fields: int = 1, *, allow_truncated: bool = False
         raise InputError(f"{path}: file not found")
     check_text_file(path)
     head = _csv_header_fields(path)
+    if head is None and first_undecodable_line(path) is not None:
+        raise InputError(not_utf8_message(path))
     names, header_line = head if head is not None else (None, 1)
     if names is not None:
         check_unique_names(names, str(path))
@@ -437,7 +439,10 @@ def _arrow_numeric_frame(table: Any) -> pd.DataFrame | None:
                                  table.column(i).cast(pa.float64()))
     # Column by column, freeing each Arrow column once converted; then hand the parser's
     # buffers back to the system (at 1e6 rows the process keeps ~100 MB, not ~360 MB).
-    df = table.to_pandas(split_blocks=True, self_destruct=True)
+    try:
+        df = table.to_pandas(split_blocks=True, self_destruct=True)
+    except UnicodeDecodeError:  # column names that are not UTF-8: pandas words the error
+        return None
     del table
     pa.default_memory_pool().release_unused()
     return df
