@@ -200,3 +200,12 @@ def test_cli_no_decimate_flag(tmp_path):
         assert res.exit_code == 0, res.output
         rep = __import__("json").loads(out.read_text())
         assert rep["fit"]["decimation_factor"] == q
+
+
+def test_decimate_is_a_filter_option():
+    from aeromag.compensation.config import CompensationConfig, FilterOptions
+
+    assert CompensationConfig().filter.decimate is True
+    assert CompensationConfig(decimate=False).filter.decimate is False
+    cfg = CompensationConfig.from_groups(filter=FilterOptions(decimate=False))
+    assert cfg.decimate is False

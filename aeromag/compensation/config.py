@@ -66,6 +66,9 @@ class FilterOptions:
         Low-pass ``mag_comp`` at all.
     trim_s : float or None
         Filter edge dropped at each end of every piece before fitting [s].
+    decimate : bool
+        Fit a high-rate log on a copy decimated to >= 80x the band's upper edge
+        (:mod:`aeromag.compensation.decimation`); False fits every sample.
     """
 
     band_hz: tuple[float, float] = (0.1, 0.9)
@@ -73,6 +76,7 @@ class FilterOptions:
     lowpass_hz: float | None = None
     filter_output: bool = True
     trim_s: float | None = None
+    decimate: bool = True
 
     def __post_init__(self) -> None:
         lo, hi = (float(self.band_hz[0]), float(self.band_hz[1]))
