@@ -19,7 +19,8 @@ from .conftest import hand_flight
 
 runner = CliRunner()
 
-COMMANDS = ("compensate", "calibrate", "simulate", "track", "batch", "report", "compass")
+COMMANDS = ("compensate", "calibrate", "simulate", "track", "batch", "report", "compass", "detect",
+            "navigate")
 
 
 def _help(*args: str) -> str:
