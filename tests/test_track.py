@@ -161,3 +161,125 @@ def test_check_track_uses_leg_column_and_reports_every_leg():
     assert np.allclose(res.data["xtrack_m"][on], 1.5, atol=2e-3)
     assert not res.data["alarm"][~on].any()
     assert "heading_diff_deg" not in res.data.columns
+
+
+# --------------------------------------------------------------------------- issue 14 / 15
+from aeromag.detection.alarms import Alarms  # noqa: E402
+from aeromag.synthetic.mission import simulate_mission  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def small_mission():
+    return simulate_mission(seed=5, line_m=200.0, n_lines=2, disturbances={2: "fast"})
+
+
+def test_heading_sigma_floor_stops_alarm_storms_on_clean_lines():
+    """A calm window quieter than the compass (here a noise-free fluxgate, sigma ~0.005 deg)
+    made every tiny later wobble a 5-sigma heading alarm; the floor (0.5 deg) stops it."""
+    df, plan, _ = simulate_mission(seed=2, line_m=200.0, n_lines=2, disturbances={},
+                                   flux_noise_nT=1.0, gust_m_s=0.05)
+    raw = check_track(df, plan, heading_sigma_floor_deg=0.0)
+    hd = raw.report["heading_detector"]
+    assert hd["sigma_raw_deg"] < 0.05 and int(raw.data["heading_alarm"].sum()) >= 10
+    res = check_track(df, plan)
+    hd = res.report["heading_detector"]
+    assert hd["sigma_floor_deg"] == 0.5 and hd["sigma_deg"] == 0.5 and hd["floored"]
+    assert not res.data["heading_alarm"].any() and res.report["flagged_legs"] == []
+    with pytest.raises(InputError, match="--heading-sigma-floor"):
+        check_track(df, plan, heading_sigma_floor_deg=-1.0)
+
+
+def test_altitude_relative_to_home_is_found_and_removed(small_mission):
+    df, plan, _ = small_mission
+    ref = check_track(df, plan)
+    rel = df.assign(alt=df["alt"] - float(plan["alt"].iloc[0]) + 40.0)  # relative to take-off
+    res = check_track(rel, plan)
+    off = res.report["altitude_offset"]
+    assert off["mode"] == "auto"
+    assert off["applied_m"] == pytest.approx(40.0 - float(plan["alt"].iloc[0]), abs=0.05)
+    assert any("altitude reference" in w for w in res.report["warnings"])
+    assert res.report["flagged_legs"] == ref.report["flagged_legs"] == [2]
+    np.testing.assert_allclose(res.data["xtrack_m"], ref.data["xtrack_m"], atol=0.05)
+    # without the correction every sample is off the legs, and the report says what to check
+    none = check_track(rel, plan, altitude_offset="none")
+    assert none.report["n_on_leg"] == 0 and none.report["flagged_legs"] == []
+    assert any("altitude reference" in w for w in none.report["warnings"])
+    # horizontal only: the legs are found and the distance ignores the datum
+    hor = check_track(rel, plan, altitude_offset="none", horizontal=True)
+    assert hor.report["distance"] == "horizontal" and hor.report["flagged_legs"] == [2]
+    x = hor.data["xtrack_m"].to_numpy()
+    np.testing.assert_allclose(x[np.isfinite(x)],
+                               np.abs(hor.data["xtrack_h_m"].to_numpy()[np.isfinite(x)]))
+    # a given offset; and a small constant error is not a datum (it is reported as deviation)
+    given = check_track(rel, plan, altitude_offset=40.0 - float(plan["alt"].iloc[0]))
+    assert given.report["altitude_offset"]["mode"] == "given"
+    assert given.report["flagged_legs"] == [2]
+    high = check_track(df.assign(alt=df["alt"] + 2.0), plan)
+    assert high.report["altitude_offset"]["applied_m"] == 0.0
+    assert high.report["flagged_legs"] == [0, 1, 2]
+    with pytest.raises(InputError, match="--altitude-offset"):
+        check_track(df, plan, altitude_offset="ellipsoid")
+
+
+def test_reversed_and_far_plans_warn(small_mission):
+    df, plan, _ = small_mission
+    rev = check_track(df, plan.iloc[::-1].reset_index(drop=True))
+    assert rev.report["n_on_leg"] == 0
+    assert any("backwards" in w and "reversed" in w for w in rev.report["warnings"])
+    far = check_track(df, plan.assign(lat=plan["lat"] + 0.05))
+    assert any("within" in w and "site" in w for w in far.report["warnings"])
+    ok = check_track(df, plan)
+    assert ok.report["warnings"] == []
+
+
+def test_session_of_flights_with_landings_between():
+    """One 100.5 m leg flown in three separate flights (take-off, leg, landing, ground time)
+    concatenated into one session log, as an ArduCopter session is (the autopilot's leg ends
+    2 m before the waypoint, its WPNAV_RADIUS): every flight is a pass,
+    >= 95 % of the rows flown on the leg get it, and the track alarms are no more than the
+    rows whose true deviation is beyond the threshold plus 2 % of the log."""
+    wps = np.array([[0.0, 0.0, 0.0], [100.5, 0.0, 0.0]])
+    parts, t0 = [], 0.0
+    for seed in range(3):
+        df, plan, _ = simulate_mission(seed=seed, waypoints_ned=wps, ground_s=20.0,
+                                       disturbances={0: "fast"} if seed == 1 else {},
+                                       onset_after_s=6.0, wp_radius_m=2.0)
+        parts.append(df.assign(time=df["time"] + t0))
+        t0 = float(parts[-1]["time"].iloc[-1]) + 0.1
+    log = pd.concat(parts, ignore_index=True)
+    res = check_track(log, plan)
+    row = res.legs[0]
+    assert row["n_passes"] == 3
+    flown = (log["truth_leg"] == 0).to_numpy()
+    lab = res.data["leg"].fillna(-1).to_numpy(dtype=np.int64)
+    assert (lab[flown] == 0).mean() >= 0.95
+    beyond = int((log["truth_xtrack_m"] > 1.0).sum())
+    assert int(res.data["track_alarm"].sum()) <= beyond + 0.02 * len(log)
+    assert not res.data["alarm"].to_numpy()[log["truth_phase"].to_numpy() != "leg"].any()
+    assert [p["flagged"] for p in row["passes"]] == [False, True, False]
+
+
+def test_more_detectors_and_given_inputs(small_mission):
+    """A third detector (e.g. the particle filter) is one more Alarms; position and heading can
+    come from elsewhere (a navigation filter)."""
+    df, plan, _ = small_mission
+    n = len(df)
+    fake = np.zeros(n, bool)
+    fake[n // 2: n // 2 + 3] = True
+    pf = Alarms(name="pf", time_s=df["time"], stat=fake.astype(float), alarm=fake,
+                threshold=0.5)
+    res = check_track(df, plan, detectors=[pf])
+    assert "pf_alarm" in res.data.columns
+    on = res.data["leg"].notna().to_numpy()
+    assert (res.data["pf_alarm"].to_numpy() == (fake & on)).all()
+    assert all("first_pf_alarm_time" in row for row in res.legs)
+    assert [d["detector"] for d in res.report["detectors"]] == ["track", "heading", "pf"]
+    base = check_track(df, plan)
+    assert (res.data["alarm"] >= base.data["alarm"]).all()
+    # explicit position and heading arrays give the same result as the log's columns
+    same = check_track(df.drop(columns=["lat", "lon", "alt"]), plan,
+                       position=(df["lat"], df["lon"], df["alt"]),
+                       heading_deg=df["heading"].to_numpy())
+    assert same.report["position_input"] == "given"
+    pd.testing.assert_series_equal(same.data["alarm"], base.data["alarm"])
+    assert same.legs == base.legs

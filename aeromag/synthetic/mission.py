@@ -153,6 +153,7 @@ def simulate_mission(
     home_ne_m: tuple[float, float] | None = None,
     ground_s: float = 0.0,
     refly_legs: tuple[int, ...] = (),
+    wp_radius_m: float = 0.0,
 ) -> tuple[pd.DataFrame, pd.DataFrame, dict[str, Any]]:
     """Simulate a lawn-mower survey mission with magnetic heading disturbances.
 
@@ -210,6 +211,10 @@ def simulate_mission(
         Legs flown twice: after the first pass the vehicle transits back to the leg's first
         waypoint (off plan, along the leg reversed) and flies it again; a disturbance of the
         leg acts on the first pass only.
+    wp_radius_m : float
+        The leg ends when the vehicle is this close to its last waypoint, m (ArduCopter's
+        ``WPNAV_RADIUS``; it then settles there in the hover phase); 0: the leg lasts until
+        the vehicle has stopped at the waypoint.
 
     Returns
     -------
@@ -336,7 +341,8 @@ def simulate_mission(
             an_c = kd * vn + kv * (vref * un - vn) - kp * cn
             ae_c = kd * ve + kv * (vref * ue - ve) - kp * ce
             vd_c = 0.5 * (a[2] + min(max(along / length, 0.0), 1.0) * (b[2] - a[2]) - pd_)
-            if abs(rem) < 0.3 and math.hypot(vn, ve) < 0.3:
+            if (abs(rem) < 0.3 and math.hypot(vn, ve) < 0.3) or (
+                    phase == "leg" and wp_radius_m > 0 and rem < wp_radius_m):
                 phase, phase_t = ("hover" if phase == "leg" else after_transit), t
         else:  # land
             land_n, land_e = (home if home_ne_m is not None else (wps[-1][0], wps[-1][1]))
