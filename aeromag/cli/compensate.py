@@ -110,14 +110,16 @@ def _plot(res: object, plot: Path | None, cfg: object) -> Path | None:
 
 
 def _summary(report: dict, out: Path, out_json: Path | None) -> None:
+    from ..compensation.report import dropped_summary
+
     m = report.get("metrics", {})
     scr = report.get("screening", {})
     segs = report.get("segments", [])
     kept = sum(1 for s in segs if s.get("kept"))
     line = (f"wrote {out}" + (f" and {out_json}" if out_json else "")
             + f": {kept}/{len(segs)} segments kept")
-    if scr.get("dropped"):
-        line += f" (dropped {', '.join(map(str, scr['dropped']))})"
+    if dropped_summary(report):
+        line += f" ({dropped_summary(report)})"
     ir = m.get("improvement_ratio")
     rs = m.get("residual_std_nT")
     if ir is not None and rs is not None:

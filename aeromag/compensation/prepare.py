@@ -34,6 +34,8 @@ class Prepared:
     mag_from_flux: bool
     line_of_segment: dict[int, float] | None = None
     field_nT: float = float("nan")  # median total field (mag, else the fluxgate's) [nT]
+    heading_deg: np.ndarray | None = None  # the log's heading column, when it has one [deg]
+    from_line: bool = False  # segments are the log's flight lines (not time windows)
 
 
 
@@ -107,8 +109,9 @@ def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = N
         line = None
     segment = assign_segments(t, stretch, line, cfg.segment_seconds)
     fs = sampling_rate(t)
+    heading = df["heading"].to_numpy(dtype=np.float64) if "heading" in df.columns else None
     return Prepared(t, flux, mag, flux_ok, valid, stretch, segment, fs, src, mag_from_flux,
-                    line_labels(line), field_nT)
+                    line_labels(line), field_nT, heading, line is not None)
 
 
 def _every(x: np.ndarray, most: int = 100_000) -> int:

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .. import __version__
+from .._core.angles import circular_mean_rad
 from .config import CompensationConfig, _config_dict
 from .model import TLModel
 from .screening import RULE
@@ -23,7 +24,7 @@ from .segments import segment_counts
 if TYPE_CHECKING:
     from .fit import FitOutcome
 
-__all__ = ["AppliedRun", "applied_report", "fit_report"]
+__all__ = ["AppliedRun", "applied_report", "dropped_summary", "fit_report"]
 
 
 def _header(source: str) -> dict[str, Any]:
@@ -141,7 +142,60 @@ def _segment_entries(fit: FitOutcome) -> list[dict[str, Any]]:
     if prep.line_of_segment:
         for e in segments:
             e["line"] = prep.line_of_segment.get(e["id"])
+    _explain_dropped(fit, segments)
     return segments
+
+
+def _explain_dropped(fit: FitOutcome, segments: list[dict[str, Any]]) -> None:
+    """Add to each dropped segment why (words and numbers), its time span and heading."""
+    stats, out, prep = fit.stats, fit.screening, fit.prep
+    row = {int(s): j for j, s in enumerate(stats.ids)}
+    for e in segments:
+        if e["kept"]:
+            continue
+        if prep.from_line and "line" not in e:
+            e["line"] = e["id"]  # integer line numbers are the segment ids
+        j = row.get(e["id"])
+        if j is not None and out.screen is not None and out.residual_pool_nT is not None:
+            r, ex = float(out.residual_pool_nT[j]), float(out.excess[j])
+            if not out.screen.kept[j]:
+                e["reason"] = (f"PCA outlier: robust distance\u00b2 {out.screen.distance[j]:.4g} >"
+                               f" {out.screen.cutoff:.3g}; pooled-fit residual {r:.3g} nT ="
+                               f" {ex:.3g}x the median")
+            else:
+                e["reason"] = (f"faulty although inside the PCA cluster: pooled-fit residual"
+                               f" {r:.3g} nT = {ex:.3g}x the median, own-fit excess"
+                               f" {out.own_ratio[j]:.3g}x its median")
+        sel = prep.segment == e["id"]
+        if sel.any():
+            t = prep.time[sel]
+            e["start_time"], e["end_time"] = float(t[0]), float(t[-1])
+            if prep.heading_deg is not None:
+                h = prep.heading_deg[sel]
+                h = h[np.isfinite(h)]
+                e["heading_deg"] = (float(np.rad2deg(circular_mean_rad(np.deg2rad(h))) % 360.0)
+                                    if h.size else None)
+
+
+def dropped_summary(report: dict[str, Any]) -> str:
+    """``dropped 1 segment: line 2`` (or ``segment 9`` without lines); empty when none.
+
+    Parameters
+    ----------
+    report : dict
+        A report with ``segments``.
+
+    Returns
+    -------
+    str
+        The phrase for the command line's one-line summary.
+    """
+    gone = [e for e in report.get("segments", []) if not e.get("kept")]
+    if not gone:
+        return ""
+    names = [f"line {e['line']:g}" if e.get("line") is not None else f"segment {e['id']}"
+             for e in gone]
+    return f"dropped {len(gone)} segment{'s' if len(gone) > 1 else ''}: {', '.join(names)}"
 
 
 def _screening_block(fit: FitOutcome) -> dict[str, Any]:

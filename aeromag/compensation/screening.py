@@ -434,6 +434,10 @@ class ScreeningOutcome:
         What the loop had to say (in the report's ``screening.notes``).
     excess, own_ratio : ndarray or None
         Pooled-fit residual over the kept median, own-fit excess over its kept median.
+    residual_pool_nT : ndarray or None
+        Band-passed residual std of each segment under the pooled fit of the last round [nT].
+    masked : int or None
+        Index of the PCA inlier the last round dropped as faulty (:func:`masked_outlier`).
     """
 
     kept: np.ndarray
@@ -445,6 +449,8 @@ class ScreeningOutcome:
     notes: list[str]
     excess: np.ndarray | None = None
     own_ratio: np.ndarray | None = None
+    residual_pool_nT: np.ndarray | None = None
+    masked: int | None = None
 
 
 def screen_segments(stats: SegmentStats, cfg: CompensationConfig) -> ScreeningOutcome:
@@ -464,7 +470,7 @@ def screen_segments(stats: SegmentStats, cfg: CompensationConfig) -> ScreeningOu
     """
     m = len(stats.ids)
     fit_terms_k = stats.gram.shape[1]
-    excess = own_ratio = None
+    excess = own_ratio = r_pool = masked = None
     kept = np.ones(m, dtype=bool)
     screen: ScreenResult | None = None
     notes: list[str] = []
@@ -518,4 +524,4 @@ def screen_segments(stats: SegmentStats, cfg: CompensationConfig) -> ScreeningOu
         seg_coef = shrunk_segment_fits(stats.gram, stats.rhs, stats.n.astype(float), pooled0,
                                        np.diag(G0) / stats.n.sum(), cfg.shrink)
     return ScreeningOutcome(kept, bool(screened), screen, seg_coef, readmitted, iterations,
-                            notes, excess, own_ratio)
+                            notes, excess, own_ratio, r_pool, masked)

@@ -1,0 +1,53 @@
+"""Outputs a surveyor can trust (issue 15, the compensation side): reasons for every dropped
+segment, the fluxgate magnitude only on request, honest headline metrics, short logs refused,
+calibration without lines, warnings recorded and --strict."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from aeromag.cli import app
+
+ROOT = Path(__file__).resolve().parents[1]
+SAMPLES = ROOT / "data_samples"
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def samples(tmp_path_factory):
+    d = tmp_path_factory.mktemp("trust")
+    for name in ("survey.csv", "calibration.csv"):
+        shutil.copy(SAMPLES / name, d / name)
+    return d
+
+
+@pytest.fixture(scope="module")
+def survey_run(samples):
+    out = samples / "out" / "survey_comp.csv"
+    r = runner.invoke(app, ["compensate", str(samples / "survey.csv"), "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    return r.output, json.loads(out.with_suffix(".json").read_text())
+
+
+def test_each_dropped_segment_says_why_where_and_when(survey_run):
+    """Item 10: the shipped survey's injected fault (line 2) is explained in words and
+    numbers, with its line, time span and heading; the summary names the line."""
+    output, rep = survey_run
+    dropped = [e for e in rep["segments"] if not e["kept"]]
+    assert [e["line"] for e in dropped] == [2]
+    e = dropped[0]
+    assert e["reason"].startswith("PCA outlier: robust distance\u00b2 ")
+    d2, cutoff = (float(x) for x in e["reason"].split("robust distance\u00b2 ")[1]
+                  .split(";")[0].split(" > "))
+    assert d2 == pytest.approx(e["robust_distance"], rel=1e-3) and d2 > cutoff
+    assert f"= {e['residual_excess']:.3g}x the median" in e["reason"]
+    assert e["start_time"] < e["end_time"]
+    assert 0 <= e["heading_deg"] < 360
+    assert "dropped 1 segment: line 2" in output
+    kept = [e for e in rep["segments"] if e["kept"]]
+    assert all("reason" not in e and "start_time" not in e for e in kept)
