@@ -1,6 +1,8 @@
-"""Deprecated: the heading detector moved to :mod:`aeromag.detection.heading` and the
-combination of detectors to :mod:`aeromag.detection.combine` (this path works for one
-release)."""
+"""Deprecated: the heading detector and the combination of detectors moved.
+
+They are :mod:`aeromag.detection.heading` and :mod:`aeromag.detection.combine`; this path works
+for one release.
+"""
 
 from __future__ import annotations
 

@@ -1,5 +1,8 @@
-"""Deprecated: the mission simulator moved to :mod:`aeromag.synthetic.mission` and its files
-to :mod:`aeromag.workflows.mission` (this path works for one release)."""
+"""Deprecated: the mission simulator moved.
+
+It is :mod:`aeromag.synthetic.mission` and its files :mod:`aeromag.workflows.mission`; this path
+works for one release.
+"""
 
 from __future__ import annotations
 

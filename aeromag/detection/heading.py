@@ -181,8 +181,7 @@ def calm_mask(time: np.ndarray, spec: CalmWindow) -> np.ndarray:
 
 @dataclass
 class HeadingResult(Alarms):
-    """Output of :func:`heading_detector`: the shared :class:`~aeromag.detection.Alarms` with
-    the heading detector's own fields.
+    """Output of :func:`heading_detector`: the shared ``Alarms`` with the detector's fields.
 
     ``stat`` is ``abs(wrap(diff - mean))`` [deg] and ``threshold`` is ``k * sigma`` [deg].
 

@@ -1,5 +1,4 @@
-"""Mission plans from files: a CSV of waypoints, QGroundControl ``.plan``, Mission Planner
-``.waypoints``.
+"""Mission plans from files: CSV of waypoints, QGroundControl ``.plan``, ``.waypoints``.
 
 * **CSV**: a header row and columns ``lat``, ``lon`` (degrees, WGS84) and ``alt`` (m), one row
   per waypoint in flight order.

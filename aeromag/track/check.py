@@ -93,11 +93,26 @@ class TrackResult:
         Per-leg summary (see :func:`leg_summary`).
     report : dict
         The JSON report: ``{"legs": legs, ...settings and heading statistics}``.
+    plan : DataFrame or None
+        The validated plan the log was checked against.
     """
 
     data: pd.DataFrame
     legs: list[dict[str, Any]] = field(default_factory=list)
     report: dict[str, Any] = field(default_factory=dict)
+    plan: pd.DataFrame | None = None
+
+    def plot_map(self, **kwargs: Any) -> Any:
+        """Planned vs flown track with the alarms (:func:`~aeromag.plot.track.plot_track_map`)."""
+        from ..plot.track import plot_track_map
+
+        return plot_track_map(self, **kwargs)
+
+    def plot_timeseries(self, **kwargs: Any) -> Any:
+        """Deviation and heading difference against time (``plot_track_timeseries``)."""
+        from ..plot.track import plot_track_timeseries
+
+        return plot_track_timeseries(self, **kwargs)
 
 
 def check_track(
@@ -303,7 +318,7 @@ def check_track(
         "warnings": warnings,
     }
     log.info("%s: %d/%d legs flagged", src, report["n_flagged"], n_legs)
-    return TrackResult(data=data, legs=legs, report=report)
+    return TrackResult(data=data, legs=legs, report=report, plan=plan)
 
 
 def _offset_spec(spec: str | float) -> str | float:

@@ -1,5 +1,7 @@
-"""``aeromag track``, file in, files out: read a log and a plan, check the track, write OUT.csv
-and OUT.json."""
+"""``aeromag track``, file in, files out.
+
+Read a log and a plan, check the track, write OUT.csv and OUT.json.
+"""
 
 from __future__ import annotations
 
