@@ -21,6 +21,7 @@ module             what it holds
 =================  ===============================================================
 """
 
+from . import uav_logs  # noqa: F401 - registers the ulog and dataflash formats
 from .columns import (
     CANONICAL_COLUMNS,
     FIELD_UNITS_TO_NT,
