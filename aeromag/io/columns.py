@@ -274,7 +274,8 @@ def apply_column_map(
         if src not in df.columns:
             avail = ", ".join(map(str, df.columns[:20]))
             raise InputError(
-                f"{source}: column {src!r} (mapped to {name!r}) not found; columns are: {avail}"
+                f"{clean(source)}: column {clean(src)!r} (mapped to {name!r}) not found; fix the"
+                f" map (--col {name}=SOURCE); columns are: {clean(avail)}"
             )
         rename[src] = name
     # A canonical name that is also an existing, unmapped column would collide: drop the old one.

@@ -227,9 +227,9 @@ def read_csv(path: Path, spare_fields: int = 1, *, allow_truncated: bool = False
     """
     path = Path(path)
     if path.is_dir():
-        raise InputError(f"{path}: is a folder, not a log file")
+        raise InputError(f"{path}: is a folder, not a log file; give the log file itself")
     if not path.exists():
-        raise InputError(f"{path}: file not found")
+        raise InputError(f"{path}: file not found; check the path")
     check_text_file(path)
     head = _csv_header_fields(path)
     if head is None and first_undecodable_line(path) is not None:
@@ -334,7 +334,7 @@ def _read_csv_pandas(path: Path, cols: list[str] | None, n_header: int = 0,
         raise InputError(f"{path}: the rows have more fields than the header names columns;"
                          " fix the header or the rows (or check the delimiter)") from None
     except FileNotFoundError:
-        raise InputError(f"{path}: file not found") from None
+        raise InputError(f"{path}: file not found; check the path") from None
     except pd.errors.EmptyDataError:
         if cols is not None:  # a header and no data row
             return pd.DataFrame({c: pd.Series(dtype=np.float64) for c in cols})
@@ -397,7 +397,7 @@ def _read_csv_arrow(path: Path, names: list[str] | None = None) -> pd.DataFrame 
     except ImportError:  # pragma: no cover - pyarrow is optional
         return None
     if not path.exists():
-        raise InputError(f"{path}: file not found")
+        raise InputError(f"{path}: file not found; check the path")
     if path.stat().st_size == 0:
         raise InputError(f"{path}: the file is empty; expected a CSV log with a header row")
     if names is not None:

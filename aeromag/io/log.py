@@ -106,7 +106,7 @@ def read_log(
     p = Path(path)
     source = str(p)
     if not p.exists():
-        raise InputError(f"{clean(source)}: file not found")
+        raise InputError(f"{clean(source)}: file not found; check the path")
     register_input(p, "input log")
     df = read_table_rows(p, fmt, allow_truncated=allow_truncated_default(allow_truncated))
     rows = df.attrs.pop(ROWS_ATTR, None)
@@ -120,7 +120,8 @@ def read_log(
             " map them with --col NAME=SOURCE"
         )
     if len(df) < min_rows:
-        raise InputError(f"{source}: only {len(df)} data row(s); need at least {min_rows}")
+        raise InputError(f"{source}: only {len(df)} data row(s); need at least {min_rows}:"
+                         " give a longer log")
     present = [c for c in NUMERIC_COLUMNS if c in df.columns]
     df = to_numeric(df, present, source, rows)
     df = convert_units(df, units, source=source)
@@ -131,7 +132,8 @@ def read_log(
     if "time" in df.columns:
         df = _clean_time(df, source, rows)
     if len(df) < min_rows:
-        raise InputError(f"{source}: only {len(df)} usable row(s); need at least {min_rows}")
+        raise InputError(f"{source}: only {len(df)} usable row(s); need at least {min_rows}:"
+                         " give a longer log")
     df.attrs.pop("_plain_csv_columns", None)
     df.attrs["source"] = source
     if plain is not None and not columns and not units and len(df) == n_read:

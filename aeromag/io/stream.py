@@ -70,7 +70,7 @@ def iter_batches(path: Path, fmt: str | None, columns: list[str] | None = None,
     """
     path = Path(path)
     if not path.exists():
-        raise InputError(f"{clean(path)}: file not found")
+        raise InputError(f"{clean(path)}: file not found; check the path")
     register_input(path, "input log")
     f = detect_format(path, fmt)
     if f == "csv":

@@ -230,9 +230,9 @@ def read_table_rows(path: str | os.PathLike[str], fmt: str | None = None, *,
     """
     p = Path(path)
     if not p.exists():
-        raise InputError(f"{p}: file not found")
+        raise InputError(f"{p}: file not found; check the path")
     if p.is_dir():
-        raise InputError(f"{p}: is a folder, not a log file")
+        raise InputError(f"{p}: is a folder, not a log file; give the log file itself")
     f = detect_format(p, fmt)
     reader = REGISTRY[f].read
     if reader is None:

@@ -234,7 +234,7 @@ def read_xyz(path: str | os.PathLike[str], *, allow_truncated: bool = False) -> 
         data.append(s)
     del lines
     if not data:
-        raise InputError(f"{p}: no data rows in this XYZ file")
+        raise InputError(f"{p}: no data rows in this XYZ file; is it the right file?")
     rows = rows_in_runs(run_rows, run_lines)
     blob = "\n".join(data).encode("utf-8")
     n_rows = len(data)
