@@ -133,3 +133,43 @@ def test_output_never_overwrites_the_log_or_the_plan(mission, tmp_path):
         assert msg.startswith("error:") and "\n" not in msg and what in msg, msg
     assert (log.read_bytes(), plan.read_bytes()) == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["log.csv", "plan.csv"]
+
+
+def test_cli_new_options_and_plots_in_the_report(mission, tmp_path):
+    src = pd.read_csv(mission["mission"])
+    plan = pd.read_csv(mission["plan"])
+    rel = tmp_path / "rel.csv"
+    src.assign(alt=src["alt"] - plan["alt"][0] + 40.0).to_csv(rel, index=False)
+    out = tmp_path / "r.csv"
+    r = runner.invoke(app, ["track", str(rel), "--plan", str(mission["plan"]), "-o", str(out),
+                            "--heading-sigma-floor", "1.5", "--plot", str(tmp_path / "p")])
+    assert r.exit_code == 0, r.output
+    assert "1 warning(s) in r.json" in r.output
+    rep = json.loads(out.with_suffix(".json").read_text())
+    assert rep["altitude_offset"]["applied_m"] == pytest.approx(40.0 - plan["alt"][0], abs=0.1)
+    assert rep["heading_detector"]["sigma_floor_deg"] == 1.5
+    assert [p.rsplit("/", 1)[-1] for p in rep["plots"]] == ["track_map.png",
+                                                            "track_timeseries.png"]
+    out2 = tmp_path / "h.csv"
+    r = runner.invoke(app, ["track", str(rel), "--plan", str(mission["plan"]), "-o", str(out2),
+                            "--horizontal", "--altitude-offset", "none"])
+    assert r.exit_code == 0, r.output
+    rep2 = json.loads(out2.with_suffix(".json").read_text())
+    assert rep2["distance"] == "horizontal" and rep2["flagged_legs"] == rep["flagged_legs"]
+    r = runner.invoke(app, ["track", str(rel), "--plan", str(mission["plan"]), "-o",
+                            str(tmp_path / "x.csv"), "--altitude-offset", "sea"])
+    assert r.exit_code == 1 and "--altitude-offset" in r.output
+    assert not (tmp_path / "x.csv").exists()
+
+
+def test_cli_reversed_plan_warns(mission, tmp_path):
+    plan = pd.read_csv(mission["plan"])
+    rev = tmp_path / "rev.csv"
+    plan.iloc[::-1].to_csv(rev, index=False)
+    out = tmp_path / "o.csv"
+    r = subprocess.run([sys.executable, "-m", "aeromag", "track", str(mission["mission"]),
+                        "--plan", str(rev), "-o", str(out)], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "reversed" in r.stderr and "0/11 legs flagged" in r.stdout
+    assert "warning(s)" in r.stdout
