@@ -46,12 +46,17 @@ def _jsonable(obj: Any) -> Any:
     return obj
 
 
+#: Keys that mark a JSON document as a command's report (it gets the recorded warnings).
+REPORT_KEYS = frozenset({"source", "input", "warnings"})
+
+
 def write_json(obj: Any, path: str | os.PathLike[str]) -> Path:
     """Write a JSON document atomically (NaN and inf written as ``null``).
 
-    A report (a dict with a ``source``) written inside an output set (every command) gets
-    the warnings logged so far by the command in a ``warnings`` list (added to ``obj`` too):
-    what a user was told on the terminal is recorded beside the results.
+    A report (a dict with a ``source``, ``input`` or ``warnings`` key) written inside an
+    output set (every command) gets the warnings logged so far by the command in a
+    ``warnings`` list (added to ``obj`` too): what a user was told on the terminal is
+    recorded beside the results.
 
     Parameters
     ----------
@@ -66,7 +71,7 @@ def write_json(obj: Any, path: str | os.PathLike[str]) -> Path:
         The written path.
     """
     target = Path(path)
-    if isinstance(obj, dict) and "source" in obj:
+    if isinstance(obj, dict) and REPORT_KEYS & obj.keys():
         extra = [w for w in recorded_warnings() if w not in (obj.get("warnings") or [])]
         if extra:
             obj["warnings"] = [*(obj.get("warnings") or []), *extra]
