@@ -36,6 +36,7 @@ import pandas as pd
 from ..errors import InputError
 from ..track.plan import PLAN_NEEDS, validate_plan
 from .log import read_log
+from .outputs import register_input
 
 __all__ = ["NAV_COMMANDS", "PLAN_SUFFIXES", "read_plan"]
 
@@ -281,6 +282,7 @@ def read_plan(path: str | os.PathLike[str]) -> pd.DataFrame:
     p = Path(path)
     if not p.is_file():
         raise InputError(f"{p}: plan file not found (or not a file); check the --plan path")
+    register_input(p, "plan")  # no output of the command may overwrite it (issue 16)
     if _blank_file(p):
         raise InputError(f"{p}: the plan is empty; {PLAN_NEEDS}")
     fmt = PLAN_SUFFIXES.get(p.suffix.lower())
