@@ -94,7 +94,7 @@ def test_time_gaps_split_stretches_and_gaps_do_not_break_the_fit():
 
 def test_without_mag_column_the_fluxgate_magnitude_is_the_total_field(flight):
     df, _ = flight
-    res = compensate(df.drop(columns=["mag"]))
+    res = compensate(df.drop(columns=["mag"]), CompensationConfig(mag_from_fluxgate=True))
     assert res.report["mag_from_fluxgate"] is True
     assert "mag" not in res.data.columns and np.isfinite(res.data["mag_comp"]).all()
 

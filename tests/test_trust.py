@@ -51,3 +51,40 @@ def test_each_dropped_segment_says_why_where_and_when(survey_run):
     assert "dropped 1 segment: line 2" in output
     kept = [e for e in rep["segments"] if e["kept"]]
     assert all("reason" not in e and "start_time" not in e for e in kept)
+
+
+def test_fluxgate_magnitude_only_on_request(samples, tmp_path):
+    """Item 1: a log whose scalar is missing or misnamed is an error naming the way out; the
+    fluxgate magnitude as the total field is the explicit --mag-from-fluxgate; a model fitted on
+    the scalar is never applied to a fluxgate magnitude (nor the reverse), in memory or
+    chunked."""
+    import pandas as pd
+
+    df = pd.read_csv(samples / "survey.csv")
+    renamed = tmp_path / "renamed.csv"
+    df.rename(columns={"mag": "mag_1_uc"}).to_csv(renamed, index=False)
+    out = tmp_path / "o.csv"
+    r = runner.invoke(app, ["compensate", str(renamed), "-o", str(out)])
+    assert r.exit_code == 1 and not out.exists()
+    assert "no 'mag' column" in r.output and "--mag-from-fluxgate" in r.output
+    assert "--col mag=SOURCE" in r.output
+    # On request the fluxgate magnitude is fitted and applied, and the report says so.
+    r = runner.invoke(app, ["compensate", str(renamed), "-o", str(out), "--mag-from-fluxgate"])
+    assert r.exit_code == 0, r.output
+    assert json.loads(out.with_suffix(".json").read_text())["mag_from_fluxgate"] is True
+    # A model fitted on the scalar, applied to the fluxgate magnitude: refused.
+    model = tmp_path / "aircraft.json"
+    r = runner.invoke(app, ["calibrate", str(samples / "calibration.csv"), "-o", str(model)])
+    assert r.exit_code == 0, r.output
+    for extra in ([], ["--chunk-rows", "500"]):
+        out2 = tmp_path / f"m{len(extra)}.csv"
+        r = runner.invoke(app, ["compensate", str(renamed), "--model", str(model), "-o",
+                                str(out2), "--mag-from-fluxgate", *extra])
+        assert r.exit_code == 1 and not out2.exists(), r.output
+        assert "fitted on the scalar magnetometer" in r.output
+        assert "fluxgate magnitude" in r.output
+    # The library says the same.
+    import aeromag as am
+
+    with pytest.raises(am.InputError, match="no 'mag' column"):
+        am.compensate(df.drop(columns="mag"))

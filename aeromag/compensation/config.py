@@ -250,6 +250,11 @@ class CompensationConfig:
         the band and still be undetermined at low frequency (e.g. survey lines on two headings
         only: cz against a constant, cx*cx and cy*cy), and then the unfiltered model returns
         tens of thousands of nT.  A saved model that does so only draws a warning.
+    mag_from_fluxgate : bool
+        Take the magnitude of the fluxgate vector as the measured total field (a log without a
+        scalar magnetometer).  Only on request (``--mag-from-fluxgate``): a log whose scalar
+        column is missing or misnamed is an error otherwise, and a model fitted on one kind of
+        total field is never applied to the other.
     decimate : bool
         Fit a high-rate log on a copy decimated per stretch to at least 80 times the
         band's upper edge (:mod:`aeromag._core.decimate`; a 1 kHz log is fitted at 77 Hz, logs
@@ -284,6 +289,7 @@ class CompensationConfig:
     inlier_excess: float = 2.5
     inlier_own_excess: float = 4.0
     decimate: bool = True
+    mag_from_fluxgate: bool = False
 
     def __post_init__(self) -> None:
         self.band_hz = (float(self.band_hz[0]), float(self.band_hz[1]))

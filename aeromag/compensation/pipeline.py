@@ -37,7 +37,7 @@ from .apply import _apply, _check_plausible
 from .config import CompensationConfig, _resolve_gap
 from .fit import fit_result
 from .model import TLModel
-from .prepare import prepare
+from .prepare import check_total_field, prepare
 from .report import AppliedRun, applied_report
 from .result import CompensationResult
 from .segments import segment_counts
@@ -83,6 +83,7 @@ def compensate(
         return CompensationResult(data, fit.model, report, fit.screen, fit.segment_table,
                                   fit=fit.fit, config=cfg, comp_bp_nT=comp_bp,
                                   segment=prep.segment, fs_hz=prep.fs)
+    check_total_field(model, prep.mag_from_flux, prep.source)
     data, metrics, comp_bp = _apply(df, model, cfg, prep=prep, kept_segments=None,
                                     source=source, release_flux=True)
     _check_plausible(data, metrics, prep, cfg, fitted=False)

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import logging
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -39,6 +41,76 @@ class Prepared:
 
 
 
+def total_field_from_fluxgate(columns: Iterable[str], cfg: CompensationConfig,
+                              source: str) -> bool:
+    """Whether the fluxgate magnitude is the measured total field (only when asked).
+
+    Parameters
+    ----------
+    columns : iterable of str
+        The log's columns.
+    cfg : CompensationConfig
+        Options (``mag_from_fluxgate``).
+    source : str
+        File name for messages.
+
+    Returns
+    -------
+    bool
+        ``cfg.mag_from_fluxgate``.
+
+    Raises
+    ------
+    InputError
+        When the log has no ``mag`` column and the option is not given.
+    """
+    has_mag = "mag" in set(columns)
+    if not cfg.mag_from_fluxgate:
+        if not has_mag:
+            raise InputError(
+                f"{source}: no 'mag' column (the scalar magnetometer); map it with --col"
+                " mag=SOURCE, or pass --mag-from-fluxgate to take the fluxgate magnitude as"
+                " the total field")
+        return False
+    if has_mag:
+        log.warning("%s: --mag-from-fluxgate: the log's 'mag' column is not used; the fluxgate"
+                    " magnitude is the measured total field", source)
+    else:
+        log.info("%s: the fluxgate magnitude is the measured total field", source)
+    return True
+
+
+def check_total_field(model: Any, mag_from_flux: bool, source: str) -> None:
+    """Refuse a model fitted on one kind of total field applied to the other.
+
+    A model fitted on the scalar magnetometer removes the interference the scalar sees; the
+    fluxgate's magnitude sees another (and the reverse), so the result would be wrong.
+
+    Parameters
+    ----------
+    model : TLModel
+        The model (its ``meta["mag_from_fluxgate"]`` says what it was fitted on).
+    mag_from_flux : bool
+        Whether this log's total field is the fluxgate magnitude.
+    source : str
+        File name for messages.
+
+    Raises
+    ------
+    InputError
+        On a mismatch.
+    """
+    fitted_on_flux = model.meta.get("mag_from_fluxgate")
+    if fitted_on_flux is None or bool(fitted_on_flux) == mag_from_flux:
+        return
+    kinds = ("the scalar magnetometer ('mag')", "the fluxgate magnitude")
+    hint = ("map the scalar with --col mag=SOURCE" if mag_from_flux else
+            "pass --mag-from-fluxgate, or calibrate on the scalar magnetometer")
+    raise InputError(f"{source}: the model was fitted on {kinds[bool(fitted_on_flux)]} but this"
+                     f" log's total field is {kinds[mag_from_flux]}; applying it would be"
+                     f" wrong: {hint}")
+
+
 def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = None) -> Prepared:
     """Extract and validate the arrays the pipeline needs.
 
@@ -71,10 +143,9 @@ def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = N
     # |B|^2 is NaN where any axis is, so one pass finds the usable fluxgate samples.
     bt2 = np.einsum("ij,ij->i", flux, flux)
     flux_ok = np.isfinite(bt2) & (bt2 > 0)
-    mag_from_flux = "mag" not in df.columns
+    mag_from_flux = total_field_from_fluxgate(df.columns, cfg, src)
     if mag_from_flux:
         mag = np.sqrt(bt2)
-        log.info("%s: no 'mag' column: the fluxgate magnitude is the measured total field", src)
     else:
         mag, _ = interpolate_short_gaps(df["mag"].to_numpy(dtype=np.float64), t, cfg.max_interp_s,
                                         copy=False)

@@ -40,6 +40,7 @@ from .._core.stretches import find_stretches, interpolate_short_gaps
 from ..compensation.config import CompensationConfig
 from ..compensation.metrics import metrics_dict
 from ..compensation.model import TLModel
+from ..compensation.prepare import check_total_field, total_field_from_fluxgate
 from ..compensation.report import AppliedRun, applied_report
 from ..errors import InputError
 from ..io import (
@@ -195,7 +196,8 @@ def apply_model_chunked(
     if missing:
         raise InputError(f"{source}: missing column(s) {', '.join(missing)}; map them with"
                          " --col NAME=SOURCE")
-    has_mag = "mag" in present
+    has_mag = not total_field_from_fluxgate(present, cfg, source)
+    check_total_field(model, not has_mag, source)
     has_line = "line" in present
     steps: dict[float, int] = {}
     lines: set[float] = set()
