@@ -28,6 +28,7 @@ from .._core.particles import (
 
 __all__ = [
     "CSTR_HYPOTHESES",
+    "CSTR_WARMUP_STEPS",
     "CSTRStudy",
     "cstr_detect_isolate",
     "cstr_model",
@@ -285,9 +286,14 @@ class CSTRStudy:
     names: list[str]
 
 
+#: Samples at the start of a run whose S_k is not used (the filter's convergence from its
+#: prior: the simulator's feed disturbances start away from zero), 2 min.
+CSTR_WARMUP_STEPS = 40
+
+
 def cstr_threshold(y_free: np.ndarray, n_particles: int = 300, window: int = 10,
-                   percentile: float = 99.0, seed: int = 0,
-                   dt_min: float = 0.05) -> tuple[Threshold, np.ndarray]:
+                   percentile: float = 99.0, seed: int = 0, dt_min: float = 0.05,
+                   warmup_steps: int = CSTR_WARMUP_STEPS) -> tuple[Threshold, np.ndarray]:
     """Threshold of the nominal reactor filter from fault-free runs.
 
     Parameters
@@ -302,6 +308,8 @@ def cstr_threshold(y_free: np.ndarray, n_particles: int = 300, window: int = 10,
         Random seed.
     dt_min : float
         Sampling interval, min.
+    warmup_steps : int
+        Leading samples whose ``S_k`` is set to NaN (the filter converging from its prior).
 
     Returns
     -------
@@ -311,13 +319,15 @@ def cstr_threshold(y_free: np.ndarray, n_particles: int = 300, window: int = 10,
     pf = ParticleFilter(cstr_model("nominal", dt_min), n_particles, window=window,
                         batch=len(y_free), seed=seed)
     stat = pf.run(y_free).stat
+    stat[:, :warmup_steps] = np.nan
     return threshold_from_runs(stat, percentile), stat
 
 
 def cstr_detect_isolate(y: np.ndarray, time_min: np.ndarray, onset_min: float,
                         threshold: float, *, n_particles: int = 300, window: int = 10,
                         isolation_steps: int = 100, seed: int = 1,
-                        dt_min: float = 0.05) -> CSTRStudy:
+                        dt_min: float = 0.05,
+                        warmup_steps: int = CSTR_WARMUP_STEPS) -> CSTRStudy:
     """Detect with the nominal filter, then isolate with a bank started at the detection.
 
     Each run's hypothesis filters switch their fault on ``window`` steps before that run's
@@ -340,6 +350,8 @@ def cstr_detect_isolate(y: np.ndarray, time_min: np.ndarray, onset_min: float,
         Random seed.
     dt_min : float
         Sampling interval, min.
+    warmup_steps : int
+        Leading samples whose ``S_k`` is set to NaN (never alarm).
 
     Returns
     -------
@@ -349,6 +361,7 @@ def cstr_detect_isolate(y: np.ndarray, time_min: np.ndarray, onset_min: float,
     pf = ParticleFilter(cstr_model("nominal", dt_min), n_particles, window=window, batch=runs,
                         seed=seed)
     stat = pf.run(y).stat
+    stat[:, :warmup_steps] = np.nan
     with np.errstate(invalid="ignore"):
         alarm = stat > threshold
     pre = time_min < onset_min
