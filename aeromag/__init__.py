@@ -65,8 +65,16 @@ _API: dict[str, str] = {
     "plot_map": "aeromag.plot.compensation",
     "write_report": "aeromag.workflows.report",
     "build_report": "aeromag.workflows.report",
+    "load_compensated": "aeromag.workflows.report",
     # track check
     "check_track": "aeromag.track",
+    "TrackResult": "aeromag.track",
+    "LegModel": "aeromag.track.legs",
+    "read_plan": "aeromag.io.plans",
+    "track_file": "aeromag.workflows.track",
+    "plot_track_map": "aeromag.plot.track",
+    "plot_track_timeseries": "aeromag.plot.track",
+    "simulate_mission": "aeromag.synthetic.mission",
     # online estimation: recursive least squares with forgetting, compass calibration
     "RecursiveLeastSquares": "aeromag._core.rls",
     "RLSResult": "aeromag._core.rls",

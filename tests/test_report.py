@@ -9,6 +9,7 @@ import subprocess
 from html.parser import HTMLParser
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -93,6 +94,10 @@ def test_renders_in_headless_chromium(page, tmp_path):
            "--window-size=1200,3000", page.resolve().as_uri()]
     subprocess.run(cmd, check=True, timeout=60, capture_output=True)
     assert shot.read_bytes().startswith(b"\x89PNG") and shot.stat().st_size > 10000
+    from PIL import Image
+
+    px = np.asarray(Image.open(shot).convert("L"))
+    assert (px < 200).mean() > 0.02  # text, tables and figures drawn, not a blank page
     dom = subprocess.run([*cmd[:-2], "--dump-dom", page.resolve().as_uri()], check=True,
                          timeout=60, capture_output=True, text=True).stdout
     p = _Imgs()

@@ -120,8 +120,11 @@ def plot_pca_scores(
     if (~kept).any():
         ax.scatter(sc[~kept, 0], sc[~kept, 1], s=46, c="C3", marker="X", label="dropped",
                    zorder=4)
-    if annotate:
-        for i in np.flatnonzero(~kept | outl):
+    if annotate:  # the dropped segments first, then the farthest outliers (at most 15)
+        flag = np.flatnonzero(~kept | outl)
+        dist = np.hypot(*(sc[flag] - np.median(sc, axis=0)).T)
+        order = flag[np.lexsort((-dist, kept[flag]))][:15]
+        for i in order:
             ax.annotate(str(seg["id"].iloc[i]), sc[i], textcoords="offset points",
                         xytext=(4, 4), fontsize=8)
     loc = np.asarray(scr.get("location") or [], dtype=float)
@@ -148,7 +151,7 @@ def plot_pca_scores(
     nd = int((~kept).sum())
     ax.set_title(f"PCA score plot: {len(seg)} segments, {nd} dropped")
     ax.grid(alpha=0.3)
-    ax.legend(loc="best", fontsize=8)
+    ax.legend(loc="upper right", fontsize=8)  # "best" costs seconds with many segments
     ax.autoscale_view()
     return _finish(fig, path)
 
@@ -234,7 +237,7 @@ def plot_timeseries(
     ax.ticklabel_format(axis="y", useOffset=False, style="plain")
     ax.set_ylabel("total field (nT)")
     ax.set_title("Uncompensated vs compensated total field")
-    ax.legend(loc="best", fontsize=8)
+    ax.legend(loc="upper right", fontsize=8)
     ax.grid(alpha=0.3)
     return _finish(fig, path)
 
@@ -361,7 +364,7 @@ def plot_psd(
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel("PSD (nT²/Hz)")
     ax.set_title("Power spectral density before / after")
-    ax.legend(loc="best", fontsize=8)
+    ax.legend(loc="upper right", fontsize=8)
     ax.grid(alpha=0.3, which="both")
     return _finish(fig, path)
 
@@ -454,7 +457,7 @@ def plot_term_contributions(
     _format_time(ax, is_date, label)
     ax.set_ylabel("interference (nT)")
     ax.set_title("Term contributions to the modelled interference")
-    ax.legend(loc="best", fontsize=8)
+    ax.legend(loc="upper right", fontsize=8)
     ax.grid(alpha=0.3)
     return _finish(fig, path)
 
@@ -510,7 +513,7 @@ def plot_fom(
     ax.set_ylabel("peak-to-peak (nT)")
     ax.set_yscale("log")
     ax.set_title(f"Figure of Merit: {np.sum(before):.2f} nT before, {np.sum(after):.3f} nT after")
-    ax.legend(loc="best", fontsize=8)
+    ax.legend(loc="upper right", fontsize=8)
     ax.grid(axis="y", alpha=0.3, which="both")
     return _finish(fig, path)
 
@@ -518,7 +521,7 @@ def plot_fom(
 # --------------------------------------------------------------------------- map
 def plot_map(
     data: Any, *, column: str = "mag_comp", ax: Axes | None = None,
-    path: _PathLike | None = None, max_points: int = 200_000,
+    path: _PathLike | None = None, max_points: int = 20_000,
 ) -> Figure:
     """The flight in metres (east, north of its first fix), coloured by the compensated field.
 
@@ -556,7 +559,7 @@ def plot_map(
     ok = np.isfinite(lat) & np.isfinite(lon) & np.isfinite(v)
     if not ok.any():
         raise InputError("no sample with a position and a compensated field to map")
-    step = max(1, int(ok.sum() // max_points))
+    step = max(1, -(-int(ok.sum()) // max_points))
     idx = np.flatnonzero(ok)[::step]
     alt = data["alt"].to_numpy(dtype=np.float64)[idx] if "alt" in data.columns \
         else np.zeros(len(idx))
@@ -568,8 +571,11 @@ def plot_map(
     fig, ax = _target(ax, (6.5, 6.0))
     vk = v[idx][kept]
     lo, hi = np.percentile(vk if vk.size else v[idx], [2, 98])
-    sc = ax.scatter(east[kept], north[kept], c=vk, s=4, cmap="viridis", vmin=lo, vmax=hi)
-    fig.colorbar(sc, ax=ax, label=f"{column} (nT)")
+    sc = ax.scatter(east[kept], north[kept], c=vk, s=4, cmap="viridis", vmin=lo, vmax=hi,
+                    rasterized=True)
+    cb = fig.colorbar(sc, ax=ax, label=f"{column} (nT)")
+    cb.formatter.set_useOffset(False)  # the field itself, not "+4.9999e4"
+    cb.update_ticks()
     if (~kept).any():
         ax.scatter(east[~kept], north[~kept], s=6, c="0.5", marker="x", lw=0.6,
                    label="dropped segments")
@@ -581,7 +587,7 @@ def plot_map(
             ax.annotate(f"line {name[mid]}" if "line" in data.columns else f"segment {sid}",
                         (east[mid], north[mid]), fontsize=8, color="C3",
                         textcoords="offset points", xytext=(4, 4))
-        ax.legend(loc="best", fontsize=8)
+        ax.legend(loc="upper right", fontsize=8)
     ax.set_xlabel("east (m)")
     ax.set_ylabel("north (m)")
     ax.set_aspect("equal", adjustable="datalim")

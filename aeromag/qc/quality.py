@@ -213,6 +213,8 @@ def _compute(
         " --fom, or `aeromag report`)")
     if maneuvers is not None:
         hl = maneuvers.labels["heading_leg"].to_numpy()
+        if not legacy:  # over the kept segments, like the headline
+            hl = np.where(kept_mask(data), hl, -1)
         metrics["residual_std_by_heading_nT"] = {
             CARDINALS[k]: v for k, v in grouped_std(resid_bp, hl).items()}
         metrics["maneuvers"] = {
