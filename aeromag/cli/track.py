@@ -54,6 +54,11 @@ def track(
     waypoint_radius: Annotated[float | None, typer.Option(
         "--waypoint-radius", metavar="M", hidden=True,
         help="Ignored (the old waypoint-sphere leg rule).")] = None,
+    navigate: Annotated[bool, typer.Option(
+        "--navigate", help="Run aeromag navigate's filter on the log (needs the IMU columns): "
+        "check the navigated position where the log has no GNSS fix, and give the heading "
+        "detector its attitude (without the magnetometer) when the log has no heading.")]
+    = False,
     plot: Annotated[Path | None, typer.Option("--plot", metavar="DIR",
                     help="Write track and time-series plots (PNG) to DIR.")] = None,
     col: Annotated[list[str] | None, typer.Option("--col", metavar="NAME=SOURCE",
@@ -90,7 +95,7 @@ def track(
             calm_window=calm_window, heading_sigmas=heading_sigmas,
             heading_sigma_floor_deg=heading_sigma_floor, declination_deg=declination,
             combine=combine, horizontal=horizontal, altitude_offset=altitude_offset,
-            columns=columns, units=unit_map, plot_dir=plot,
+            columns=columns, units=unit_map, plot_dir=plot, navigated=navigate,
         )
     rep = res.report
     flagged = rep.get("flagged_legs", [])

@@ -383,7 +383,7 @@ class NavFilter(FusionMixin):
         last_imu = np.maximum.accumulate(np.where(imu, np.arange(N), -1))
 
         flux = None if inputs.flux is None else np.asarray(inputs.flux, dtype=np.float64)
-        if flux is not None and "mag" in self.sensors and self.mag_ref is None:
+        if flux is not None and self.mag_ref is None:   # also to align the yaw at the start
             ref, n_used = magnetic_reference_from_log(t, acc, gyro, flux)
             if n_used:
                 self.mag_ref = ref

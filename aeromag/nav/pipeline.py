@@ -25,7 +25,8 @@ from .ukf import DivergenceError, FilterResult
 
 log = logging.getLogger(__name__)
 
-__all__ = ["GYRO", "ACC", "NAV_COLUMNS", "NavigationResult", "navigate", "parse_gps_mode"]
+__all__ = ["GYRO", "ACC", "NAV_COLUMNS", "NavigationResult", "TrackInputs", "navigate",
+           "parse_gps_mode", "track_inputs"]
 
 GYRO = ("gyro_x", "gyro_y", "gyro_z")
 ACC = ("acc_x", "acc_y", "acc_z")
@@ -309,3 +310,90 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
         "warnings": warnings,
     }
     return NavigationResult(data=out, result=res, report=report)
+
+
+@dataclass
+class TrackInputs:
+    """Position and heading for the track check, the log's own where it has them.
+
+    Attributes
+    ----------
+    position : (lat, lon, alt) arrays
+        Per row: the log's GNSS fix where it has one, the navigated position elsewhere
+        (degrees, degrees, m above the ellipsoid).
+    heading_deg : ndarray or None
+        The navigation filter's yaw (degrees true) when the log has no ``heading``; None when
+        it has one (the detector then uses the log's).
+    columns : dict of str to ndarray
+        ``pitch``, ``roll`` (degrees) from the same run when the log has no such columns (the
+        heading detector tilt-compensates the magnetometer with them).
+    info : dict
+        ``n_rows_filled`` (rows whose position came from the filter), ``heading_from``
+        (``"log"`` or ``"navigation filter without the magnetometer"``), ``added_columns``,
+        the filter's ``mean_nis`` and ``warnings``.
+    """
+
+    position: tuple[np.ndarray, np.ndarray, np.ndarray]
+    heading_deg: np.ndarray | None
+    columns: dict
+    info: dict
+
+
+def track_inputs(df: pd.DataFrame, *, mag_reference_ned_nT: np.ndarray | None = None,
+                 config: NavConfig | None = None, source: str | None = None) -> TrackInputs:
+    """Navigate a log and fill what the track check lacks.
+
+    That is: positions between and in the gaps of the GNSS fixes, and the attitude heading
+    when the log has no INS heading.
+
+    Parameters
+    ----------
+    df : DataFrame
+        The log (needs the IMU columns and at least one GNSS fix, see :func:`navigate`).
+    mag_reference_ned_nT : ndarray, shape (3,), optional
+        Earth field in NED, nT (default from the log).
+    config : NavConfig, optional
+        Filter settings.
+    source : str, optional
+        Log name for messages.
+
+    Returns
+    -------
+    TrackInputs
+    """
+    src = source or str(df.attrs.get("source", "<log>"))
+    if not all(c in df.columns for c in GPS_POS):
+        raise InputError(f"{src}: navigating for the track check needs the GNSS columns lat, "
+                         "lon, alt (at least one fix); map them with --col NAME=SOURCE")
+    res = navigate(df, gps="use", mag_reference_ned_nT=mag_reference_ned_nT, config=config,
+                   source=src)
+    d = res.data
+    fix = np.column_stack([pd.to_numeric(df[c], errors="coerce").to_numpy(float)
+                           for c in GPS_POS])
+    ok = np.isfinite(fix).all(axis=1)
+    nav = d[["nav_lat", "nav_lon", "nav_alt"]].to_numpy(float)
+    pos = np.where(ok[:, None], fix, nav)
+    head = None
+    has_heading = "heading" in df.columns and np.isfinite(
+        pd.to_numeric(df["heading"], errors="coerce").to_numpy(float)).any()
+    warnings = list(res.report["warnings"])
+    if not has_heading:
+        # The heading detector compares the attitude with the magnetometer: its attitude must
+        # not come from the magnetometer, so this run leaves it out (it only aligns the yaw at
+        # the start); the yaw then rests on the gyro, GNSS velocity and flow.
+        sensors = [s for s in res.report["settings"]["sensors"] if s != "mag"]
+        hres = navigate(df, gps="use", mag_reference_ned_nT=mag_reference_ned_nT,
+                        config=config, source=src, sensors=sensors)
+        head = hres.data["nav_yaw"].to_numpy(float)
+        warnings += [w for w in hres.report["warnings"] if w not in warnings]
+        columns = {c: hres.data[f"nav_{c}"].to_numpy(float) for c in ("pitch", "roll")
+                   if c not in df.columns}
+    else:
+        columns = {}
+    info = {"n_rows_filled": int((~ok).sum()),
+            "heading_from": ("log" if has_heading else
+                             "navigation filter without the magnetometer"),
+            "added_columns": sorted(columns), "mean_nis": res.report["mean_nis"],
+            "warnings": warnings}
+    return TrackInputs(position=(pos[:, 0], pos[:, 1], pos[:, 2]), heading_deg=head,
+                       columns=columns, info=info)

@@ -42,6 +42,7 @@ def track_file(
     plot_dir: str | os.PathLike[str] | None = None,
     fmt: str | None = None,
     waypoint_radius_m: float | None = None,
+    navigated: bool = False,
 ) -> TrackResult:
     """Read a log and a plan, check the track, write OUT.csv and OUT.json as a set.
 
@@ -73,6 +74,12 @@ def track_file(
         Log format (default from the extension).
     waypoint_radius_m : float, optional
         Ignored (the old waypoint-sphere rule).
+    navigated : bool
+        Run the navigation filter (:func:`aeromag.nav.pipeline.track_inputs`) and check the
+        navigated position where the log has no GNSS fix, and the heading detector on its
+        attitude (without the magnetometer) when the log has no INS heading; its pitch and
+        roll are added to OUT.csv when the log has none (``--navigate``; the log needs the
+        IMU columns).
 
     Returns
     -------
@@ -87,12 +94,22 @@ def track_file(
     df = read_log(log_path, columns=columns, units=units,
                   required=("time", "lat", "lon", "alt"), fmt=fmt)
     detectors = [make(df) for make in extra_detectors]
+    nav = None
+    if navigated:
+        from ..nav.pipeline import track_inputs
+
+        nav = track_inputs(df, source=str(log_path))
+        df = df.assign(**nav.columns)   # pitch, roll from the filter when the log has none
     res = check_track(df, plan, threshold_m=threshold_m, min_duration_s=min_duration_s,
                       calm_window=calm_window, heading_sigmas=heading_sigmas,
                       heading_sigma_floor_deg=heading_sigma_floor_deg,
                       declination_deg=declination_deg, combine=combine,
                       horizontal=horizontal, altitude_offset=altitude_offset,
+                      position=None if nav is None else nav.position,
+                      heading_deg=None if nav is None else nav.heading_deg,
                       detectors=detectors, source=str(log_path))
+    if nav is not None:
+        res.report["navigation"] = nav.info
     res.report["input"] = str(log_path)
     res.report["plan"] = str(plan_path)
     res.report["plan_format"] = plan.attrs.get("format", "csv")
