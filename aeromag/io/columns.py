@@ -17,34 +17,21 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..conventions import CANONICAL_COLUMNS, FLUX_COLUMNS
 from ..errors import InputError
 from .messages import clean
 from .rows import row_location
 
 log = logging.getLogger(__name__)
 
-#: Canonical column names and their units.
-CANONICAL_COLUMNS: dict[str, str] = {
-    "time": "s",
-    "lat": "deg",
-    "lon": "deg",
-    "alt": "m",
-    "flux_x": "nT",
-    "flux_y": "nT",
-    "flux_z": "nT",
-    "mag": "nT",
-    "line": "integer",
-    "heading": "deg",
-    "pitch": "deg",
-    "roll": "deg",
-    "mag_heading": "deg",
-    "leg": "integer",
-}
-
-#: Columns whose values must be numeric when present.
+#: Columns whose values must be numeric when present: the canonical columns of the contract
+#: (:mod:`aeromag.conventions`, the one list).
 NUMERIC_COLUMNS: tuple[str, ...] = tuple(CANONICAL_COLUMNS)
 
-FLUX_COLUMNS: tuple[str, str, str] = ("flux_x", "flux_y", "flux_z")
+#: Canonical columns that hold whole numbers (ids, counts): validated, not cast to float.
+INTEGER_COLUMNS: frozenset[str] = frozenset(
+    c for c, unit in CANONICAL_COLUMNS.items() if unit in ("integer", "0-255"))
+
 
 #: Factors that convert a magnetic field unit to nT.
 FIELD_UNITS_TO_NT: dict[str, float] = {
@@ -301,7 +288,7 @@ def to_numeric(df: pd.DataFrame, cols: Sequence[str], source: str,
             df.attrs["_time_converted"] = True
             continue
         if pd.api.types.is_numeric_dtype(s.dtype) and not pd.api.types.is_bool_dtype(s.dtype):
-            if s.dtype != np.float64 and c not in ("line", "leg"):
+            if s.dtype != np.float64 and c not in INTEGER_COLUMNS:
                 df[c] = s.astype(np.float64)
         else:
             df[c] = numeric_values(s, source, c, rows)
