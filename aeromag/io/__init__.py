@@ -55,7 +55,7 @@ from .csv import (
 )
 from .json import write_json
 from .log import read_log
-from .outputs import atomic_path, json_path_for
+from .outputs import atomic_path, check_outputs, json_path_for, output_set
 from .rows import (
     ROWS_ATTR,
     row_location,
@@ -67,9 +67,9 @@ from .rows import (
 __all__ = [
     "CANONICAL_COLUMNS", "FIELD_UNITS_TO_NT", "FLUX_COLUMNS", "NUMERIC_COLUMNS",
     "PASSTHROUGH_BLOCK_BYTES", "ROWS_ATTR", "UNIT_GROUPS", "WRITE_SLICE_ROWS",
-    "apply_column_map", "atomic_path", "check_unique_names", "convert_units",
+    "apply_column_map", "atomic_path", "check_outputs", "check_unique_names", "convert_units",
     "datetime_seconds", "filled_cells", "json_path_for", "numeric_values",
-    "parse_column_map", "plain_number", "read_csv", "read_log", "read_map_file",
+    "output_set", "parse_column_map", "plain_number", "read_csv", "read_log", "read_map_file",
     "row_location", "rows_after_header", "rows_in_runs", "rows_numbered", "unit_factor",
     "write_arrow_csv", "write_csv", "write_csv_passthrough", "write_json",
 ]

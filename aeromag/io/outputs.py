@@ -418,32 +418,39 @@ def json_path_for(csv_path: str | os.PathLike[str]) -> Path:
     return Path(csv_path).with_suffix(".json")
 
 
-def check_outputs(inputs: Sequence[tuple[str | os.PathLike[str], str]],
-                  *outputs: str | os.PathLike[str]) -> None:
-    """Refuse outputs that would overwrite an input (a log, a plan, a model) or are no files.
+def check_outputs(source: str | os.PathLike[str] | None, *outputs: str | os.PathLike[str],
+                  kind: str = "input log",
+                  inputs: Sequence[tuple[str | os.PathLike[str], str]] = ()) -> None:
+    """Refuse outputs that would overwrite an input (the log, a plan, a model) or are no files.
 
     Parameters
     ----------
-    inputs : sequence of (path-like, str)
-        Input files and what they are (``"input log"``, ``"model"``, ``"plan"``).
+    source : path-like or None
+        The input file.
     *outputs : path-like
         Files about to be written (e.g. OUT.csv and its report OUT.json).
+    kind : str
+        What ``source`` is, for the message.
+    inputs : sequence of (path-like, str)
+        Other inputs and what they are (``"model"``, ``"plan"``).
 
     Raises
     ------
     InputError
-        When an output is one of the inputs, is not a regular file path, or when the first of
-        several outputs (the data, when its report is the second) ends in ``.json`` so that
-        the report would replace it.
+        When an output is one of the inputs (or an input registered with
+        :func:`register_input`), is not a regular file path, or when the first of several
+        outputs (the data, when its report is the second) ends in ``.json`` so that the
+        report would replace it.
     """
     if outputs and len(outputs) > 1 and json_path_for(Path(outputs[0])) == Path(outputs[0]):
         raise InputError(f"-o {clean(str(outputs[0]))}: the report goes to OUT.json, so OUT"
                          " must not end in .json; give the output another name, e.g."
                          " -o survey_comp.csv")
+    pairs = ([(source, kind)] if source is not None else []) + list(inputs)
     for out in outputs:
         o = Path(out)
         check_output_path(o)
-        for src, kind in inputs:
+        for src, what in pairs:
             if src is not None and _same_file(o, Path(src)):
                 raise InputError(f"{clean(str(src))}: -o {clean(str(o))} would overwrite the"
-                                 f" {kind}; choose another -o")
+                                 f" {what}; choose another -o")
