@@ -10,7 +10,7 @@ from __future__ import annotations
 import warnings
 from typing import Any
 
-from .._core.geodesy import ecef_to_ned_matrix, geodetic_to_ecef, geodetic_to_ned
+from .._core import geodesy as _geodesy
 from .check import ADDED_COLUMNS, TrackResult, check_track
 from .deviation import leg_summary, track_alarm
 from .geometry import cross_track, plan_ned
@@ -25,8 +25,7 @@ __all__ = ["ADDED_COLUMNS", "DEFAULT_WAYPOINT_RADIUS_M", "MIN_LEG_LENGTH_M", "PL
 _MOVED = {"track_file": ("aeromag.workflows.track", "track_file"),
           "read_plan": ("aeromag.io.plans", "read_plan")}
 
-_GEODESY = {"geodetic_to_ecef": geodetic_to_ecef, "geodetic_to_ned": geodetic_to_ned,
-            "ecef_to_ned_matrix": ecef_to_ned_matrix}
+_GEODESY = ("geodetic_to_ecef", "geodetic_to_ned", "ecef_to_ned_matrix")
 
 
 def __getattr__(name: str) -> Any:
@@ -41,5 +40,5 @@ def __getattr__(name: str) -> Any:
     if name in _GEODESY:
         warnings.warn(f"aeromag.track.{name} is deprecated: use aeromag._core.geodesy.{name}",
                       DeprecationWarning, stacklevel=2)
-        return _GEODESY[name]
+        return getattr(_geodesy, name)
     raise AttributeError(f"module 'aeromag.track' has no attribute {name!r}")
