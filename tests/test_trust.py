@@ -88,3 +88,63 @@ def test_fluxgate_magnitude_only_on_request(samples, tmp_path):
 
     with pytest.raises(am.InputError, match="no 'mag' column"):
         am.compensate(df.drop(columns="mag"))
+
+
+@pytest.fixture(scope="module")
+def calibration_run(samples):
+    model = samples / "out" / "aircraft.json"
+    r = runner.invoke(app, ["calibrate", str(samples / "calibration.csv"), "-o", str(model)])
+    assert r.exit_code == 0, r.output
+    return r.output, json.loads(model.read_text()), model
+
+
+def test_headline_metrics_are_the_kept_segments_with_all_beside(calibration_run):
+    """Item 3: the calibration sample's injected fault (segment 9) is dropped; the headline
+    is the kept data, the all-segment figures stand beside it, and the kept neighbour of the
+    dropped segment (10, flown right after it) gets no filter ringing from it: its QC residual
+    agrees with the fit's residual in the model file."""
+    output, rep, _ = calibration_run
+    m = rep["metrics"]
+    assert m["improvement_ratio"] == m["kept_improvement_ratio"] > 5 * m["all_improvement_ratio"]
+    assert m["residual_std_nT"] < m["all_residual_std_nT"] / 10
+    assert m["n_samples"] < m["all_n_samples"]
+    assert "on kept segments" in output and "over all" in output
+    qc_seg = rep["qc"]["residual_std_by_segment_nT"]
+    fit_seg = {str(e["id"]): e["residual_std"] for e in rep["segments"] if e["kept"]}
+    for sid, r_fit in fit_seg.items():
+        assert qc_seg[sid] == pytest.approx(r_fit, rel=0.5), sid
+    assert qc_seg["10"] < 2 * sorted(fit_seg.values())[len(fit_seg) // 2]
+
+
+def test_metrics_are_mag_minus_mag_tl_band_passed_once(samples, calibration_run):
+    """Item 6: the metrics do not depend on the final low-pass of mag_comp (it flattered
+    them): with and without --no-filter they are the same numbers, and they say what they are."""
+    _, _, model = calibration_run
+    reps = []
+    for extra in ([], ["--no-filter"]):
+        out = samples / "out" / f"m6{len(extra)}.csv"
+        r = runner.invoke(app, ["compensate", str(samples / "survey.csv"), "--model",
+                                str(model), "-o", str(out), *extra])
+        assert r.exit_code == 0, r.output
+        reps.append(json.loads(out.with_suffix(".json").read_text())["metrics"])
+    assert reps[0] == reps[1]
+    assert "mag - mag_tl (unfiltered)" in reps[0]["definition"]
+    assert "band-passed once" in reps[0]["definition"]
+
+
+@pytest.mark.parametrize("rows", [13, 41])
+def test_short_logs_are_refused_with_the_reason(samples, calibration_run, tmp_path, rows):
+    """Item 5: a log shorter than the band needs gives no metric at all (not 'improvement
+    ratio 176, residual 0.0000 nT' nor 'nan'), in memory and chunked."""
+    import pandas as pd
+
+    _, _, model = calibration_run
+    short = tmp_path / "short.csv"
+    pd.read_csv(samples / "survey.csv").iloc[:rows].to_csv(short, index=False)
+    for extra in ([], ["--chunk-rows", "5"]):
+        out = tmp_path / f"s{len(extra)}.csv"
+        r = runner.invoke(app, ["compensate", str(short), "--model", str(model), "-o",
+                                str(out), *extra])
+        assert r.exit_code == 1 and not out.exists(), r.output
+        assert "too short to measure the compensation" in r.output
+        assert r.output.count("\n") == 1

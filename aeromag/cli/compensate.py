@@ -113,7 +113,6 @@ def _summary(report: dict, out: Path, out_json: Path | None) -> None:
     from ..compensation.report import dropped_summary
 
     m = report.get("metrics", {})
-    scr = report.get("screening", {})
     segs = report.get("segments", [])
     kept = sum(1 for s in segs if s.get("kept"))
     line = (f"wrote {out}" + (f" and {out_json}" if out_json else "")
@@ -124,7 +123,8 @@ def _summary(report: dict, out: Path, out_json: Path | None) -> None:
     rs = m.get("residual_std_nT")
     if ir is not None and rs is not None:
         line += f"; improvement ratio {ir:.2f}, residual std {rs:.4f} nT"
-        kir = m.get("kept_improvement_ratio")
-        if scr.get("dropped") and kir is not None:
-            line += f" ({kir:.2f} and {m['kept_residual_std_nT']:.4f} nT on kept segments)"
+        air = m.get("all_improvement_ratio")
+        if dropped_summary(report) and air is not None:
+            line += (f" on kept segments ({air:.2f} and {m['all_residual_std_nT']:.4f} nT over"
+                     " all)")
     typer.echo(line)

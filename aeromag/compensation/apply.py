@@ -80,34 +80,33 @@ def _apply(
     if release_flux:
         prep.flux = None  # type: ignore[assignment]
     comp = np.subtract(prep.mag, mag_tl)
-    # The metrics band-pass mag over the stretches where mag_comp is finite, which are known
-    # now (the low-pass keeps finiteness inside stretches): mag is filtered on a pool thread
-    # while mag_comp is low-passed here.
-    valid_st = prep.stretch >= 0
-    fin = np.isfinite(comp)
-    st_m = prep.stretch if fin[valid_st].all() else find_stretches(t, fin & valid_st,
-                                                                    cfg.max_gap_s)
-    del fin, valid_st
-    sos_band = butter_sos("bandpass", cfg.band_hz, prep.fs, cfg.order)
-    mag_bp_future = submit(
-        lambda: filter_stretches(np.asarray(prep.mag, dtype=np.float64)[None, :], st_m,
-                                 sos_band, axis=1)[0])
     seg = prep.segment
     if kept_segments is None:
         kept = np.ones(len(seg), dtype=bool)  # a saved model: every sample counts as kept
     else:
         kept = np.isin(seg, kept_segments) & (seg >= 0)
+    # The metrics band-pass mag and mag - mag_tl (unfiltered: the final low-pass would flatter
+    # them) once, over the stretches where mag - mag_tl is finite, each dropped segment on its
+    # own so that a fault does not ring into its kept neighbours' figures; mag is filtered on
+    # a pool thread while mag - mag_tl is filtered here.
+    valid_st = prep.stretch >= 0
+    fin = np.isfinite(comp)
+    st_m = prep.stretch if fin[valid_st].all() else find_stretches(t, fin & valid_st,
+                                                                    cfg.max_gap_s)
+    del fin, valid_st
+    st_m = isolate_dropped(st_m, seg, kept)
+    sos_band = butter_sos("bandpass", cfg.band_hz, prep.fs, cfg.order)
+    mag_bp_future = submit(
+        lambda: filter_stretches(np.asarray(prep.mag, dtype=np.float64)[None, :], st_m,
+                                 sos_band, axis=1)[0])
+    metrics, comp_bp = _band_metrics(prep.mag, comp, t, prep.stretch, cfg, kept=kept,
+                                     fs_hz=prep.fs, stretch_bp=st_m,
+                                     mag_bp=mag_bp_future.result(), source=prep.source)
     if cfg.filter_output:
         cut = cfg.lowpass_hz if cfg.lowpass_hz is not None else cfg.band_hz[1]
         # Low-pass per stretch, but each dropped segment on its own: a fault (a source
         # switching on, a drift step) must not ring through the filter into good data.
-        st = prep.stretch
-        if kept_segments is None or kept[seg >= 0].all():
-            lab = st
-        else:
-            dropped = np.where((seg >= 0) & ~kept, seg, -1)
-            lab = np.cumsum(np.r_[True, (st[1:] != st[:-1]) | (dropped[1:] != dropped[:-1])]) - 1
-            lab = np.where(st >= 0, lab, -1)
+        lab = isolate_dropped(prep.stretch, seg, kept)
         comp_out = lowpass_stretches(comp, t, lab, cut, cfg.order, fs_hz=prep.fs)
         del comp  # the unfiltered copy is not kept (mag - mag_tl, for whoever needs it)
     else:
@@ -120,11 +119,36 @@ def _apply(
     out["segment"] = pd.arrays.IntegerArray(np.where(missing, 0, seg) if missing.any() else seg,
                                             missing)
     out["segment_kept"] = kept
-    metrics, comp_bp = _band_metrics(prep.mag, comp_out, t, prep.stretch, cfg, kept=kept,
-                                     fs_hz=prep.fs, stretch_bp=st_m,
-                                     mag_bp=mag_bp_future.result())
     return out, metrics, comp_bp
 
+
+
+def isolate_dropped(stretch: np.ndarray, segment: np.ndarray, kept: np.ndarray) -> np.ndarray:
+    """Stretch labels in which every dropped segment is a stretch of its own.
+
+    Filters run per label, so a dropped segment's fault never rings into its neighbours.
+
+    Parameters
+    ----------
+    stretch : ndarray of int, shape (n,)
+        Stretch labels (-1: invalid sample).
+    segment : ndarray of int, shape (n,)
+        Segment id per sample (-1: none).
+    kept : ndarray of bool, shape (n,)
+        Samples of kept segments.
+
+    Returns
+    -------
+    ndarray of int, shape (n,)
+        ``stretch`` itself when no segment is dropped, otherwise new labels (-1 kept).
+    """
+    has = segment >= 0
+    if kept[has].all():
+        return stretch
+    dropped = np.where(has & ~kept, segment, -1)
+    st = stretch
+    lab = np.cumsum(np.r_[True, (st[1:] != st[:-1]) | (dropped[1:] != dropped[:-1])]) - 1
+    return np.where(st >= 0, lab, -1)
 
 
 def _check_plausible(data: pd.DataFrame, metrics: dict[str, Any], prep: Prepared,

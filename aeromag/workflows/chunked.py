@@ -38,7 +38,7 @@ from .._core.filters import butter_sos, filter_stretches, min_filter_length
 from .._core.moments import StreamingMoments
 from .._core.stretches import find_stretches, interpolate_short_gaps
 from ..compensation.config import CompensationConfig
-from ..compensation.metrics import metrics_dict
+from ..compensation.metrics import metrics_dict, require_samples
 from ..compensation.model import TLModel
 from ..compensation.prepare import check_total_field, total_field_from_fluxgate
 from ..compensation.report import AppliedRun, applied_report
@@ -291,7 +291,7 @@ def apply_model_chunked(
     sos_low = butter_sos("lowpass", cut, fs, cfg.order, option="--lowpass")
     sos_band = butter_sos("bandpass", cfg.band_hz, fs, cfg.order)
     trim = (0.5 / cfg.band_hz[0]) if cfg.trim_s is None else cfg.trim_s
-    m_use, m_kept, m_fin = StreamingMoments(), StreamingMoments(), StreamingMoments()
+    m_use, m_kept = StreamingMoments(), StreamingMoments()
     # Fourth differences of mag and of mag - mag_tl (the QC noise levels), by first sample.
     d4_before = StreamingMoments(mean=np.zeros(1), m2=np.zeros(1))
     d4_after = StreamingMoments(mean=np.zeros(1), m2=np.zeros(1))
@@ -331,9 +331,9 @@ def apply_model_chunked(
                 comp_out[fill] = comp[fill]
             else:
                 comp_out = comp
-            # metrics on band-passed mag and mag_comp (compensation_metrics, streamed)
-            st2 = find_stretches(t, np.isfinite(comp_out) & (st >= 0), max_gap)
-            Xf = filter_stretches(np.vstack([ar["mag"], comp_out]), st2, sos_band, axis=1)
+            # metrics on band-passed mag and mag - mag_tl (compensation_metrics, streamed)
+            st2 = find_stretches(t, np.isfinite(comp) & (st >= 0), max_gap)
+            Xf = filter_stretches(np.vstack([ar["mag"], comp]), st2, sos_band, axis=1)
             core = slice(a, b)
             fin = np.all(np.isfinite(Xf), axis=0)
             g2 = np.clip(gid, 0, len(t0s) - 1)
@@ -341,7 +341,6 @@ def apply_model_chunked(
             use = inner & fin
             kept = np.ones(len(seg), dtype=bool)  # a saved model: every sample is kept
             Xc = Xf[:, core]
-            m_fin.add(Xc[:, fin[core]])
             # As compute_qc: the mag column as read (gaps not interpolated).
             if has_mag:
                 raw_mag = w["mag"].to_numpy(np.float64)
@@ -390,7 +389,7 @@ def apply_model_chunked(
                 fh.truncate()
                 write_arrow_csv(table, fh, "needed")
         fh.flush()
-        metrics = _metrics(m_use, m_kept, m_fin, cfg)
+        metrics = _metrics(m_use, m_kept, cfg, fs, source)
         residual = {i: float(np.sqrt(max(s[2] / s[0] - (s[1] / s[0]) ** 2, 0.0)))
                     for i, s in seg_stats.items()}
         qc = _qc_block(metrics, residual, d4_before, d4_after, cfg)
@@ -456,13 +455,13 @@ def _median_from_counts(counts: dict[float, int]) -> float:
     return float(lo) if n % 2 else float(np.mean([lo, hi]))
 
 
-def _metrics(use: StreamingMoments, kept: StreamingMoments, fin: StreamingMoments,
-             cfg: CompensationConfig) -> dict[str, Any]:
+def _metrics(use: StreamingMoments, kept: StreamingMoments, cfg: CompensationConfig,
+             fs_hz: float, source: str) -> dict[str, Any]:
     """The metrics of :func:`aeromag.compensation.metrics.compensation_metrics` from moments."""
-    m = use if use.n >= 10 else fin
-    before, after = (float(x) for x in m.std())
+    require_samples(use.n, fs_hz, cfg.band_hz, source)
+    before, after = (float(x) for x in use.std())
     kept_std = None
-    if use.n >= 10 and kept.n:
+    if kept.n and kept.n != use.n:
         b2, a2 = (float(x) for x in kept.std())
         kept_std = (b2, a2)
-    return metrics_dict(m.n, before, after, kept_std, cfg.band_hz)
+    return metrics_dict(use.n, before, after, kept_std, cfg.band_hz, n_kept=kept.n)
