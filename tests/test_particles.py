@@ -294,3 +294,19 @@ def test_filter_rejects_bad_settings():
     with pytest.raises(ValueError):
         ParticleFilter(StateSpaceModel(f=md.f, Q=md.Q, loglik=md.loglik, x0=md.x0, P0=md.P0),
                        10, proposal="unscented")
+
+
+def test_batched_unscented_rows_without_measurement_only_predict():
+    _, y = simulate_linear_gaussian(F, H, Q, R, X0, P0, 20, seed=6)
+    km, _, _ = kalman_filter(y, F, H, Q, R, X0, P0)
+    ys = np.stack([y, y])
+    ys[1, 5:] = np.nan                     # the second problem loses its sensor at step 6
+    res = ParticleFilter(linear_gaussian_model(F, H, Q, R, X0, P0), 4000, batch=2,
+                         proposal="unscented", seed=2).run(ys)
+    assert np.all(np.isnan(res.loglik[1, 5:])) and np.all(np.isfinite(res.loglik[0]))
+    # prediction only: the mean follows F (velocity decays, position integrates it)
+    pred = res.mean[1, 4].copy()
+    for _ in range(15):
+        pred = F @ pred
+    np.testing.assert_allclose(res.mean[1, -1], pred, atol=0.05)
+    np.testing.assert_allclose(res.mean[0, -1], km[-1], atol=0.1)

@@ -704,8 +704,12 @@ class ParticleFilter:
             L0 = robust_sqrt(md.P0)
             self.x = md.x0 + self.rng.standard_normal(shape + (md.n,)) @ L0.T
 
-    def _propose(self, y: np.ndarray | None, u: Any, k: int) -> np.ndarray:
-        """Move the particles to step k; return the log-weight increment."""
+    def _propose(self, y: np.ndarray | None, u: Any, k: int,
+                 have: np.ndarray | None = None) -> np.ndarray:
+        """Move the particles to step k; return the log-weight increment.
+
+        ``have`` flags the batch rows that have a measurement (the others are moved by the
+        transition alone, whatever the proposal)."""
         md = self.model
         B, N, n = self.x.shape
         if self.proposal == "bootstrap" or y is None:
@@ -741,6 +745,9 @@ class ParticleFilter:
         Lh = robust_sqrt(Ph)
         z = self.rng.standard_normal(xh.shape)
         xn = xh + np.einsum("...ij,...j->...i", Lh, z)
+        if have is not None and not np.all(have):
+            prior = xp + np.einsum("ij,...j->...i", self._LQ, self.rng.standard_normal(xp.shape))
+            xn = np.where(have[:, None, None], xn, prior)
         logq = _gauss_logpdf(xn - xh, Lh)
         logp = _gauss_logpdf(xn - xp, np.broadcast_to(self._LQ, (B, N, n, n)))
         self.x = xn
@@ -803,7 +810,7 @@ class ParticleFilter:
                 y = fill if self.batched else fill[0]
         else:
             have[:] = False
-        inc = self._propose(y, u, k)
+        inc = self._propose(y, u, k, have)
         inc = np.where(np.isnan(inc), -np.inf, inc)
         inc = np.where(have[:, None], inc, 0.0)
         lw = self.logw + inc
