@@ -341,6 +341,8 @@ def _run_case(seeds: dict[str, Path], fmt: str, command: str, muts: list[tuple],
         assert not [f for f in after if f.endswith(".tmp")], after
         if code == 1:
             assert not after, f"files left after a failure: {after}"
+            err = next(ln for ln in text.splitlines() if ln.startswith("error: "))
+            assert inp.name in err or "-o " in err, f"the error names no file: {err}"
             return
         if command == "calibrate":
             from aeromag.io.model_file import read_model_document
@@ -459,6 +461,8 @@ def test_fuzz_track(seeds, muts, on_plan):
         assert not [f for f in after if f.endswith(".tmp")], after
         if code == 1:
             assert not after, f"files left after a failure: {after}"
+            err = next(ln for ln in _.splitlines() if ln.startswith("error: "))
+            assert target.name in err or "-o " in err, f"the error names no file: {err}"
             return
         assert {"t.csv", "t.json"} <= after, after
         if not on_plan:
