@@ -197,8 +197,11 @@ class NavFilter(FusionMixin):
         return g
 
     def _init_ground(self, height_m: float) -> None:
-        """Ground level from the first valid range: ``d_ground = p_d + h``, correlated with
-        ``p_d`` exactly as that sum is (so the datum error stays in the covariance)."""
+        """Set the ground level from the first valid range.
+
+        ``d_ground = p_d + h``, correlated with ``p_d`` exactly as that sum is (so the datum
+        error stays in the covariance).
+        """
         ukf, ig = self.ukf, self.ig
         ukf.x[ig] = ukf.x[2] + height_m
         P = ukf.P

@@ -1,5 +1,7 @@
-"""The measurement update of the navigation filter: gates, models and one joint update per
-epoch (a mixin of :class:`aeromag.nav.NavFilter`, kept apart to keep each file readable)."""
+"""The measurement update of the navigation filter: gates, models, one joint update per epoch.
+
+A mixin of :class:`aeromag.nav.NavFilter`, kept apart to keep each file readable.
+"""
 
 from __future__ import annotations
 
@@ -17,8 +19,11 @@ _RANGE_RECENT_S = 1.0
 
 
 class FusionMixin:
-    """``_fuse`` (gate every measurement of an epoch) and ``_update_blocks`` (one joint
-    unscented update with block-diagonal noise, each block gated on its own NIS)."""
+    """Measurement update of :class:`aeromag.nav.NavFilter`.
+
+    ``_fuse`` gates every measurement of an epoch; ``_update_blocks`` makes one joint
+    unscented update with block-diagonal noise, each block gated on its own NIS.
+    """
 
     def _fuse(self, t: float, e: Epoch) -> None:
         """Gate and fuse every measurement of one epoch in one joint update."""

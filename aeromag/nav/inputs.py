@@ -1,5 +1,7 @@
-"""What the navigation filter reads: the sensor arrays of a log, the start-up helpers, and the
-measurements of one epoch."""
+"""What the navigation filter reads.
+
+The sensor arrays of a log, the start-up helpers, and the measurements of one epoch.
+"""
 
 from __future__ import annotations
 

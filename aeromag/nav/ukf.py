@@ -66,8 +66,10 @@ class InnovationStats:
 
     @property
     def mean_nis(self) -> float | None:
-        """Mean normalised innovation squared of the fused measurements (``dof`` when the
-        filter is consistent); None when nothing was fused."""
+        """Mean normalised innovation squared of the fused measurements.
+
+        About ``dof`` when the filter is consistent; None when nothing was fused.
+        """
         return self.nis_sum / self.n_fused if self.n_fused else None
 
     def as_dict(self) -> dict[str, float | int | None]:
@@ -282,8 +284,10 @@ class UnscentedKalmanFilter:
 
     # -- sequential convention -------------------------------------------------------------
     def step(self, z: np.ndarray | None, u: object = None) -> np.ndarray:
-        """One sample: predict with input ``u`` (passed to ``fx`` when not None), then fuse
-        ``z`` (skipped when None or not finite).  Returns the state estimate."""
+        """Process one sample: predict, then fuse ``z``; return the state estimate.
+
+        ``u`` is passed to ``fx`` when not None; ``z`` is skipped when None or not finite.
+        """
         if u is None:
             self.predict()
         else:

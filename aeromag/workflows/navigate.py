@@ -1,6 +1,8 @@
-"""``aeromag navigate``, file in, files out: read a multi-rate log, navigate, write OUT.csv
-(the log plus the ``nav_*`` columns) and OUT.json (GNSS intervals used, settings, per-sensor
-innovation statistics) as a set."""
+"""``aeromag navigate``, file in, files out.
+
+Read a multi-rate log, navigate, write OUT.csv (the log plus the ``nav_*`` columns) and
+OUT.json (GNSS intervals used, settings, per-sensor innovation statistics) as a set.
+"""
 
 from __future__ import annotations
 
