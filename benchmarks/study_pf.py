@@ -59,16 +59,16 @@ def growth_study(n_runs: int) -> list[dict]:
 
 
 def cstr_study(n_runs: int, n_particles: int = 300, window: int = 10,
-               percentile: float = 99.0) -> dict:
+               percentile: float = 99.0, fit: str = "empirical") -> dict:
     t0 = time.perf_counter()
     free = simulate_cstr(None, n_runs=n_runs, seed=100)
     th, _ = cstr_threshold(free.y, n_particles=n_particles, window=window,
-                           percentile=percentile, seed=0)
+                           percentile=percentile, seed=0, fit=fit)
     other = simulate_cstr(None, n_runs=n_runs, seed=101)
     _, stat2 = cstr_threshold(other.y, n_particles=n_particles, window=window, seed=1)
     far = float(np.mean(np.nanmax(stat2, axis=1) > th.value))
     out = {"runs": n_runs, "particles": n_particles, "window": window,
-           "percentile": percentile, "threshold": th.value,
+           "percentile": percentile, "fit": fit, "threshold": th.value,
            "false_alarm_rate_same_runs": th.false_alarm_rate,
            "false_alarm_rate_independent_runs": far, "faults": {}}
     print(out, flush=True)
@@ -97,6 +97,8 @@ def main() -> None:
     ap.add_argument("--growth-runs", type=int, default=100)
     ap.add_argument("--percentile", type=float, default=100.0,
                     help="percentile of the fault-free runs' maxima of S_k (100: the largest)")
+    ap.add_argument("--fit", default="empirical", choices=("empirical", "gumbel"),
+                    help="percentile of the maxima themselves, or of a Gumbel law fitted to them")
     ap.add_argument("--skip-cstr", action="store_true")
     ap.add_argument("--skip-growth", action="store_true")
     ap.add_argument("--no-write", action="store_true")
@@ -106,7 +108,7 @@ def main() -> None:
     if not a.skip_growth:
         summary["growth"] = growth_study(a.growth_runs)
     if not a.skip_cstr:
-        summary["cstr"] = cstr_study(a.runs, percentile=a.percentile)
+        summary["cstr"] = cstr_study(a.runs, percentile=a.percentile, fit=a.fit)
     text = json.dumps(summary, indent=2)
     print(text)
     if not a.no_write:

@@ -310,3 +310,22 @@ def test_batched_unscented_rows_without_measurement_only_predict():
         pred = F @ pred
     np.testing.assert_allclose(res.mean[1, -1], pred, atol=0.05)
     np.testing.assert_allclose(res.mean[0, -1], km[-1], atol=0.1)
+
+
+def test_gumbel_threshold_extrapolates_the_maxima():
+    rng = np.random.default_rng(12)
+    # runs whose maxima follow a Gumbel law (loc 5, scale 2): the fitted 99th percentile
+    # alarms on about 1 % of new runs
+    s = np.concatenate([rng.gumbel(5.0, 2.0, size=(400, 1)), np.zeros((400, 50))], axis=1)
+    gum = threshold_from_runs(s, 99.0, fit="gumbel")
+    assert gum.info["model_false_alarm_rate"] == pytest.approx(0.01)
+    assert gum.value == pytest.approx(5.0 - 2.0 * np.log(-np.log(0.99)), abs=1.0)
+    new = rng.gumbel(5.0, 2.0, size=20_000)
+    assert np.mean(new > gum.value) == pytest.approx(0.01, abs=0.005)
+    # maxima of Gaussian noise approach the Gumbel law from below: the fit is conservative
+    g = rng.normal(size=(300, 400))
+    th = threshold_from_runs(g, 99.0, fit="gumbel")
+    far = np.mean(rng.normal(size=(2000, 400)).max(axis=1) > th.value)
+    assert far <= 0.012
+    with pytest.raises(ValueError):
+        threshold_from_runs(s, 100.0, fit="gumbel")

@@ -385,7 +385,8 @@ class Threshold:
     info: dict[str, Any] = field(default_factory=dict)
 
 
-def threshold_from_runs(stats: np.ndarray, percentile: float = 99.0) -> Threshold:
+def threshold_from_runs(stats: np.ndarray, percentile: float = 99.0,
+                        fit: str = "empirical") -> Threshold:
     """Threshold from fault-free runs: a percentile of the runs' maxima of ``S_k``.
 
     A percentile over all samples would give far more false alarms per run, since a run
@@ -396,24 +397,43 @@ def threshold_from_runs(stats: np.ndarray, percentile: float = 99.0) -> Threshol
     stats : ndarray, shape (runs, T)
         ``S_k`` of each fault-free run (NaN ignored).
     percentile : float
-        Percentile of the maxima, in (0, 100].
+        Percentile of the maxima, in (0, 100] (below 100 for ``fit="gumbel"``).
+    fit : {"empirical", "gumbel"}
+        ``"empirical"``: the sample percentile of the maxima (at 99 with 200 runs, the
+        second largest); ``"gumbel"``: the percentile of a Gumbel distribution fitted to the
+        maxima (the extreme-value law of a maximum), which extrapolates the tail instead of
+        resting on its one or two largest values.
 
     Returns
     -------
     Threshold
         ``false_alarm_rate`` is the fraction of these runs that would alarm (about
         ``1 - percentile/100``); an independent set of runs measures it without bias.
+        ``info["model_false_alarm_rate"]`` is the fitted law's exceedance probability.
     """
     s = np.asarray(stats, dtype=np.float64)
     if s.ndim != 2 or s.shape[0] < 2:
         raise ValueError("stats must have shape (runs, T) with at least 2 runs")
     mx = np.nanmax(np.where(np.isnan(s), -np.inf, s), axis=1)
     mx = mx[np.isfinite(mx) | (mx > 0)]
-    value = float(np.percentile(mx, percentile))
+    info: dict[str, Any] = {"max_median": float(np.median(mx)), "max_max": float(mx.max()),
+                            "fit": fit}
+    if fit == "empirical":
+        value = float(np.percentile(mx, percentile))
+    elif fit == "gumbel":
+        from scipy import stats as sps
+
+        if not 0.0 < percentile < 100.0:
+            raise ValueError("a Gumbel threshold needs a percentile below 100")
+        loc, scale = sps.gumbel_r.fit(mx)
+        value = float(sps.gumbel_r.ppf(percentile / 100.0, loc, scale))
+        info.update(gumbel_loc=float(loc), gumbel_scale=float(scale),
+                    model_false_alarm_rate=1.0 - percentile / 100.0)
+    else:
+        raise ValueError(f"fit must be 'empirical' or 'gumbel', not {fit!r}")
     far = float(np.mean(mx > value))
     return Threshold(value=value, percentile=float(percentile), method="runs",
-                     false_alarm_rate=far, n=int(mx.size),
-                     info={"max_median": float(np.median(mx)), "max_max": float(mx.max())})
+                     false_alarm_rate=far, n=int(mx.size), info=info)
 
 
 def threshold_from_calm(stat: np.ndarray, calm: np.ndarray | None = None,

@@ -293,7 +293,8 @@ CSTR_WARMUP_STEPS = 40
 
 def cstr_threshold(y_free: np.ndarray, n_particles: int = 300, window: int = 10,
                    percentile: float = 99.0, seed: int = 0, dt_min: float = 0.05,
-                   warmup_steps: int = CSTR_WARMUP_STEPS) -> tuple[Threshold, np.ndarray]:
+                   warmup_steps: int = CSTR_WARMUP_STEPS,
+                   fit: str = "empirical") -> tuple[Threshold, np.ndarray]:
     """Threshold of the nominal reactor filter from fault-free runs.
 
     Parameters
@@ -310,6 +311,9 @@ def cstr_threshold(y_free: np.ndarray, n_particles: int = 300, window: int = 10,
         Sampling interval, min.
     warmup_steps : int
         Leading samples whose ``S_k`` is set to NaN (the filter converging from its prior).
+    fit : {"empirical", "gumbel"}
+        How the percentile of the maxima is taken (see
+        :func:`~aeromag._core.particles.threshold_from_runs`).
 
     Returns
     -------
@@ -320,7 +324,7 @@ def cstr_threshold(y_free: np.ndarray, n_particles: int = 300, window: int = 10,
                         batch=len(y_free), seed=seed)
     stat = pf.run(y_free).stat
     stat[:, :warmup_steps] = np.nan
-    return threshold_from_runs(stat, percentile), stat
+    return threshold_from_runs(stat, percentile, fit), stat
 
 
 def cstr_detect_isolate(y: np.ndarray, time_min: np.ndarray, onset_min: float,
