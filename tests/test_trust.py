@@ -148,3 +148,28 @@ def test_short_logs_are_refused_with_the_reason(samples, calibration_run, tmp_pa
         assert r.exit_code == 1 and not out.exists(), r.output
         assert "too short to measure the compensation" in r.output
         assert r.output.count("\n") == 1
+
+
+def test_warnings_are_recorded_and_strict_makes_them_errors(samples, tmp_path):
+    """Item 9: a fluxgate logged in uT draws a units warning; it is in OUT.json, and with
+    --strict the command ends with exit 1, the warning as its error and no output."""
+    import pandas as pd
+
+    df = pd.read_csv(samples / "survey.csv")
+    df[["flux_x", "flux_y", "flux_z"]] /= 1000.0
+    micro = tmp_path / "micro.csv"
+    df.to_csv(micro, index=False)
+    out = tmp_path / "o.csv"
+    r = runner.invoke(app, ["compensate", str(micro), "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    warned = json.loads(out.with_suffix(".json").read_text())["warnings"]
+    assert any("--units flux=uT" in w for w in warned)
+    strict = tmp_path / "strict.csv"
+    for cmd, o in (("compensate", strict), ("calibrate", tmp_path / "m.json")):
+        r = runner.invoke(app, [cmd, str(micro), "-o", str(o), "--strict"])
+        assert r.exit_code == 1 and not o.exists(), r.output
+        err = [ln for ln in r.output.splitlines() if ln.startswith("error: ")]
+        assert len(err) == 1 and "--units flux=uT" in err[0] and "--strict" in err[0]
+    r = runner.invoke(app, ["compensate", str(samples / "survey.csv"), "-o", str(strict),
+                            "--strict"])
+    assert r.exit_code == 0 and strict.exists(), r.output

@@ -74,6 +74,58 @@ def user_errors() -> Iterator[None]:
     except OSError as exc:
         typer.echo(f"error: {clean(os_error_message(exc))}", err=True)
         raise typer.Exit(EXIT_USER_ERROR) from None
+    except StrictWarning as exc:
+        typer.echo(f"error: {clean(str(exc))}", err=True)
+        raise typer.Exit(EXIT_USER_ERROR) from None
+
+
+class StrictWarning(Exception):  # noqa: N818 - a warning raised as an error, by --strict
+    """A library warning raised as an error by ``--strict``.
+
+    Not an :class:`AeromagError`, so that no library code that tolerates a failed step (and
+    notes why) swallows it.
+    """
+
+
+class _RaiseWarnings(logging.Handler):
+    """Raise :class:`StrictWarning` on a warning (a handler's filter runs in the caller)."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.addFilter(self._raise)
+
+    @staticmethod
+    def _raise(record: logging.LogRecord) -> bool:
+        if record.levelno >= logging.WARNING:
+            raise StrictWarning(f"{record.getMessage()} (--strict: warnings are errors)")
+        return True
+
+    def emit(self, record: logging.LogRecord) -> None:  # never reached: the filter raises
+        pass
+
+
+@contextlib.contextmanager
+def strict_warnings(enabled: bool) -> Iterator[None]:
+    """With ``enabled``, every warning of aeromag's loggers ends the command as an error.
+
+    The first warning raises :class:`StrictWarning` where it is logged, so nothing after it
+    runs and no output is written (:func:`user_errors` reports it on one line).
+
+    Parameters
+    ----------
+    enabled : bool
+        ``--strict``.
+    """
+    if not enabled:
+        yield
+        return
+    handler = _RaiseWarnings()
+    lg = logging.getLogger("aeromag")
+    lg.addHandler(handler)
+    try:
+        yield
+    finally:
+        lg.removeHandler(handler)
 
 
 def os_error_message(exc: OSError) -> str:

@@ -206,6 +206,9 @@ OPTIONS: list[Option] = [
                       "size (identical output; for very large logs).",
         "batch": "With --model: apply it in chunks of N rows (bounded memory for very large "
                  "logs)."}, _APPLY, metavar="N"),
+    _o("strict", "--strict", bool, False, "Treat every warning (units that do not look like nT, "
+       "a fit that leaves more than it removes, ...) as an error: exit 1, no output.",
+       {"compensate", "calibrate"}),
     _o("no_progress", "--no-progress", bool, False, "No progress bar.", {"batch"}),
     _o("verbose", ("-v", "--verbose"), bool, False,
        "Log progress details (DEBUG messages of aeromag's loggers).", _COMP),

@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from ..errors import InputError
-from ._app import column_options, setup_logging, user_errors
+from ._app import column_options, setup_logging, strict_warnings, user_errors
 from ._options import Options, command
 
 
@@ -48,7 +48,7 @@ def compensate(opts: Options) -> None:
     from ..io import json_path_for
     from ..workflows.compensate import compensate_file
 
-    with user_errors():
+    with user_errors(), strict_warnings(opts.strict):
         if json_path_for(output) == output:
             raise InputError(f"-o {output}: the report goes to OUT.json, so OUT must not end in"
                              " .json; give the output CSV another name, e.g. -o survey_comp.csv")
@@ -89,7 +89,7 @@ def calibrate(opts: Options) -> None:
     _warm(screen=not opts.no_screen, log=opts.cal, fmt=opts.fmt)
     from ..workflows.compensate import calibrate_file
 
-    with user_errors():
+    with user_errors(), strict_warnings(opts.strict):
         columns, unit_map = column_options(opts.col, opts.map_file, opts.units)
         cfg = opts.config()
         res = calibrate_file(opts.cal, opts.output, cfg, columns=columns, units=unit_map,
