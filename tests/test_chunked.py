@@ -8,10 +8,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from aeromag.chunked import _median_from_counts, apply_model_chunked, overlap_rows
-from aeromag.compensate import CompensationConfig, calibrate_file, compensate_file
+from aeromag.compensation.config import CompensationConfig
 from aeromag.io import write_csv
 from aeromag.io.formats import write_table
+from aeromag.workflows.chunked import _median_from_counts, apply_model_chunked, overlap_rows
+from aeromag.workflows.compensate import calibrate_file, compensate_file
 
 from .conftest import hand_flight
 
@@ -93,8 +94,8 @@ def test_median_and_overlap():
 
 
 def test_chunked_reads_trailing_delimiters_and_refuses_duplicate_names(tmp_path):
-    from aeromag.compensate import calibrate_file
     from aeromag.errors import InputError
+    from aeromag.workflows.compensate import calibrate_file
 
     df, _ = hand_flight(n=6000)
     df = df.drop(columns=["truth_mag_tl", "truth_clean"])
@@ -114,3 +115,95 @@ def test_chunked_reads_trailing_delimiters_and_refuses_duplicate_names(tmp_path)
     with pytest.raises(InputError, match="appears twice"):
         apply_model_chunked(dup, tmp_path / "c.csv", tmp_path / "m.json", chunk_rows=1000)
     assert not (tmp_path / "c.csv").exists()
+
+
+# --------------------------------------------------------------------------- issue 16
+def _both(tmp_path, model_path, src, **kw):
+    """Compensate ``src`` in memory and chunked; both outputs' bytes."""
+    mem, chk = tmp_path / "mem.csv", tmp_path / "chk.csv"
+    compensate_file(src, mem, CompensationConfig(), model=model_path, **kw)
+    apply_model_chunked(src, chk, model_path, CompensationConfig(), chunk_rows=700, **kw)
+    return mem.read_bytes(), chk.read_bytes()
+
+
+@pytest.mark.parametrize("variant", ["bom", "blank_lines", "iso_time", "quoted_header",
+                                     "trailing_delimiter", "duplicate_row", "integral_floats"])
+def test_chunked_accepts_what_read_log_accepts_and_writes_the_same_bytes(tmp_path, model_path,
+                                                                         variant):
+    """Class: valid files rejected by --chunk-rows only (BOM, leading blank lines, ISO times,
+    quoted headers), exact duplicates refused, and '0.0' written '0' by the chunked path."""
+    df = _long_log(True).iloc[:3000].reset_index(drop=True)
+    df["zero"] = 0.0
+    df.loc[2500:, "zero"] = 0.25  # integral in the first chunks only
+    src = tmp_path / "in.csv"
+    write_csv(df, src)
+    raw = src.read_bytes()
+    if variant == "bom":
+        raw = b"\xef\xbb\xbf" + raw
+    elif variant == "blank_lines":
+        raw = b"\n\n" + raw
+    elif variant == "iso_time":
+        t = pd.Timestamp("2024-05-01T08:00:00") + pd.to_timedelta(df["time"], unit="s")
+        df2 = df.assign(time=t.dt.strftime("%Y-%m-%dT%H:%M:%S.%f"))
+        df2.to_csv(src, index=False)
+        raw = src.read_bytes()
+    elif variant == "quoted_header":
+        head, rest = raw.split(b"\n", 1)
+        raw = b",".join(b'"%s"' % c for c in head.split(b",")) + b"\n" + rest
+    elif variant == "trailing_delimiter":
+        raw = raw.replace(b"\n", b",\n")
+        raw = raw.replace(b",\n", b"\n", 1)  # the header has no trailing delimiter
+    elif variant == "duplicate_row":
+        lines = raw.split(b"\n")
+        raw = b"\n".join([*lines[:900], lines[899], *lines[900:]])
+    src.write_bytes(raw)
+    mem, chk = _both(tmp_path, model_path, src)
+    assert mem == chk
+    if variant == "integral_floats":
+        assert b",0.0," in chk
+
+
+def test_chunked_parquet_datetime_time_and_corrupt_parquet(tmp_path, model_path):
+    df = _long_log(True).iloc[:3000].reset_index(drop=True)
+    df["time"] = pd.Timestamp("2024-05-01", tz="UTC") + pd.to_timedelta(df["time"], unit="s")
+    src = tmp_path / "in.parquet"
+    write_table(df, src)
+    mem, chk = _both(tmp_path, model_path, src)
+    assert mem == chk
+    from aeromag.errors import InputError
+
+    raw = src.read_bytes()
+    for cut in (len(raw) // 2, len(raw) - 20):
+        src.write_bytes(raw[:cut])
+        with pytest.raises(InputError, match=r"in.parquet: cannot read as Parquet"):
+            apply_model_chunked(src, tmp_path / "x.csv", model_path, chunk_rows=700)
+        assert not (tmp_path / "x.csv").exists()
+
+
+def test_chunked_refuses_what_read_log_refuses_naming_the_line(tmp_path, model_path):
+    from aeromag.errors import InputError
+    from aeromag.io import read_log
+
+    df = _long_log(True).iloc[:3000].reset_index(drop=True)
+    src = tmp_path / "in.csv"
+    write_csv(df, src)
+    lines = src.read_bytes().split(b"\n")
+    cases = {
+        "short": [*lines[:1500], b",".join(lines[1500].split(b",")[:4]), *lines[1501:]],
+        "truncated": [*lines[:-2], lines[-2][:12]],
+        "non_utf8": [*lines[:1200], lines[1200] + b"\xff", *lines[1201:]],
+    }
+    cols = lines[0].split(b",")
+    j = cols.index(b"mag")
+    cells = lines[2000].split(b",")
+    cells[j] = b"abc"
+    cases["text"] = [*lines[:2000], b",".join(cells), *lines[2001:]]
+    for name, body in cases.items():
+        src.write_bytes(b"\n".join(body))
+        with pytest.raises(InputError) as want:
+            read_log(src)
+        with pytest.raises(InputError) as got:
+            apply_model_chunked(src, tmp_path / "x.csv", model_path, chunk_rows=700)
+        assert str(got.value) == str(want.value), name
+        assert "line" in str(got.value)
+        assert not (tmp_path / "x.csv").exists()
