@@ -226,3 +226,22 @@ def test_cli_sensor_names_match_the_filter():
     from aeromag.cli.navigate import SENSORS
 
     assert tuple(SENSORS) == tuple(ALL_SENSORS)
+
+
+def test_simulate_quadrotor_files_then_navigate(tmp_path):
+    r = runner.invoke(app, ["simulate", "-o", str(tmp_path / "sim"), "--small", "--quadrotor"])
+    assert r.exit_code == 0, r.output
+    d = tmp_path / "sim"
+    for name in ("quadrotor_hover.csv", "quadrotor_rectangle.csv", "quadrotor_hover_truth.csv",
+                 "quadrotor_rectangle_truth.csv", "quadrotor_truth.json"):
+        assert (d / name).stat().st_size > 0, name
+    info = json.loads((d / "quadrotor_truth.json").read_text())
+    assert info["hover"]["date"] == "2024-06-01"
+    log = pd.read_csv(d / "quadrotor_hover.csv")
+    truth = pd.read_csv(d / "quadrotor_hover_truth.csv")
+    assert len(log) == len(truth) and (log["time"] == truth["time"]).all()
+    assert log["gyro_x"].notna().sum() == 14999 and log["flow_x"].notna().sum() == 600
+    out = tmp_path / "nav.csv"
+    r = runner.invoke(app, ["navigate", str(d / "quadrotor_rectangle.csv"), "-o", str(out),
+                            "--gps", "none", "--date", "2024-06-01"])
+    assert r.exit_code == 0, r.output

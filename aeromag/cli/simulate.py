@@ -58,6 +58,11 @@ def simulate(
                                         "segments, ten short survey lines, a short mission): "
                                         "the shipped samples.")]
     = False,
+    quadrotor: Annotated[bool, typer.Option(
+        "--quadrotor", help="Also write the navigation study's quadrotor flights for 'aeromag "
+        "navigate': quadrotor_hover.csv (60 s at 2 m), quadrotor_rectangle.csv (60 s at 1.5 "
+        "m/s), their *_truth.csv and quadrotor_truth.json (site, date, field, biases).")]
+    = False,
     verbose: Annotated[bool, typer.Option("-v", "--verbose", help="Log progress details.")]
     = False,
 ) -> None:
@@ -68,5 +73,9 @@ def simulate(
     with user_errors():
         paths = write_simulation(output, seed=seed, faults=faults, rate_hz=rate, small=small)
         paths.update(_mission_files(output, seed, small))
+        if quadrotor:
+            from ..workflows.quadrotor import write_quadrotor_files
+
+            paths.update(write_quadrotor_files(output, seed=seed))
     for path in paths.values():
         typer.echo(str(path))
