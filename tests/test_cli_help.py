@@ -99,7 +99,7 @@ def test_non_canonical_map_target_warns(caplog, tmp_path):
     assert cols == {"foo": "mag", "mag_heading": "compass", "flux_x": "fx"}
     warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
     assert len(warnings) == 1 and "\n" not in warnings[0]
-    assert "--col foo=mag" in warnings[0] and "fluxgate magnitude" in warnings[0]
+    assert "--col foo=mag" in warnings[0] and "--mag-from-fluxgate" in warnings[0]
     assert "NAME=SOURCE" in warnings[0]
     caplog.clear()
     toml = tmp_path / "m.toml"
@@ -128,6 +128,9 @@ def test_cli_warns_on_renamed_mag_even_in_batch(tmp_path):
                   "--no-progress"]):
         p = subprocess.run([sys.executable, "-m", "aeromag", *args, "--col", "foo=mag"],
                            capture_output=True, text=True, timeout=120)
-        assert p.returncode == 0, p.stderr
+        # Without its scalar the log is refused (issue 15: no silent fluxgate fallback) ...
+        assert p.returncode == 1, p.stderr
+        assert "no 'mag' column" in p.stderr + p.stdout
+        # ... and the map entry that caused it is named once.
         lines = [ln for ln in p.stderr.splitlines() if "foo=mag" in ln]
         assert len(lines) == 1 and lines[0].startswith("WARNING: --col foo=mag"), p.stderr
