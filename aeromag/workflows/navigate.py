@@ -105,7 +105,7 @@ def navigate_file(
     """
     out = Path(out_path)
     out_json = json_path_for(out)
-    check_outputs([(log_path, "input log")], out, out_json)
+    check_outputs(log_path, out, out_json)
     mode = parse_gps_mode(gps)
     if date is not None and earth_field is not None:
         raise InputError("--date and --earth-field: give one magnetic reference, not both")
