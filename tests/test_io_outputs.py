@@ -182,3 +182,22 @@ def test_cli_refuses_unknown_output_extensions(tmp_path):
                                 "-o", str(tmp_path / bad)])
         assert r.exit_code == 1 and r.output.count("\n") == 1 and "-o " in r.output
         assert not (tmp_path / bad).exists()
+
+
+def test_writer_errors_name_the_output_not_its_temporary(tmp_path):
+    """Class: messages named the hidden temporary file instead of the output."""
+    model = tmp_path / "m.json"
+    assert runner.invoke(app, ["calibrate", str(DATA / "calibration.csv"), "-o",
+                               str(model)]).exit_code == 0
+    df = pd.read_csv(DATA / "survey.csv")
+    df["blob"] = [b"\x00\x01"] * len(df)
+    src = tmp_path / "bin.parquet"
+    df.to_parquet(src)
+    for out in ("o.csv", "o.xyz"):
+        r = runner.invoke(app, ["compensate", str(src), "--model", str(model), "-o",
+                                str(tmp_path / out)])
+        assert r.exit_code == 1 and f"error: {tmp_path / out}: column 'blob'" in r.output
+        assert ".tmp" not in r.output and not _temps(tmp_path)
+    r = runner.invoke(app, ["compensate", str(src), "--model", str(model), "-o",
+                            str(tmp_path / "o.parquet")])
+    assert r.exit_code == 0, r.output  # Parquet holds bytes

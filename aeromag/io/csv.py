@@ -22,7 +22,7 @@ import pandas as pd
 from ..errors import InputError
 from .columns import check_unique_names, filled_cells
 from .messages import clean
-from .outputs import atomic_path
+from .outputs import atomic_path, display_path
 from .rows import ROWS_ATTR, row_location, rows_after_header, text_lines
 
 log = logging.getLogger(__name__)
@@ -470,6 +470,7 @@ def check_no_binary(df: pd.DataFrame, target: Path) -> None:
     target : Path
         The output, named in the message.
     """
+    target = display_path(target)
     for c in df.columns:
         s = df[c]
         if s.dtype.kind not in "OS":

@@ -194,6 +194,22 @@ def remove_stale_temporaries(target: str | os.PathLike[str]) -> list[Path]:
     return removed
 
 
+def display_path(path: str | os.PathLike[str]) -> Path:
+    """The output a path stands for in messages: the target of a temporary, else itself.
+
+    Writers called on another writer's temporary (``write_table(df, tmp)``) name the real
+    output in their errors, never the hidden temporary.
+    """
+    p = Path(path)
+    for _ in range(8):
+        s = _active()
+        target = next((t for tmp, t in (s.pending if s else []) if tmp == p), None)
+        if target is None:
+            return p
+        p = target
+    return p
+
+
 def _same_file(a: Path, b: Path) -> bool:
     try:
         if a.resolve() == b.resolve():

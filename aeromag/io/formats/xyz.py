@@ -18,7 +18,7 @@ from ..columns import (
 )
 from ..csv import check_no_binary, check_text_file, not_utf8_message
 from ..messages import clean
-from ..outputs import atomic_path
+from ..outputs import atomic_path, display_path
 from ..rows import ROWS_ATTR, row_location, rows_in_runs
 
 log = logging.getLogger(__name__)
@@ -351,7 +351,8 @@ def write_xyz(df: pd.DataFrame, path: str | os.PathLike[str], *,
     -------
     Path
     """
-    p = Path(path)
+    p = display_path(path)  # the output named in errors (never a temporary)
+    dest = Path(path)
     line_cols = [c for c in ("line", "line_type", "line_label") if c in df.columns]
     if "line" not in df.columns and "line_label" not in df.columns:
         line_cols = []
@@ -377,9 +378,9 @@ def write_xyz(df: pd.DataFrame, path: str | os.PathLike[str], *,
             out.extend(rows[a:b])
     else:
         out.extend(rows)
-    with atomic_path(p) as tmp:
+    with atomic_path(dest) as tmp:
         tmp.write_text("\n".join(out) + "\n", encoding="utf-8")
-    return p
+    return dest
 
 
 def _xyz_ready(body: pd.DataFrame, p: Path) -> pd.DataFrame:
