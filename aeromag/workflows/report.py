@@ -323,7 +323,7 @@ def _read_columns(src: Path) -> pd.DataFrame:
     once, not the whole table twice.
     """
     parts: dict[str, list[np.ndarray]] = {}
-    for b in iter_log_batches(src, None, columns=list(_COLUMNS), batch_rows=100_000):
+    for b in iter_log_batches(src, None, columns=list(_COLUMNS), batch_rows=20_000):
         for c in b.columns:
             x = b[c].to_numpy()
             if c in _FLOAT32 and x.dtype == np.float64:
