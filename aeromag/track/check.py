@@ -228,7 +228,13 @@ def check_track(
                          " DGPS positions")
     ned = np.full((n, 3), np.nan)
     ned[ok] = geodetic_to_ned(lat[ok], lon[ok], alt[ok], origin)
-    t = data["time"].to_numpy(dtype=np.float64)
+    t = pd.to_numeric(data["time"], errors="coerce").to_numpy(dtype=np.float64)
+    back = np.flatnonzero(np.diff(t) < 0)
+    if back.size or not np.isfinite(t).all():
+        i = int(back[0] + 1) if back.size else int(np.flatnonzero(~np.isfinite(t))[0])
+        raise InputError(f"{src}: column 'time', row {i + 1}: {t[i]:g} is not a time after the"
+                         " previous row's; the track check needs increasing times (sort the log"
+                         " by time)")
     vel = motion_velocity(t, ned, model.velocity_window_s)
 
     warnings: list[str] = []
@@ -293,7 +299,7 @@ def check_track(
 
     legs = leg_summary(data, n_legs, threshold_m, dets, pass_id)
     for msg in warnings:
-        log.warning("%s: %s", src, msg)
+        log.warning("%s", msg)
     report = {
         "legs": legs,
         "n_legs": n_legs,

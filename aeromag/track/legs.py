@@ -131,7 +131,8 @@ def motion_velocity(time_s: np.ndarray, ned: np.ndarray, window_s: float = 1.0) 
     time_s : ndarray, shape (n,)
         Sample times, s (increasing).
     ned : ndarray, shape (n, 3)
-        Positions, m (NaN rows are skipped; their velocity is NaN).
+        Positions, m (NaN rows are skipped; their velocity is NaN).  Times must not decrease;
+        repeated times are stepped over.
     window_s : float
         Window length, s; at least the two neighbours of each sample are used.
 
@@ -147,10 +148,11 @@ def motion_velocity(time_s: np.ndarray, ned: np.ndarray, window_s: float = 1.0) 
     if ok.size < 2:
         return out
     tt, pp = t[ok], p[ok]
-    idx = np.arange(ok.size)
-    lo = np.minimum(np.searchsorted(tt, tt - 0.5 * window_s, side="left"), np.maximum(idx - 1, 0))
-    hi = np.maximum(np.searchsorted(tt, tt + 0.5 * window_s, side="right") - 1,
-                    np.minimum(idx + 1, ok.size - 1))
+    # at least the nearest samples of another time on either side (repeated time stamps)
+    before = np.maximum(np.searchsorted(tt, tt, side="left") - 1, 0)
+    after = np.minimum(np.searchsorted(tt, tt, side="right"), ok.size - 1)
+    lo = np.minimum(np.searchsorted(tt, tt - 0.5 * window_s, side="left"), before)
+    hi = np.maximum(np.searchsorted(tt, tt + 0.5 * window_s, side="right") - 1, after)
     dt = tt[hi] - tt[lo]
     with np.errstate(invalid="ignore", divide="ignore"):
         v = (pp[hi] - pp[lo]) / dt[:, None]
@@ -184,11 +186,12 @@ def leg_evidence(ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray,
     Returns
     -------
     ndarray, shape (n, m - 1), float32
-        Evidence per sample and leg, nats; ``floor`` where a position or velocity is missing.
+        Evidence per sample and leg, nats; 0 (no evidence either way: the state carries on)
+        where a position or velocity is missing.
     """
     horiz = model.horizontal_only if horizontal_only is None else horizontal_only
     n, n_legs = len(ned), len(waypoints) - 1
-    ev = np.full((n, n_legs), model.floor, dtype=np.float32)
+    ev = np.zeros((n, n_legs), dtype=np.float32)
     ok = np.isfinite(ned).all(axis=1) & np.isfinite(vel).all(axis=1)
     if not ok.any():
         return ev

@@ -10,6 +10,9 @@ from .geometry import plan_ned
 
 __all__ = ["MIN_LEG_LENGTH_M", "PLAN_NEEDS", "validate_plan"]
 
+#: Largest plan altitude accepted, m (above 100 km is not a flight plan).
+MAX_ABS_ALT_M = 1.0e5
+
 #: Shortest leg accepted in a plan, m.
 MIN_LEG_LENGTH_M = 0.01
 
@@ -72,6 +75,13 @@ def validate_plan(plan: pd.DataFrame, source: str = "<plan>") -> pd.DataFrame:
         i = int(np.flatnonzero(bad)[0])
         raise InputError(f"{source}: column 'lat', line {line(i)}: latitude {lat[i]:g} outside"
                          " [-90, 90] degrees; check the column order")
+    alt = out["alt"].to_numpy()
+    bad = np.abs(alt) > MAX_ABS_ALT_M
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(f"{source}: column 'alt', line {line(i)}: altitude {alt[i]:g} m is not"
+                         f" a height near the Earth (|alt| <= {MAX_ABS_ALT_M:g} m); check the"
+                         " column and its unit")
     lon = out["lon"].to_numpy()
     bad = np.abs(lon) > 360
     if bad.any():
