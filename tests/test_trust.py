@@ -173,3 +173,48 @@ def test_warnings_are_recorded_and_strict_makes_them_errors(samples, tmp_path):
     r = runner.invoke(app, ["compensate", str(samples / "survey.csv"), "-o", str(strict),
                             "--strict"])
     assert r.exit_code == 0 and strict.exists(), r.output
+
+
+def test_calibrate_without_lines_segments_by_the_detected_maneuvers(samples, tmp_path):
+    """Item 7: the shipped calibration without its line column: 60-s windows cut across the
+    maneuvers and the faulty one spoiled the fit (coefficient error 13 nT); the detected
+    maneuvers are the segments instead, the fault is dropped again and the coefficients are
+    as good as with the lines."""
+    import numpy as np
+    import pandas as pd
+
+    import aeromag as am
+
+    truth = np.array(json.loads((SAMPLES / "truth.json").read_text())["calibration"]["coef"])
+    df = pd.read_csv(samples / "calibration.csv")
+    nolines = tmp_path / "cal_nolines.csv"
+    df.drop(columns="line").to_csv(nolines, index=False)
+    model = tmp_path / "m.json"
+    r = runner.invoke(app, ["calibrate", str(nolines), "-o", str(model)])
+    assert r.exit_code == 0, r.output
+    rep = json.loads(model.read_text())
+    assert rep["segmentation"]["method"] == "detected maneuvers"
+    assert rep["segmentation"]["n_segments"] == 12 and len(rep["segments"]) == 12
+    err = np.abs(np.array(rep["coef"]) - truth).max()
+    with_lines = np.abs(am.calibrate(df).model.coef - truth).max()
+    assert err < 1.5 * with_lines and err < 3.0, (err, with_lines)
+    assert len(rep["screening"]["dropped"]) == 1
+
+
+def test_calibrate_warns_loudly_when_it_must_use_time_windows(caplog, monkeypatch):
+    import logging
+
+    import aeromag as am
+    import aeromag.qc
+
+    def no_detection(*args, **kwargs):
+        raise am.InputError("x.csv: no attitude columns and a fluxgate that never turns")
+
+    monkeypatch.setattr(aeromag.qc, "detect_maneuvers", no_detection)
+    df, _ = am.simulate_calibration(seed=1, n_boxes=1)
+    with caplog.at_level(logging.WARNING, logger="aeromag"):
+        res = am.calibrate(df.drop(columns="line"), am.CompensationConfig(fom=False))
+    warned = [r.getMessage() for r in caplog.records if "time windows" in r.getMessage()]
+    assert len(warned) == 1 and "--col line=SOURCE" in warned[0]
+    assert "never turns" in warned[0]
+    assert res.report["segmentation"]["method"] == "time windows"

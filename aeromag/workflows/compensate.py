@@ -17,6 +17,7 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from ..compensation import pipeline as _pipeline
@@ -79,10 +80,51 @@ def calibrate(
     Returns
     -------
     CompensationResult
+
+    Without a ``line`` column the segments are the maneuvers that
+    :func:`aeromag.qc.detect_maneuvers` finds (fixed time windows would cut across maneuvers
+    and mix a faulty one with clean ones); when none is found, the time windows are used with a
+    warning.  The report's ``segmentation`` says which.
     """
+    segmentation = None
+    if "line" not in df.columns:
+        df, segmentation = _segments_from_maneuvers(df, cfg, source)
     res = _run(_pipeline.calibrate(df, cfg, source=source))
+    if segmentation is not None:
+        res.report["segmentation"] = segmentation
+        res.model.meta["segmentation"] = segmentation
     _add_qc(res)
     return res
+
+
+def _segments_from_maneuvers(df: pd.DataFrame, cfg: CompensationConfig | None,
+                             source: str | None) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """A ``line`` column from the detected maneuvers (or heading legs) of a calibration log."""
+    from ..errors import AeromagError
+    from ..qc import detect_maneuvers
+
+    src = source or str(df.attrs.get("source", "<log>"))
+    seconds = (cfg or CompensationConfig()).segment_seconds
+    try:
+        man = detect_maneuvers(df, max_gap_s=cfg.max_gap_s if cfg else None, source=src)
+    except AeromagError as exc:
+        man, why = None, str(exc)
+    else:
+        why = "no maneuver or heading leg was found"
+    if man is not None and len(man.table):
+        line, what = man.labels["maneuver_id"].to_numpy(dtype=float), "detected maneuvers"
+    elif man is not None and len(man.legs):
+        line, what = man.labels["leg_id"].to_numpy(dtype=float), "detected heading legs"
+    else:
+        log.warning("%s: the log has no 'line' column and %s: fitting %g-s time windows, which"
+                    " cut across maneuvers (a faulty maneuver then spoils clean ones); give the"
+                    " flight's lines with --col line=SOURCE", src, why, seconds)
+        return df, {"method": "time windows", "segment_seconds": seconds, "reason": why}
+    line[line < 0] = np.nan
+    n = int(np.unique(line[np.isfinite(line)]).size)
+    log.info("%s: no 'line' column: %d %s are the segments", src, n, what)
+    seg = {"method": what, "detector": man.method, "n_segments": n}
+    return df.assign(line=line), seg
 
 
 @dataclass
@@ -321,6 +363,6 @@ def calibrate_file(
     if cfg.fom is None:
         cfg = dataclasses.replace(cfg, fom=True)
     df = read_log(path, columns=columns, units=units, required=("time", *FLUX_COLUMNS), fmt=fmt)
-    res = compensate(df, cfg, source=str(path))
+    res = calibrate(df, cfg, source=str(path))
     write_json(res.report, model_path)
     return res
