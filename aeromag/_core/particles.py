@@ -541,11 +541,24 @@ class StateSpaceModel:
 
 
 def _gauss_logpdf(d: np.ndarray, L: np.ndarray) -> np.ndarray:
-    """log N(d; 0, L L^T) over the last axis, batched (``L`` lower-triangular)."""
+    """log N(d; 0, L L^T) over the last axis, batched (``L`` lower-triangular).
+
+    ``L`` of shape (n, n) is shared by every row of ``d`` (one inverse); a state of one
+    component is a division (no batched solve: it dominates the cost of small filters)."""
     n = d.shape[-1]
-    z = np.linalg.solve(L, d[..., None])[..., 0]
-    logdet = 2.0 * np.sum(np.log(np.abs(np.diagonal(L, axis1=-2, axis2=-1))), axis=-1)
-    return -0.5 * (np.sum(z * z, axis=-1) + logdet + n * _LOG2PI)
+    if n == 1:
+        sd = L[..., 0, 0]
+        z2 = (d[..., 0] / sd) ** 2
+        logdet = 2.0 * np.log(np.abs(sd))
+    elif L.ndim == 2:
+        z = d @ np.linalg.inv(L).T
+        z2 = np.sum(z * z, axis=-1)
+        logdet = 2.0 * float(np.sum(np.log(np.abs(np.diag(L)))))
+    else:
+        z = np.linalg.solve(L, d[..., None])[..., 0]
+        z2 = np.sum(z * z, axis=-1)
+        logdet = 2.0 * np.sum(np.log(np.abs(np.diagonal(L, axis1=-2, axis2=-1))), axis=-1)
+    return -0.5 * (z2 + logdet + n * _LOG2PI)
 
 
 # --------------------------------------------------------------------------- filter
@@ -759,17 +772,20 @@ class ParticleFilter:
         yb = np.asarray(y, dtype=np.float64)
         yb = yb[:, None, :] if self.batched else yb[None, None, :]
         innov = self._y_res(yb, yp) if self._y_res else yb - yp
-        K = np.swapaxes(np.linalg.solve(Pyy, np.swapaxes(Pxy, -1, -2)), -1, -2)  # (B,N,n,m)
+        if self._m == 1:
+            K = Pxy / Pyy                                                  # (B,N,n,1)
+        else:
+            K = np.swapaxes(np.linalg.solve(Pyy, np.swapaxes(Pxy, -1, -2)), -1, -2)
         xh = xp + np.einsum("...ij,...j->...i", K, innov)
         Ph = Pp - np.einsum("...ij,...jk,...lk->...il", K, Pyy, K)
-        Lh = robust_sqrt(Ph)
+        Lh = np.sqrt(np.maximum(Ph, 0.0)) if n == 1 else robust_sqrt(Ph)
         z = self.rng.standard_normal(xh.shape)
         xn = xh + np.einsum("...ij,...j->...i", Lh, z)
         if have is not None and not np.all(have):
             prior = xp + np.einsum("ij,...j->...i", self._LQ, self.rng.standard_normal(xp.shape))
             xn = np.where(have[:, None, None], xn, prior)
         logq = _gauss_logpdf(xn - xh, Lh)
-        logp = _gauss_logpdf(xn - xp, np.broadcast_to(self._LQ, (B, N, n, n)))
+        logp = _gauss_logpdf(xn - xp, self._LQ)
         self.x = xn
         ll = self._call(lambda x, y_: md.loglik(y_, x, k), self.x, y)
         return ll + logp - logq
@@ -833,15 +849,17 @@ class ParticleFilter:
         inc = self._propose(y, u, k, have)
         inc = np.where(np.isnan(inc), -np.inf, inc)
         inc = np.where(have[:, None], inc, 0.0)
+        # self.logw is normalised at the end of every step, so the log of the new total is
+        # log L_k = log sum_i w_{k-1,i} p_i.
         lw = self.logw + inc
         norm, tot = normalize_log_weights(lw)
-        prev_tot = logsumexp(self.logw, axis=-1)
-        ll = np.where(have, tot - prev_tot, np.nan)
+        ll = np.where(have, tot, np.nan)
         self.logw = norm
-        w = np.exp(norm)[..., None]
+        w1 = np.exp(norm)
+        w = w1[..., None]
         mean = np.sum(w * self.x, axis=1)
         std = np.sqrt(np.maximum(np.sum(w * (self.x - mean[:, None]) ** 2, axis=1), 0.0))
-        ess = np.exp(-logsumexp(2.0 * norm, axis=-1))
+        ess = 1.0 / np.sum(w1 * w1, axis=-1)
         # S_k ring buffer over measured steps.
         hb = np.flatnonzero(have)
         self._buf[hb, self._nbuf[hb] % self.window] = -ll[hb]
