@@ -316,3 +316,24 @@ def test_old_two_detector_combine_still_works():
     legs = np.array([0, 0, 0, 1, 1, -1])
     assert old(tr, hd, legs, "and").tolist() == [0, 0, 0, 0, 1, 0]
     assert old(tr, None, legs).tolist() == [0, 1, 0, 0, 1, 0]
+
+
+def test_messy_logs(small_mission):
+    """GNSS on one row in ten (the other rows empty), repeated time stamps, times going
+    backwards, absurd plan altitudes."""
+    df, plan, _ = small_mission
+    base = check_track(df, plan)
+    keep = np.arange(len(df)) % 10 == 0
+    sparse = df.assign(lat=np.where(keep, df["lat"], np.nan))
+    res = check_track(sparse, plan)
+    assert res.report["flagged_legs"] == base.report["flagged_legs"] == [2]
+    lab, ref = (r.data["leg"].fillna(-1).to_numpy() for r in (res, base))
+    assert (lab[~keep] == -1).all()
+    assert (lab[keep] == ref[keep]).mean() > 0.97
+    coarse = check_track(df.assign(time=np.floor(df["time"])), plan)
+    assert coarse.report["flagged_legs"] == [2]
+    assert coarse.report["n_on_leg"] > 0.9 * base.report["n_on_leg"]
+    with pytest.raises(InputError, match=r"column 'time', row 2: .* \(sort the log"):
+        check_track(df.iloc[::-1].reset_index(drop=True), plan)
+    with pytest.raises(InputError, match="column 'alt', line 2: altitude 1e\\+300 m"):
+        check_track(df, plan.assign(alt=[1e300, 0.0, 0.0, 0.0]))
