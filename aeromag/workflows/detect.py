@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
 from ..detection.alarms import Alarms
 from ..detection.heading import CalmWindow
@@ -14,7 +16,7 @@ from ..detection.particle import DEFAULT_PARTICLES, DEFAULT_WINDOW, particle_det
 from ..io import atomic_path, json_path_for, read_log, write_csv, write_json
 from .compensate import check_outputs
 
-__all__ = ["detect_file", "detect_report"]
+__all__ = ["detect_file", "detect_report", "pf_track_detector"]
 
 
 def detect_report(res: Alarms, source: str) -> dict[str, Any]:
@@ -111,3 +113,34 @@ def detect_file(
         write_csv(data, tmp_csv)
         write_json(report, tmp_json)
     return report
+
+
+def pf_track_detector(*, calm_window: CalmWindow = None, declination_deg: float = 0.0,
+                      n_particles: int = DEFAULT_PARTICLES, window: int = DEFAULT_WINDOW,
+                      seed: int = 0, source: str = "<log>",
+                      ) -> Callable[[pd.DataFrame], Alarms]:
+    """The particle-filter detector as ``aeromag track --pf`` runs it on the log it read.
+
+    Parameters
+    ----------
+    calm_window : float, (float, float), str or None
+        Calm reference window (the heading detector's, default the first 30 s).
+    declination_deg : float
+        Declination for a fluxgate heading, degrees east.
+    n_particles, window, seed : int
+        As :func:`~aeromag.detection.particle.particle_detector`.
+    source : str
+        File name quoted in errors.
+
+    Returns
+    -------
+    callable
+        ``detector(df) -> Alarms`` (name ``"pf"``: ``track`` adds ``pf_alarm`` and combines
+        it into ``alarm``).
+    """
+    def detector(df: pd.DataFrame) -> Alarms:
+        return particle_detector(df, n_particles=n_particles, window=window,
+                                 calm_window=calm_window, declination_deg=declination_deg,
+                                 seed=seed, source=source)
+
+    return detector
