@@ -245,3 +245,12 @@ def test_simulate_quadrotor_files_then_navigate(tmp_path):
     r = runner.invoke(app, ["navigate", str(d / "quadrotor_rectangle.csv"), "-o", str(out),
                             "--gps", "none", "--date", "2024-06-01"])
     assert r.exit_code == 0, r.output
+
+
+def test_a_non_numeric_sensor_cell_is_a_one_line_error(flight, tmp_path):
+    df = flight.log.copy().astype({"gyro_x": object})
+    k = int(df["gyro_x"].notna().to_numpy().nonzero()[0][10])
+    df.loc[k, "gyro_x"] = "n/a?"
+    p = _write(df, tmp_path)
+    r = runner.invoke(app, ["navigate", str(p), "-o", str(tmp_path / "o.csv")])
+    _one_line_error(r, str(p), "gyro_x", "not a number")

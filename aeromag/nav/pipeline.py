@@ -99,8 +99,12 @@ def _col(df: pd.DataFrame, name: str, source: str) -> np.ndarray | None:
     if name not in df.columns:
         return None
     s = df[name]
-    v = pd.to_numeric(s, errors="coerce").to_numpy(dtype=np.float64)
-    bad = np.isnan(v) & s.notna().to_numpy() & (s.astype(str).str.strip() != "").to_numpy()
+    if s.dtype.kind in "fiub":     # already numbers: nothing to parse
+        v = s.to_numpy(dtype=np.float64)
+        bad = np.zeros(v.shape, bool)
+    else:
+        v = pd.to_numeric(s, errors="coerce").to_numpy(dtype=np.float64)
+        bad = np.isnan(v) & s.notna().to_numpy() & (s.astype(str).str.strip() != "").to_numpy()
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise InputError(f"{source}: column '{name}', data row {i + 1}: {s.iloc[i]!r} is not a"
