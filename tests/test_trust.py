@@ -54,10 +54,10 @@ def test_each_dropped_segment_says_why_where_and_when(survey_run):
 
 
 def test_fluxgate_magnitude_only_on_request(samples, tmp_path):
-    """Item 1: a log whose scalar is missing or misnamed is an error naming the way out; the
-    fluxgate magnitude as the total field is the explicit --mag-from-fluxgate; a model fitted on
-    the scalar is never applied to a fluxgate magnitude (nor the reverse), in memory or
-    chunked."""
+    """Item 1: a log whose scalar is misnamed (or mapped away) is an error naming the way out;
+    the fluxgate magnitude as the total field is then the explicit --mag-from-fluxgate; a model
+    fitted on the scalar is never applied to a fluxgate magnitude (nor the reverse), in memory
+    or chunked."""
     import pandas as pd
 
     df = pd.read_csv(samples / "survey.csv")
@@ -67,7 +67,8 @@ def test_fluxgate_magnitude_only_on_request(samples, tmp_path):
     r = runner.invoke(app, ["compensate", str(renamed), "-o", str(out)])
     assert r.exit_code == 1 and not out.exists()
     assert "no 'mag' column" in r.output and "--mag-from-fluxgate" in r.output
-    assert "--col mag=SOURCE" in r.output
+    assert "'mag_1_uc' looks like a scalar magnetometer" in r.output
+    assert "--col mag=mag_1_uc" in r.output
     # On request the fluxgate magnitude is fitted and applied, and the report says so.
     r = runner.invoke(app, ["compensate", str(renamed), "-o", str(out), "--mag-from-fluxgate"])
     assert r.exit_code == 0, r.output
@@ -218,3 +219,21 @@ def test_calibrate_warns_loudly_when_it_must_use_time_windows(caplog, monkeypatc
     assert len(warned) == 1 and "--col line=SOURCE" in warned[0]
     assert "never turns" in warned[0]
     assert res.report["segmentation"]["method"] == "time windows"
+
+
+def test_a_log_without_any_scalar_uses_the_fluxgate_with_a_warning(samples, tmp_path):
+    """interface.md: with no mag (and nothing that looks like one) the fluxgate magnitude is
+    the total field; never silently: the warning is printed and recorded in OUT.json."""
+    import pandas as pd
+
+    df = pd.read_csv(samples / "survey.csv")
+    keep = ["time", "line", "lat", "lon", "alt", "heading", "pitch", "roll", "flux_x", "flux_y",
+            "flux_z"]
+    src = tmp_path / "fluxonly.csv"
+    df[keep].to_csv(src, index=False)
+    out = tmp_path / "f.csv"
+    r = runner.invoke(app, ["compensate", str(src), "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    rep = json.loads(out.with_suffix(".json").read_text())
+    assert rep["mag_from_fluxgate"] is True
+    assert any("fluxgate magnitude is the measured total field" in w for w in rep["warnings"])

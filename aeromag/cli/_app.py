@@ -208,8 +208,9 @@ def warn_non_canonical(columns: Mapping[str, str], option: str = "--col") -> lis
         if src in CANONICAL_COLUMNS:
             effect = f"renames the log's column {src!r} to {name!r}, so it is not used as {src}"
             if src == "mag":
-                effect += (" (the log then has no scalar magnetometer: compensation refuses it"
-                           " unless --mag-from-fluxgate)")
+                effect += (" (the log then has no scalar magnetometer: compensation refuses it,"
+                           " as the renamed column still looks like one, unless"
+                           " --mag-from-fluxgate)")
         else:
             effect = f"{name!r} is not a canonical column, so column {src!r} is not used"
         log.warning("%s %s=%s %s; write NAME=SOURCE with NAME one of %s", option, name, src,

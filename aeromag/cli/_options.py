@@ -191,8 +191,9 @@ OPTIONS: list[Option] = [
     _o("max_interp", "--max-interp", float, 1.0, "NaN gaps up to this long are interpolated, s; "
        "longer ones split stretches.", _COMP, metavar="S", config="max_interp_s"),
     _o("mag_from_fluxgate", "--mag-from-fluxgate", bool, False, "Take the fluxgate magnitude "
-       "as the measured total field (a log without a scalar magnetometer; by default a log "
-       "without 'mag' is an error).", _COMP, config="mag_from_fluxgate"),
+       "as the measured total field even when the log has a 'mag' column or a column that "
+       "looks like a misnamed scalar (a log without either uses it, with a warning).", _COMP,
+       config="mag_from_fluxgate"),
     _o("fmt", "--format", str | None, None, "Input format (default: from the extension and "
        "contents; see docs/formats.md).", _READERS, metavar="FORMAT"),
     _o("fom", "--fom", bool, False, "Detect maneuvers and report the Figure of Merit (for a "

@@ -251,10 +251,12 @@ class CompensationConfig:
         only: cz against a constant, cx*cx and cy*cy), and then the unfiltered model returns
         tens of thousands of nT.  A saved model that does so only draws a warning.
     mag_from_fluxgate : bool
-        Take the magnitude of the fluxgate vector as the measured total field (a log without a
-        scalar magnetometer).  Only on request (``--mag-from-fluxgate``): a log whose scalar
-        column is missing or misnamed is an error otherwise, and a model fitted on one kind of
-        total field is never applied to the other.
+        Take the magnitude of the fluxgate vector as the measured total field even when the
+        log has ``mag`` (``--mag-from-fluxgate``).  Without it, a log with no ``mag`` uses the
+        fluxgate magnitude (interface.md) with a warning, unless another column looks like a
+        misnamed scalar (then it is an error); a model fitted on one kind of total field is
+        never applied to the other
+        (:func:`aeromag.compensation.prepare.total_field_from_fluxgate`).
     decimate : bool
         Fit a high-rate log on a copy decimated per stretch to at least 80 times the
         band's upper edge (:mod:`aeromag._core.decimate`; a 1 kHz log is fitted at 77 Hz, logs

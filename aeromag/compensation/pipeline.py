@@ -10,7 +10,7 @@ Python API used by the command line and by notebooks::
 Steps (patent M1, see ``shared/methods.md``):
 
 1. direction cosines and ``|B|`` from the fluxgate; the measured total field is ``mag`` (or
-   ``|B|`` when the log has no ``mag``);
+   ``|B|`` when the log has no ``mag``, with a warning, or with ``--mag-from-fluxgate``);
 2. continuous stretches (time gaps and long NaN gaps split them; short NaN gaps are
    interpolated) and segments (the ``line`` column, or fixed windows);
 3. the TL design matrix with derivatives against real time within each stretch; the target and

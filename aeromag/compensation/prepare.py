@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -12,7 +11,7 @@ import pandas as pd
 
 from .._core.filters import sampling_rate
 from .._core.stretches import find_stretches, interpolate_short_gaps
-from ..conventions import FLUX_COLUMNS
+from ..conventions import CANONICAL_COLUMNS, FLUX_COLUMNS
 from ..errors import FitError, InputError
 from .config import CompensationConfig
 from .segments import assign_segments, line_labels
@@ -41,14 +40,20 @@ class Prepared:
 
 
 
-def total_field_from_fluxgate(columns: Iterable[str], cfg: CompensationConfig,
-                              source: str) -> bool:
-    """Whether the fluxgate magnitude is the measured total field (only when asked).
+def total_field_from_fluxgate(df: pd.DataFrame, cfg: CompensationConfig, source: str) -> bool:
+    """Whether the fluxgate magnitude is the measured total field.
+
+    interface.md: when the log has no ``mag``, the fluxgate magnitude is the total field.  It
+    is never a silent fallback: that draws a warning (recorded in OUT.json), and a log without
+    ``mag`` whose other columns hold a scalar-like field (a misnamed or mis-mapped scalar,
+    e.g. ``mag_1_uc``, median 10,000-100,000) is refused unless ``cfg.mag_from_fluxgate``
+    (``--mag-from-fluxgate``) says so; the option also makes the fluxgate magnitude the total
+    field when the log has a ``mag``.
 
     Parameters
     ----------
-    columns : iterable of str
-        The log's columns.
+    df : DataFrame
+        The log (a first batch of rows is enough).
     cfg : CompensationConfig
         Options (``mag_from_fluxgate``).
     source : str
@@ -57,27 +62,41 @@ def total_field_from_fluxgate(columns: Iterable[str], cfg: CompensationConfig,
     Returns
     -------
     bool
-        ``cfg.mag_from_fluxgate``.
+        True when the fluxgate magnitude is the total field.
 
     Raises
     ------
     InputError
-        When the log has no ``mag`` column and the option is not given.
+        No ``mag``, a column that looks like one, and no ``--mag-from-fluxgate``.
     """
-    has_mag = "mag" in set(columns)
-    if not cfg.mag_from_fluxgate:
-        if not has_mag:
-            raise InputError(
-                f"{source}: no 'mag' column (the scalar magnetometer); map it with --col"
-                " mag=SOURCE, or pass --mag-from-fluxgate to take the fluxgate magnitude as"
-                " the total field")
-        return False
+    has_mag = "mag" in df.columns
+    if cfg.mag_from_fluxgate:
+        if has_mag:
+            log.warning("%s: --mag-from-fluxgate: the log's 'mag' column is not used; the"
+                        " fluxgate magnitude is the measured total field", source)
+        return True
     if has_mag:
-        log.warning("%s: --mag-from-fluxgate: the log's 'mag' column is not used; the fluxgate"
-                    " magnitude is the measured total field", source)
-    else:
-        log.info("%s: the fluxgate magnitude is the measured total field", source)
+        return False
+    scalar_like = [c for c in df.columns if c not in CANONICAL_COLUMNS and _field_like(df[c])]
+    if scalar_like:
+        c = scalar_like[0]
+        raise InputError(
+            f"{source}: no 'mag' column, but column {c!r} looks like a scalar magnetometer"
+            f" (median {float(np.nanmedian(df[c].to_numpy(dtype=np.float64))):.0f}); map it"
+            f" with --col mag={c}, or pass --mag-from-fluxgate to take the fluxgate magnitude"
+            " as the total field")
+    log.warning("%s: no 'mag' column: the fluxgate magnitude is the measured total field"
+                " (a model fitted on a scalar magnetometer is not applied to it)", source)
     return True
+
+
+def _field_like(col: pd.Series) -> bool:
+    """A numeric column whose median looks like a total field in nT (10,000-100,000)."""
+    if not pd.api.types.is_numeric_dtype(col) or pd.api.types.is_bool_dtype(col):
+        return False
+    v = col.to_numpy(dtype=np.float64)
+    v = v[np.isfinite(v)]
+    return bool(v.size) and 10_000.0 <= abs(float(np.median(v))) <= 100_000.0
 
 
 def check_total_field(model: Any, mag_from_flux: bool, source: str) -> None:
@@ -143,7 +162,7 @@ def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = N
     # |B|^2 is NaN where any axis is, so one pass finds the usable fluxgate samples.
     bt2 = np.einsum("ij,ij->i", flux, flux)
     flux_ok = np.isfinite(bt2) & (bt2 > 0)
-    mag_from_flux = total_field_from_fluxgate(df.columns, cfg, src)
+    mag_from_flux = total_field_from_fluxgate(df, cfg, src)
     if mag_from_flux:
         mag = np.sqrt(bt2)
     else:

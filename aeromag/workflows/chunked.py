@@ -55,7 +55,7 @@ from ..io import (
 )
 from ..io.formats import output_format
 from ..io.log import duplicates_warning
-from ..io.stream import duplicate_rows, iter_log_batches
+from ..io.stream import duplicate_rows, iter_log_batches, locate_row
 from .compensate import check_outputs
 
 log = logging.getLogger(__name__)
@@ -196,7 +196,7 @@ def apply_model_chunked(
     if missing:
         raise InputError(f"{source}: missing column(s) {', '.join(missing)}; map them with"
                          " --col NAME=SOURCE")
-    has_mag = not total_field_from_fluxgate(present, cfg, source)
+    has_mag = not total_field_from_fluxgate(first, cfg, source)
     check_total_field(model, not has_mag, source)
     has_line = "line" in present
     steps: dict[float, int] = {}
@@ -204,6 +204,7 @@ def apply_model_chunked(
     n_rows = 0
     prev_t = None
     same_t: list[np.ndarray] = []  # rows whose time equals the previous row's
+    same_v: list[np.ndarray] = []  # and that time
     for b in batches(["time", *(["line"] if has_line else [])]):
         t = b["time"].to_numpy(np.float64)
         tt = t if prev_t is None else np.r_[prev_t, t]
@@ -211,12 +212,13 @@ def apply_model_chunked(
         back = 0 if prev_t is None else 1
         if (dt < 0).any():
             i = int(np.flatnonzero(dt < 0)[0])
-            raise InputError(f"{source}: column 'time', row {n_rows + i - back + 2} of the data:"
-                             f" time {plain_number(tt[i + 1])} is not after"
-                             f" {plain_number(tt[i])}; time must be strictly increasing (sort"
-                             " the log or fix the row)")
+            where = locate_row(src, fmt, n_rows + i - back + 1)
+            raise InputError(f"{source}: column 'time', {where}: time {plain_number(tt[i + 1])}"
+                             f" is not after {plain_number(tt[i])}; time must be strictly"
+                             " increasing (sort the log or fix the row)")
         if (dt == 0).any():
             same_t.append(n_rows + np.flatnonzero(dt == 0) + 1 - back)
+            same_v.append(tt[np.flatnonzero(dt == 0) + 1])
             dt = dt[dt != 0]
         u, c = np.unique(dt, return_counts=True)
         for v, k in zip(u.tolist(), c.tolist(), strict=True):
@@ -232,11 +234,12 @@ def apply_model_chunked(
         other = np.setdiff1d(cand, dup)
         if other.size:
             i = int(other[0])
-            raise InputError(f"{source}: column 'time', row {i + 1} of the data: time is the"
-                             " same as in the row before, with other values; time must be"
-                             " strictly increasing (sort the log or fix the row)")
+            t_i = plain_number(np.concatenate(same_v)[int(np.searchsorted(cand, i))])
+            raise InputError(f"{source}: column 'time', {locate_row(src, fmt, i)}: time {t_i}"
+                             f" is not after {t_i}; time must be strictly increasing (sort the"
+                             " log or fix the row)")
         log.warning("%s", duplicates_warning(source, int(dup.size),
-                                             f"row {int(dup[0]) + 1} of the data"))
+                                             locate_row(src, fmt, int(dup[0]))))
         drop = dup
         n_rows -= int(dup.size)
     if n_rows < 2:
