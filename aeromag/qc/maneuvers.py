@@ -41,7 +41,6 @@ import pandas as pd
 
 from .._core.angles import wrap_deg
 from .._core.filters import sampling_rate
-from .._core.rotations import rotate_body_to_ned
 from .._core.runs import run_bounds
 from .._core.stretches import find_stretches
 from ..errors import InputError
@@ -131,11 +130,18 @@ def _heading_source(df: pd.DataFrame, declination_deg: float) -> tuple[np.ndarra
     z = np.zeros(len(df))
     pitch = df["pitch"].to_numpy(dtype=np.float64) if "pitch" in df.columns else z
     roll = df["roll"].to_numpy(dtype=np.float64) if "roll" in df.columns else z
-    # Levelled field (roll and pitch undone, yaw 0): the magnetic heading is atan2(-y, x).
-    flux = df[["flux_x", "flux_y", "flux_z"]].to_numpy(dtype=np.float64)
-    lev = rotate_body_to_ned(flux, np.deg2rad(np.nan_to_num(roll)),
-                             np.deg2rad(np.nan_to_num(pitch)), 0.0)
-    h = np.mod(np.rad2deg(np.arctan2(-lev[:, 1], lev[:, 0])) + float(declination_deg), 360.0)
+    # Levelled field (roll then pitch undone, the first two rows of the body-to-NED rotation
+    # at yaw 0): Xh = bx cos(th) + (by sin(ph) + bz cos(ph)) sin(th), Yh = by cos(ph) -
+    # bz sin(ph); the magnetic heading is atan2(-Yh, Xh).
+    bx, by, bz = (df[c].to_numpy(dtype=np.float64) for c in ("flux_x", "flux_y", "flux_z"))
+    th = np.deg2rad(np.nan_to_num(pitch))
+    ph = np.deg2rad(np.nan_to_num(roll))
+    if not (th.any() or ph.any()):
+        xh, yh = bx, by
+    else:
+        xh = bx * np.cos(th) + (by * np.sin(ph) + bz * np.cos(ph)) * np.sin(th)
+        yh = by * np.cos(ph) - bz * np.sin(ph)
+    h = np.mod(np.rad2deg(np.arctan2(-yh, xh)) + float(declination_deg), 360.0)
     return h, "fluxgate"
 
 
