@@ -295,25 +295,37 @@ def duplicate_rows(path: Path, fmt: str | None, candidates: np.ndarray, *,
         The candidates that are exact duplicates.
     """
     cand = np.asarray(candidates, dtype=np.int64)
-    out: list[int] = []
+    out: list[np.ndarray] = []
     prev: pd.DataFrame | None = None
     start = 0
     for b in iter_log_batches(path, fmt, colmap=colmap, units=units, batch_rows=batch_rows):
         k = len(b)
         lo, hi = np.searchsorted(cand, [start, start + k])
-        for r in cand[lo:hi].tolist():
-            i = r - start
-            a = b.iloc[i - 1] if i > 0 else (prev.iloc[-1] if prev is not None else None)
-            if a is not None and _same_row(a, b.iloc[i]):
-                out.append(r)
-        prev = b.iloc[-1:]
+        if hi > lo:
+            ext = b if prev is None else pd.concat([prev, b], ignore_index=True)
+            at = cand[lo:hi] - start + (0 if prev is None else 1)
+            ok = at >= 1
+            at, rows = at[ok], cand[lo:hi][ok]
+            cur = ext.iloc[at].reset_index(drop=True)
+            before = ext.iloc[at - 1].reset_index(drop=True)
+            same = ((cur == before) | (cur.isna() & before.isna())).all(axis=1).to_numpy()
+            out.append(rows[same])
+        prev = b.iloc[-1:] if k else prev
         start += k
-    return np.asarray(out, dtype=np.int64)
+    return np.concatenate(out) if out else np.zeros(0, dtype=np.int64)
 
 
-def _same_row(a: pd.Series, b: pd.Series) -> bool:
-    eq = (a == b) | (a.isna() & b.isna())
-    return bool(eq.all())
+def locate_row(path: Path, fmt: str | None, i: int) -> str:
+    """Where data row ``i`` (0-based) of a log is, worded as :func:`read_log` words it."""
+    f = detect_format(path, fmt)
+    if f == "csv":
+        head = _csv_header_fields(Path(path))
+        rows = rows_after_header(path, head[1] if head else 1)
+    elif f == "parquet":
+        rows = rows_numbered("row")
+    else:
+        rows = read_table_rows(path, f).attrs.get(ROWS_ATTR)
+    return row_location(rows, i)
 
 
 def _count_lines_estimate(path: Path) -> int:
