@@ -2,7 +2,8 @@
 
 Real subprocesses (a fresh interpreter each): ``import aeromag`` and ``aeromag --help`` import
 none of the heavy packages; applying a model never imports scikit-learn, matplotlib or pyproj;
-calibrating with ``--no-screen`` never imports scikit-learn.  A meta-path hook records the
+calibrating with ``--no-screen`` never imports scikit-learn; ``track`` imports matplotlib only
+for ``--plot``.  A meta-path hook records the
 thread of every first import: importing on a background thread beside the main thread once
 crashed runs (a partially initialised scikit-learn), so every import must be on the main one.
 """
@@ -102,3 +103,14 @@ def test_calibrate_without_screening_imports_no_sklearn(tmp_path):
     assert r["code"] == 0
     assert "sklearn" not in r["mods"], r
     assert r["off_main"] == [], r
+
+
+def test_track_imports_matplotlib_only_for_plots(tmp_path):
+    argv = ["track", str(SAMPLES / "mission.csv"), "--plan", str(SAMPLES / "mission_plan.csv"),
+            "-o", str(tmp_path / "t.csv")]
+    r = _probe(argv, tmp_path)
+    assert r["code"] == 0
+    assert "matplotlib" not in r["mods"] and "sklearn" not in r["mods"], r
+    assert r["off_main"] == [], r
+    r = _probe([*argv[:-1], str(tmp_path / "t2.csv"), "--plot", str(tmp_path / "fig")], tmp_path)
+    assert r["code"] == 0 and "matplotlib" in r["mods"], r

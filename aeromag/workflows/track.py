@@ -15,7 +15,6 @@ from ..detection.alarms import Alarms
 from ..detection.heading import DEFAULT_SIGMA_FLOOR_DEG, CalmWindow
 from ..io import atomic_path, json_path_for, read_log, write_csv, write_json
 from ..io.plans import read_plan
-from ..plot.track import plot_track
 from ..track.check import TrackResult, check_track
 from .compensate import check_outputs
 
@@ -114,6 +113,8 @@ def track_file(
     res.report["plan"] = str(plan_path)
     res.report["plan_format"] = plan.attrs.get("format", "csv")
     if plot_dir is not None:
+        from ..plot.track import plot_track  # matplotlib only when figures are asked for
+
         res.report["plots"] = [str(p) for p in plot_track(res, plan, plot_dir,
                                                           threshold_m=threshold_m)]
     write_outputs(res, out, out_json)
