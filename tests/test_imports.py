@@ -65,8 +65,9 @@ def test_import_aeromag_is_light(tmp_path):
     assert r["mods"] == [], r
 
 
-@pytest.mark.parametrize("argv", [["--help"], ["calibrate", "--help"],
-                                  ["compensate", "--help"]])
+@pytest.mark.parametrize("argv", [["--help"], *([c, "--help"] for c in (
+    "calibrate", "compensate", "batch", "track", "report", "simulate", "compass", "detect",
+    "navigate"))])
 def test_help_imports_no_heavy_package(tmp_path, argv):
     r = _probe(argv, tmp_path)
     assert r["code"] == 0
