@@ -13,9 +13,11 @@ module             what it holds
 ``formats``        the one registry of formats: extension, sniffing, read, write
                    (CSV, Parquet, Geosoft XYZ, MagNav/SGL HDF5, MagArrow, MagDrone)
 ``log``            :func:`read_log`: any format into validated canonical columns
-``stream``         row batches for the chunked mode
-``outputs``        atomic writes
-``json``           JSON reports and models
+``stream``         row batches for the chunked mode, validated by ``log``'s functions
+``outputs``        atomic writes as a set (all files or none), stale temporaries, -o checks
+``json``           JSON reports and models (a report records the command's warnings)
+``model_file``     model JSON and column-map TOML: size limits and schema
+``messages``       echoed names without control characters
 ``warm``           prefetching a CSV while the command line starts
 ``plans``          mission plans (``.csv``, QGroundControl ``.plan``, ``.waypoints``)
 =================  ===============================================================
@@ -54,7 +56,8 @@ from .csv import (
     write_csv_passthrough,
 )
 from .json import write_json
-from .log import read_log
+from .log import read_log, reading_options
+from .model_file import read_model_document
 from .outputs import atomic_path, check_outputs, json_path_for, output_set
 from .rows import (
     ROWS_ATTR,
@@ -70,6 +73,7 @@ __all__ = [
     "apply_column_map", "atomic_path", "check_outputs", "check_unique_names", "convert_units",
     "datetime_seconds", "filled_cells", "json_path_for", "numeric_values",
     "output_set", "parse_column_map", "plain_number", "read_csv", "read_log", "read_map_file",
+    "read_model_document", "reading_options",
     "row_location", "rows_after_header", "rows_in_runs", "rows_numbered", "unit_factor",
     "write_arrow_csv", "write_csv", "write_csv_passthrough", "write_json",
 ]
