@@ -76,7 +76,9 @@ def navigate(
     verbose: Annotated[bool, typer.Option("-v", "--verbose", help="Log progress details.")]
     = False,
 ) -> None:
-    """Navigate with an unscented Kalman filter (IMU, flow, range, baro, magnetometer, GNSS).
+    """Navigate: an unscented Kalman filter on IMU, flow, GNSS.
+
+    Aiding: optical flow, rangefinder, barometer, gravity, magnetometer, GNSS.
 
     Writes OUT.csv (the log plus nav_lat, nav_lon, nav_alt, nav_n_m, nav_e_m, nav_d_m,
     nav_vn, nav_ve, nav_vd, nav_roll, nav_pitch, nav_yaw, nav_std_n_m, nav_std_e_m,
