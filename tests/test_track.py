@@ -337,3 +337,35 @@ def test_messy_logs(small_mission):
         check_track(df.iloc[::-1].reset_index(drop=True), plan)
     with pytest.raises(InputError, match="column 'alt', line 2: altitude 1e\\+300 m"):
         check_track(df, plan.assign(alt=[1e300, 0.0, 0.0, 0.0]))
+
+
+def test_noisy_positions_and_gnss_velocity():
+    """Non-RTK positions (0.5 m white noise per axis per sample): the velocity window widens
+    with the measured jitter and the legs are still found; GNSS velocity columns are used."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from test_track_legs import _scores
+
+    df, plan, _ = simulate_mission(seed=0, rtk_noise_m=0.5, line_m=250.0,
+                                   home_ne_m=(-30.0, -20.0), ground_s=20.0, refly_legs=(3,))
+    res = check_track(df, plan, threshold_m=2.0)
+    v = res.report["velocity"]
+    assert v["source"] == "positions" and 0.4 < v["position_jitter_m"] < 0.6
+    assert v["window_s"] == pytest.approx(7.0 * v["position_jitter_m"])
+    s = _scores(df, plan, res)
+    assert s["recall"] > 0.99 and s["precision"] > 0.98, s
+    assert not res.data["alarm"].to_numpy()[(df["truth_phase"] != "leg").to_numpy()].any()
+    from aeromag.track.legs import LegModel, motion_velocity
+
+    o = tuple(float(plan[c].iloc[0]) for c in ("lat", "lon", "alt"))
+    from aeromag._core.geodesy import geodetic_to_ned
+
+    ned = geodetic_to_ned(df["lat"], df["lon"], df["alt"], o)
+    vel = motion_velocity(df["time"].to_numpy(), ned, v["window_s"])
+    withv = df.assign(vel_n=vel[:, 0], vel_e=vel[:, 1], vel_d=vel[:, 2])
+    res2 = check_track(withv, plan, threshold_m=2.0)
+    assert res2.report["velocity"]["source"] == "gnss"
+    pd.testing.assert_series_equal(res2.data["leg"], res.data["leg"])
+    assert LegModel().velocity_window_s == 1.0

@@ -66,7 +66,7 @@ from .legs import (
     labels_from_column,
     leg_evidence,
     leg_passes,
-    motion_velocity,
+    velocity_for_legs,
 )
 from .plan import validate_plan
 
@@ -235,7 +235,11 @@ def check_track(
         raise InputError(f"{src}: column 'time', row {i + 1}: {t[i]:g} is not a time after the"
                          " previous row's; the track check needs increasing times (sort the log"
                          " by time)")
-    vel = motion_velocity(t, ned, model.velocity_window_s)
+    gv = None
+    if all(c in data.columns for c in ("vel_n", "vel_e", "vel_d")):
+        gv = data[["vel_n", "vel_e", "vel_d"]].apply(pd.to_numeric, errors="coerce").to_numpy(
+            dtype=np.float64)
+    vel, vel_info = velocity_for_legs(t, ned, model, gv)
 
     warnings: list[str] = []
     applied, alt_info, w = diagnose.altitude_offset(ned, vel, wps, model, offset_spec)
@@ -315,6 +319,7 @@ def check_track(
         "altitude_offset": alt_info,
         "origin": {"lat": origin[0], "lon": origin[1], "alt": origin[2]},
         "position_input": "log" if position is None else "given",
+        "velocity": vel_info,
         "heading_detector": heading_info,
         "detectors": [{"detector": name, "ran": a is not None,
                        "n_alarms": None if a is None else int(np.asarray(a).sum())}

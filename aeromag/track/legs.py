@@ -43,7 +43,7 @@ from ..errors import InputError
 from .geometry import cross_track
 
 __all__ = ["DEFAULT_WAYPOINT_RADIUS_M", "LegModel", "assign_legs", "decode_legs",
-           "estimate_altitude_offset",
+           "estimate_altitude_offset", "position_jitter_m", "velocity_for_legs",
            "leg_evidence", "labels_from_column", "leg_passes", "motion_velocity", "viterbi"]
 
 log = logging.getLogger(__name__)
@@ -159,6 +159,70 @@ def motion_velocity(time_s: np.ndarray, ned: np.ndarray, window_s: float = 1.0) 
     v[~(dt > 0)] = np.nan
     out[ok] = v
     return out
+
+
+def position_jitter_m(ned: np.ndarray) -> float:
+    """Sample-to-sample noise of horizontal positions, m (robust, from second differences).
+
+    For white noise of standard deviation ``s`` per axis the second difference has standard
+    deviation ``sqrt(6) s``; smooth motion contributes little at the sample rate.
+
+    Parameters
+    ----------
+    ned : ndarray, shape (n, 3)
+        Positions, m (NaN rows skipped).
+
+    Returns
+    -------
+    float
+        Noise per horizontal axis, m (0 with fewer than 3 positions).
+    """
+    p = ned[np.isfinite(ned).all(axis=1)][:, :2]
+    if len(p) < 3:
+        return 0.0
+    d2 = p[2:] - 2.0 * p[1:-1] + p[:-2]
+    return float(1.4826 * np.median(np.abs(d2)) / np.sqrt(6.0))
+
+
+def velocity_for_legs(time_s: np.ndarray, ned: np.ndarray, model: LegModel,
+                      gnss_velocity: np.ndarray | None = None
+                      ) -> tuple[np.ndarray, dict[str, float | str]]:
+    """The velocity the leg model uses, and how it was obtained.
+
+    The GNSS (Doppler) velocity where the log has it; elsewhere the velocity from positions
+    over ``model.velocity_window_s``, widened for noisy positions so that position noise
+    ``s`` gives at most about 0.1 m/s of velocity noise (window ``>= 14 s``, at most 5 s).
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,)
+        Sample times, s.
+    ned : ndarray, shape (n, 3)
+        Positions, NED, m.
+    model : LegModel
+        Parameters.
+    gnss_velocity : ndarray, shape (n, 3), optional
+        ``vel_n``, ``vel_e``, ``vel_d`` of the log, m/s (NaN where absent).
+
+    Returns
+    -------
+    vel : ndarray, shape (n, 3)
+        Velocity, m/s.
+    info : dict
+        ``source`` (``gnss``, ``positions`` or ``gnss+positions``), ``window_s``,
+        ``position_jitter_m`` for the report.
+    """
+    jitter = position_jitter_m(ned)
+    window = float(min(max(model.velocity_window_s, 7.0 * jitter), 5.0))
+    vel = motion_velocity(time_s, ned, window)
+    source = "positions"
+    if gnss_velocity is not None:
+        g = np.asarray(gnss_velocity, dtype=np.float64)
+        has = np.isfinite(g).all(axis=1)
+        if has.any():
+            vel = np.where(has[:, None], g, vel)
+            source = "gnss" if has.all() else "gnss+positions"
+    return vel, {"source": source, "window_s": window, "position_jitter_m": jitter}
 
 
 def _sigmoid(x: np.ndarray) -> np.ndarray:
@@ -367,7 +431,7 @@ def assign_legs(
     model = model or LegModel()
     p = np.asarray(ned, dtype=np.float64)
     t = np.arange(len(p)) / 10.0 if time_s is None else np.asarray(time_s, dtype=np.float64)
-    vel = motion_velocity(t, p, model.velocity_window_s)
+    vel, _ = velocity_for_legs(t, p, model)
     ev = leg_evidence(p, vel, np.asarray(waypoints, dtype=np.float64), model)
     lab = decode_legs(ev, t, model)
     lab[~np.isfinite(p).all(axis=1)] = -1
