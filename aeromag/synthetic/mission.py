@@ -16,11 +16,18 @@ logged position has RTK noise (2 cm per axis by default).  A disturbance is a fi
 magnetometer's body Y axis, ramping at a given rate (G/s, 1 G = 1e5 nT) from its onset to a
 ceiling (0.2 G), held, and removed ``hold_s`` (60 s) after onset or at the end of the leg.  The
 vehicle hovers at each waypoint (turning to the next leg) long enough for the filter to
-re-converge.
+re-converge.  Options add what real sessions hold: a take-off point away from the plan with the
+transits to and from it, time on the ground, legs flown twice with the transit back, any plan,
+and a leg that ends before its waypoint (ArduCopter's ``WPNAV_RADIUS``).
+
+The log has the body rates ``gyro_x/y/z`` (rad/s, the mean over the interval that ends at the
+row, from the true attitude), as the interface defines them.
 
 Truth columns: ``truth_xtrack_m`` (noise-free distance to the current leg's line in NED, NaN off
 leg), ``truth_leg`` (the leg being flown, -1 otherwise), ``truth_heading`` (true heading, deg),
-``truth_dpsi_deg`` (heading error of the estimate, deg), ``truth_disturbance_nT``.
+``truth_dpsi_deg`` (heading error of the estimate, deg), ``truth_disturbance_nT``,
+``truth_mag_heading``, and with the options ``truth_phase`` (ground, climb, hover, leg, transit,
+land).
 ``mission_truth.json`` lists per leg the disturbance kind, onset time and rate.
 """
 
