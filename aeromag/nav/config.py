@@ -55,6 +55,9 @@ class NavConfig:
         Fuse the barometer also while the rangefinder is valid (default: only without it).
     baro_interval_s, mag_interval_s, gravity_interval_s : float
         Shortest interval between two fused samples of these sensors, s.
+    mag_on_epochs : bool
+        Fuse the magnetometer sample nearest to an epoch the filter makes anyway (flow,
+        range, GNSS), rotated by the gyro to that epoch's time: one update instead of two.
     mag_heading_noise_deg : float
         Magnetometer heading noise, ° (HMC5983: 1).
     mag_field_tolerance : float
@@ -116,6 +119,7 @@ class NavConfig:
     baro_interval_s: float = 0.1
     mag_interval_s: float = 0.1
     gravity_interval_s: float = 0.1
+    mag_on_epochs: bool = True
     mag_heading_noise_deg: float = 1.0
     mag_field_tolerance: float = 0.15
     mag_inclination_tolerance_deg: float = 5.0

@@ -51,7 +51,7 @@ from .inputs import (
     magnetic_reference_from_log,
     tilt_from_accel,
 )
-from .mechanization import GRAVITY, propagate
+from .mechanization import GRAVITY, propagate, rotation_matrices
 from .models import level_heading
 from .ukf import DivergenceError, FilterResult, InnovationStats, UnscentedKalmanFilter
 
@@ -341,6 +341,49 @@ class NavFilter(FusionMixin):
         self._check(t)
         return self.ukf.x.copy()
 
+    def _mag_epochs(self, t: np.ndarray, flux: np.ndarray | None, r_mag: np.ndarray,
+                    hosts: np.ndarray, imu_rows: np.ndarray, last_imu: np.ndarray,
+                    gyro: np.ndarray, cum_ang: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rows at which to fuse the magnetometer, and the field vector to fuse there.
+
+        With ``mag_on_epochs``, each magnetometer update rides on an epoch the filter makes
+        anyway (flow, range, GNSS; decimated to ``mag_interval_s``) with the magnetometer
+        sample nearest to it, within half a magnetometer interval: one update instead of two.
+        Either way the vector is rotated by the body rotation (gyro) from its own time to the
+        time of the state it is fused with (the last IMU sample), so neither the shift nor the
+        IMU interval biases the heading in a turn.
+        """
+        if flux is None:
+            return r_mag, np.zeros((0, 3))
+        c = self.config
+        src = r_mag
+        if c.mag_on_epochs and hosts.size:
+            all_mag = np.flatnonzero(np.isfinite(flux).all(axis=1) & (last_imu >= 0))
+            all_mag = all_mag[all_mag > imu_rows[0]]
+            if all_mag.size > 1:
+                half = 0.5 * float(np.median(np.diff(t[all_mag])))
+                dec = decimate_rows(t, hosts, c.mag_interval_s)
+                k = np.clip(np.searchsorted(t[all_mag], t[dec]), 1, all_mag.size - 1)
+                left, right = all_mag[k - 1], all_mag[k]
+                pick = np.where(np.abs(t[left] - t[dec]) <= np.abs(t[right] - t[dec]), left,
+                                right)
+                ok = np.abs(t[pick] - t[dec]) <= half + 1e-9
+                r_mag, src = dec[ok], pick[ok]
+        if r_mag.size == 0:
+            return r_mag, np.zeros((0, 3))
+        # Body angle at a time: the cumulative angle at the last IMU sample before it plus the
+        # next sample's rate over the remainder.
+        def angle_at(rows: np.ndarray) -> np.ndarray:
+            li = last_imu[rows]
+            nxt = imu_rows[np.minimum(np.searchsorted(imu_rows, li, side="right"),
+                                      imu_rows.size - 1)]
+            return cum_ang[li] + gyro[nxt] * (t[rows] - t[li])[:, None]
+
+        dtheta = cum_ang[last_imu[r_mag]] - angle_at(src)       # from the sample to the state
+        R = rotation_matrices(dtheta)
+        fused = np.einsum("kji,kj->ki", R, flux[src])          # R^T m: the field at the state
+        return r_mag, fused
+
     # ------------------------------------------------------------------ batch
     def run(self, inputs: NavInputs, keep_cov: bool = False) -> FilterResult:
         """Run the filter over a whole multi-rate log.
@@ -468,6 +511,8 @@ class NavFilter(FusionMixin):
         flow_prev = np.r_[i0, r_flow_all[:-1]][qok] if r_flow_all.size else r_flow_all
         r_flow = r_flow_all[qok]
         flow_gyro, flow_T = flow_gyro[qok], flow_T[qok]
+        r_mag, flux_fused = self._mag_epochs(t, flux, r_mag, np.unique(np.concatenate(
+            [r_flow, r_range, r_gpsp])), imu_rows, last_imu, gyro, cum_ang)
         # Gravity: mean specific force and rate over the interval since the previous epoch.
         # Gravity epochs ride on the other sensors' epochs when there are any (one update
         # instead of two), else on IMU rows; the interval means end at the last IMU sample.
@@ -557,8 +602,9 @@ class NavFilter(FusionMixin):
             j = lookup["gravity"].get(r)
             if j is not None:
                 e.grav_acc, e.grav_rate, e.grav_interval_s = grav_acc[j], grav_rate[j], Tg[j]
-            if lookup["mag"].get(r) is not None:
-                e.flux = flux[r]
+            j = lookup["mag"].get(r)
+            if j is not None:
+                e.flux = flux_fused[j]
             self._fuse(te, e)
             self._check(te, r)
             xs[r], sds[r], recorded[r] = self.ukf.x, np.sqrt(np.clip(np.diag(self.ukf.P), 0,
