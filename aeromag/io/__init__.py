@@ -9,7 +9,7 @@ module             what it holds
 ``columns``        canonical columns, column maps and map files, unit conversion,
                    numbers from text (with the file line of a bad value)
 ``rows``           where the data rows of a table are in its file (for messages)
-``csv``            the one CSV reader and the one CSV writer
+``csv``            the one CSV reader (``csv_write``: the one CSV writer)
 ``formats``        the one registry of formats: extension, sniffing, read, write
                    (CSV, Parquet, Geosoft XYZ, MagNav/SGL HDF5, MagArrow, MagDrone)
 ``log``            :func:`read_log`: any format into validated canonical columns
@@ -45,12 +45,14 @@ from .csv import (
     _EXTRA_FIELD,  # noqa: F401 - kept for callers of the old aeromag.io
     _UNNAMED_FIELD,  # noqa: F401 - kept for callers of the old aeromag.io
     PASSTHROUGH_BLOCK_BYTES,
-    WRITE_SLICE_ROWS,
-    _csv_header,  # noqa: F401 - kept for callers of the old aeromag.io
     _first_data_fields,  # noqa: F401 - kept for callers of the old aeromag.io
-    _floats_as_pandas_text,  # noqa: F401 - kept for callers of the old aeromag.io
     _read_csv_arrow,  # noqa: F401 - kept for callers of the old aeromag.io
     read_csv,
+)
+from .csv_write import (
+    WRITE_SLICE_ROWS,
+    _csv_header,  # noqa: F401 - kept for callers of the old aeromag.io
+    _floats_as_pandas_text,  # noqa: F401 - kept for callers of the old aeromag.io
     write_arrow_csv,
     write_csv,
     write_csv_passthrough,

@@ -27,36 +27,36 @@ Engines: a local process pool (default, ``workers`` processes), or Dask distribu
 
 from __future__ import annotations
 
-import contextlib
-import dataclasses
-import glob
-import hashlib
-import json
 import logging
 import os
-import sys
 import time
 import traceback
-from collections.abc import Callable, Iterable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, field
-from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
 from ..errors import AeromagError, InputError
+from .batch_engines import run_dask, run_local
+from .batch_inputs import (  # noqa: F401 - FINGERPRINT_SUFFIX ... importable from here too
+    FINGERPRINT_SUFFIX,
+    LOG_EXTENSIONS,
+    _stored_fingerprint,
+    _up_to_date,
+    batch_fingerprint,
+    expand_inputs,
+    file_sha256,
+    output_names,
+    unmatched_reason,
+)
 
 log = logging.getLogger(__name__)
 
-#: Extensions picked up when an input is a folder.
-LOG_EXTENSIONS: tuple[str, ...] = (".csv", ".txt", ".parquet", ".pq", ".xyz", ".h5", ".hdf5")
 
 SUMMARY_NAME = "batch_summary"
 
-#: Suffix of the per-file fingerprint written beside the outputs (``.NAME.batch.json``).
-FINGERPRINT_SUFFIX = ".batch.json"
 
 #: Summary columns holding counts, written as integers (empty when unknown).
 INTEGER_COLUMNS: tuple[str, ...] = ("n_rows", "flagged_legs")
@@ -139,179 +139,6 @@ class BatchSummary:
         for c in INTEGER_COLUMNS:  # None makes a float column: 2010.0
             frame[c] = frame[c].astype("Int64")
         return frame
-
-
-# --------------------------------------------------------------------------- inputs
-def expand_inputs(inputs: Iterable[str | os.PathLike[str]]) -> tuple[list[Path], list[str]]:
-    """Expand files, globs and folders into a sorted list of log files.
-
-    Parameters
-    ----------
-    inputs : iterable of path-like
-        Files, glob patterns (``logs/*.csv``) or folders (their log files, not recursive).
-
-    Returns
-    -------
-    files : list of Path
-        Distinct files, in the order given (folders and globs sorted).
-    unmatched : list of str
-        Inputs that matched nothing.
-    """
-    files: list[Path] = []
-    unmatched: list[str] = []
-    seen: set[Path] = set()
-
-    def add(p: Path) -> None:
-        key = p.resolve()
-        if key not in seen:
-            seen.add(key)
-            files.append(p)
-
-    for item in inputs:
-        s = str(item)
-        p = Path(s)
-        if p.is_dir():
-            found = sorted(q for q in p.iterdir()
-                           if q.is_file() and q.suffix.lower() in LOG_EXTENSIONS
-                           and not q.name.startswith("."))
-            if not found:
-                unmatched.append(s)
-            for q in found:
-                add(q)
-        elif p.exists():
-            add(p)
-        elif glob.has_magic(s):
-            found = sorted(Path(g) for g in glob.glob(s) if Path(g).is_file())
-            if not found:
-                unmatched.append(s)
-            for q in found:
-                add(q)
-        else:
-            unmatched.append(s)
-    return files, unmatched
-
-
-def unmatched_reason(item: str) -> str:
-    """One-line reason why an input matched no log file, and what to do.
-
-    Parameters
-    ----------
-    item : str
-        An input of :func:`expand_inputs` that it returned as unmatched.
-
-    Returns
-    -------
-    str
-        ``"ITEM: ..."``.
-    """
-    p = Path(item)
-    if p.is_dir():
-        exts = ", ".join(f"*{e}" for e in LOG_EXTENSIONS)
-        return (f"{item}: the folder holds no log files (looked for {exts}, not in"
-                " sub-folders); give the log files themselves or another folder")
-    if glob.has_magic(item):
-        return f"{item}: no file matches this pattern; check the folder and the pattern"
-    return f"{item}: no such file or folder; check the path"
-
-
-def output_names(inp: Path, out_dir: Path) -> dict[str, Path]:
-    """Output paths of one input.
-
-    Parameters
-    ----------
-    inp : Path
-        Input log ``NAME.ext``.
-    out_dir : Path
-        Output folder.
-
-    Returns
-    -------
-    dict
-        ``comp`` (NAME_comp.csv), ``track`` (NAME_track.csv) and ``fingerprint``
-        (.NAME.batch.json).
-    """
-    return {"comp": out_dir / f"{inp.stem}_comp.csv", "track": out_dir / f"{inp.stem}_track.csv",
-            "fingerprint": out_dir / f".{inp.stem}{FINGERPRINT_SUFFIX}"}
-
-
-def _up_to_date(outputs: Sequence[Path], sources: Sequence[Path]) -> bool:
-    try:
-        oldest_out = min(p.stat().st_mtime for p in outputs)
-        newest_in = max(p.stat().st_mtime for p in sources)
-    except (FileNotFoundError, ValueError):
-        return False
-    return oldest_out > newest_in
-
-
-def file_sha256(path: str | os.PathLike[str]) -> str:
-    """SHA-256 of a file's contents (hex), read in 1 MiB blocks."""
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
-def batch_fingerprint(
-    *,
-    cfg: Any,
-    model: str | os.PathLike[str] | None = None,
-    plan: str | os.PathLike[str] | None = None,
-    columns: dict[str, str] | None = None,
-    units: dict[str, str] | None = None,
-    fmt: str | None = None,
-    chunk_rows: int | None = None,
-    track_options: dict[str, Any] | None = None,
-) -> dict[str, Any]:
-    """What a file's outputs depend on besides the file itself, and its digest.
-
-    Parameters
-    ----------
-    cfg : CompensationConfig
-        Effective pipeline options.
-    model, plan : path-like, optional
-        Model and plan files (their contents are hashed, not their names or times).
-    columns, units : dict, optional
-        Column map and unit conversions.
-    fmt : str, optional
-        Input format.
-    chunk_rows : int, optional
-        Chunk size of the model application (counts only with a model).
-    track_options : dict, optional
-        Keyword arguments of :func:`aeromag.track.track_file` (count only with a plan).
-
-    Returns
-    -------
-    dict
-        ``fingerprint`` (SHA-256 hex of the other entries, as sorted JSON) and the entries:
-        ``aeromag`` (version), ``config``, ``model_sha256``, ``plan_sha256``, ``columns``,
-        ``units``, ``format``, ``chunk_rows``, ``track``.
-    """
-    from .. import __version__
-
-    config = dataclasses.asdict(cfg) if dataclasses.is_dataclass(cfg) else repr(cfg)
-    parts: dict[str, Any] = {
-        "aeromag": __version__,
-        "config": config,
-        "model_sha256": None if model is None else file_sha256(model),
-        "plan_sha256": None if plan is None else file_sha256(plan),
-        "columns": dict(sorted(columns.items())) if columns else None,
-        "units": dict(sorted(units.items())) if units else None,
-        "format": fmt,
-        "chunk_rows": chunk_rows if model is not None else None,
-        "track": (dict(sorted((track_options or {}).items())) if plan is not None else None),
-    }
-    text = json.dumps(parts, sort_keys=True, default=str)
-    parts = json.loads(text)  # the stored form: tuples as lists, objects as text
-    return {"fingerprint": hashlib.sha256(text.encode()).hexdigest(), **parts}
-
-
-def _stored_fingerprint(path: Path) -> str | None:
-    """The fingerprint stored by a file's last successful run, or None."""
-    try:
-        return str(json.loads(path.read_text(encoding="utf-8"))["fingerprint"])
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
 
 
 def _refuse_overwriting_inputs(sources: Sequence[tuple[Path, str]],
@@ -479,135 +306,6 @@ def metric_warnings(metrics: dict[str, Any]) -> list[str]:
     return out
 
 
-# --------------------------------------------------------------------------- engines
-def _run_local(jobs: list[dict[str, Any]], workers: int,
-               done: Callable[[dict[str, Any]], None]) -> None:
-    if workers <= 1 or len(jobs) <= 1:
-        for j in jobs:
-            done(process_file(j))
-        return
-    ctx = get_context("forkserver") if "forkserver" in _start_methods() else None
-    ex = ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=ctx,
-                             initializer=_worker_init, initargs=(os.getpid(),))
-    try:
-        futs = {ex.submit(process_file, j): j for j in jobs}
-        for f in as_completed(futs):
-            try:
-                done(f.result())
-            except Exception as exc:  # noqa: BLE001 - a worker died (e.g. out of memory)
-                j = futs[f]
-                done({"input": j["input"], "status": "failed", "outputs": [],
-                      "error": f"{j['input']}: worker failed ({type(exc).__name__}: {exc})"})
-    except BaseException:
-        # Ctrl-C / SIGTERM: drop the queue and stop the workers now (each removes its
-        # temporary files on SIGTERM), instead of draining the queue.
-        _stop_workers(ex)
-        raise
-    ex.shutdown(wait=True)
-
-
-def _stop_workers(ex: ProcessPoolExecutor, grace_s: float = 5.0) -> None:
-    """Cancel what has not started and terminate the running workers (SIGTERM, then KILL)."""
-    procs = list(getattr(ex, "_processes", {}).values())
-    ex.shutdown(wait=False, cancel_futures=True)
-    for p in procs:
-        with contextlib.suppress(Exception):
-            p.terminate()
-    deadline = time.monotonic() + grace_s
-    for p in procs:
-        with contextlib.suppress(Exception):
-            p.join(max(0.0, deadline - time.monotonic()))
-            if p.is_alive():
-                p.kill()
-
-
-#: Seconds between a worker's checks that the batch process is still alive.
-WATCHDOG_S = 0.25
-#: Seconds a worker whose batch process died gets to remove its temporary files.
-WORKER_GRACE_S = 2.0
-
-
-def _worker_init(parent_pid: int) -> None:
-    """In each worker: die with the batch process, and clean up on SIGTERM like on Ctrl-C.
-
-    On Linux the kernel sends SIGTERM when the worker's parent dies (``PR_SET_PDEATHSIG``);
-    everywhere a watchdog thread checks every :data:`WATCHDOG_S` that the batch process is
-    alive (killed by ``timeout`` or the out-of-memory killer, it cannot stop its workers
-    itself), then terminates the worker: SIGTERM raises ``SystemExit`` in its main thread, so
-    the file being written loses only its temporaries.
-    """
-    import signal
-    import threading
-
-    # Warnings reach the user through the summary (each file's 'warnings'), not as stray
-    # lines from the workers; errors still show.
-    logging.basicConfig(level=logging.ERROR)
-
-    def on_term(signum: int, frame: object) -> None:
-        raise SystemExit(128 + signum)
-
-    signal.signal(signal.SIGTERM, on_term)
-    if sys.platform.startswith("linux"):
-        with contextlib.suppress(Exception):
-            import ctypes
-
-            libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(1, int(signal.SIGTERM), 0, 0, 0)  # PR_SET_PDEATHSIG
-
-    def watch() -> None:
-        while True:
-            time.sleep(WATCHDOG_S)
-            try:
-                os.kill(parent_pid, 0)
-            except ProcessLookupError:
-                break
-            except OSError:
-                continue
-        os.kill(os.getpid(), signal.SIGTERM)
-        # Clean-up time (SystemExit unwinds the file being written); then go, whatever the
-        # main thread does (the executor catches SystemExit and would wait for more work).
-        time.sleep(WORKER_GRACE_S)
-        os._exit(1)
-
-    threading.Thread(target=watch, name="aeromag-watchdog", daemon=True).start()
-
-
-def _start_methods() -> list[str]:
-    import multiprocessing
-
-    return multiprocessing.get_all_start_methods()
-
-
-def _run_dask(jobs: list[dict[str, Any]], scheduler: Any,
-              done: Callable[[dict[str, Any]], None]) -> None:
-    try:
-        from distributed import Client
-        from distributed import as_completed as dask_completed
-    except ImportError:
-        raise InputError(
-            "--scheduler needs Dask distributed: pip install 'aeromag[dask]'") from None
-    own = not isinstance(scheduler, Client)
-    try:
-        client = Client(scheduler) if own else scheduler
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise InputError(f"--scheduler {scheduler}: cannot connect ({exc}); is the Dask"
-                         " scheduler running at that address?") from None
-    try:
-        futs = client.map(process_file, jobs, pure=False, key=[
-            f"aeromag-{i}-{Path(j['input']).name}" for i, j in enumerate(jobs)])
-        index = {f.key: j for f, j in zip(futs, jobs, strict=True)}
-        for f in dask_completed(futs):
-            try:
-                done(f.result())
-            except Exception as exc:  # noqa: BLE001 - a worker was lost
-                j = index[f.key]
-                done({"input": j["input"], "status": "failed", "outputs": [],
-                      "error": f"{j['input']}: Dask task failed ({type(exc).__name__}: {exc})"})
-    finally:
-        if own:
-            client.close()
-
-
 # --------------------------------------------------------------------------- driver
 def run_batch(
     inputs: Iterable[str | os.PathLike[str]],
@@ -735,9 +433,9 @@ def run_batch(
     try:
         if jobs:
             if scheduler is not None:
-                _run_dask(jobs, scheduler, done)
+                run_dask(jobs, scheduler, process_file, done)
             else:
-                _run_local(jobs, workers or os.cpu_count() or 1, done)
+                run_local(jobs, workers or os.cpu_count() or 1, process_file, done)
     finally:
         if bar is not None:
             bar[0].stop()

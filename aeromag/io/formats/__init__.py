@@ -42,7 +42,8 @@ from pathlib import Path
 import pandas as pd
 
 from ...errors import InputError
-from ..csv import read_csv, write_csv
+from ..csv import read_csv
+from ..csv_write import write_csv
 from ..rows import ROWS_ATTR
 from .hdf5 import read_hdf5
 from .magarrow import read_magarrow

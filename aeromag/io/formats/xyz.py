@@ -16,7 +16,8 @@ from ...errors import InputError
 from ..columns import (
     check_unique_names,
 )
-from ..csv import check_no_binary, check_text_file, not_utf8_message
+from ..csv import check_text_file, not_utf8_message
+from ..csv_write import check_no_binary
 from ..messages import clean
 from ..outputs import atomic_path, display_path
 from ..rows import ROWS_ATTR, row_location, rows_in_runs
