@@ -1,6 +1,6 @@
 """The arrays a fit sees: a high-rate log decimated to a rate that keeps the band exact.
 
-:func:`fit_arrays` hands :func:`aeromag.compensation.fit.fit_model` a copy of the prepared log
+:func:`fit_arrays` hands the fit (:func:`aeromag.compensation.fit.fit_outcome`) a copy of the log
 reduced by :func:`aeromag._core.decimate.decimation_factor` (the fitted coefficients are then
 applied to every original sample by the apply step, which never sees the decimated arrays).
 A 10 Hz log is returned as it is.  See docs/compensation.md, "High-rate logs".
@@ -39,7 +39,7 @@ def fit_arrays(prep: Prepared, cfg: CompensationConfig) -> tuple[Prepared, int]:
     q : int
         The decimation factor (1 = none).
     """
-    q = decimation_factor(prep.fs, cfg.band_hz) if getattr(cfg, "decimate", True) else 1
+    q = decimation_factor(prep.fs, cfg.band_hz) if cfg.decimate else 1
     if q < 2:
         return prep, 1
     # Per continuous stretch, never across a gap.  Not per segment piece: the FIR reaches
