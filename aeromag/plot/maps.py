@@ -1,0 +1,95 @@
+"""The flight map of a compensation: east/north in metres, coloured by the compensated field.
+
+Same style as :mod:`aeromag.plot.compensation` (:mod:`aeromag.plot._style`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from ..errors import InputError
+from ._style import _data, _finish, _PathLike, _target
+
+__all__ = ["plot_map"]
+
+
+def plot_map(
+    data: Any, *, column: str = "mag_comp", ax: Axes | None = None,
+    path: _PathLike | None = None, max_points: int = 20_000,
+) -> Figure:
+    """The flight in metres (east, north of its first fix), coloured by the compensated field.
+
+    Positions go through the one geodesy module (:mod:`aeromag._core.geodesy`, exact WGS84);
+    samples of segments the screening dropped are drawn as grey crosses and labelled with their
+    line (or segment) number.
+
+    Parameters
+    ----------
+    data : DataFrame or CompensationResult
+        Log with ``lat``, ``lon`` [deg] (``alt`` [m] when present) and ``column`` [nT];
+        ``segment``/``segment_kept`` (and ``line``) mark the dropped segments.
+    column : str
+        Column used for the colour (default ``mag_comp``).
+    ax : Axes, optional
+        Where to draw.
+    path : path-like, optional
+        Save the figure there (PNG).
+    max_points : int
+        Most points drawn (a regular subsample beyond).
+
+    Returns
+    -------
+    Figure
+    """
+    from .._core.geodesy import geodetic_to_ned
+    from ..qc.labels import kept_mask, segment_labels
+
+    data = _data(data)
+    if not {"lat", "lon", column} <= set(data.columns):
+        raise InputError(f"the map needs columns lat, lon and {column}")
+    lat = data["lat"].to_numpy(dtype=np.float64)
+    lon = data["lon"].to_numpy(dtype=np.float64)
+    v = data[column].to_numpy(dtype=np.float64)
+    ok = np.isfinite(lat) & np.isfinite(lon) & np.isfinite(v)
+    if not ok.any():
+        raise InputError("no sample with a position and a compensated field to map")
+    step = max(1, -(-int(ok.sum()) // max_points))
+    idx = np.flatnonzero(ok)[::step]
+    alt = data["alt"].to_numpy(dtype=np.float64)[idx] if "alt" in data.columns \
+        else np.zeros(len(idx))
+    alt = np.where(np.isfinite(alt), alt, 0.0)
+    ned = geodetic_to_ned(lat[idx], lon[idx], alt, (float(lat[idx[0]]), float(lon[idx[0]]),
+                                                    float(alt[0])))
+    north, east = ned[:, 0], ned[:, 1]
+    kept = kept_mask(data)[idx]
+    fig, ax = _target(ax, (6.5, 6.0))
+    vk = v[idx][kept]
+    lo, hi = np.percentile(vk if vk.size else v[idx], [2, 98])
+    sc = ax.scatter(east[kept], north[kept], c=vk, s=4, cmap="viridis", vmin=lo, vmax=hi,
+                    rasterized=True)
+    cb = fig.colorbar(sc, ax=ax, label=f"{column} (nT)")
+    cb.formatter.set_useOffset(False)  # the field itself, not "+4.9999e4"
+    cb.update_ticks()
+    if (~kept).any():
+        ax.scatter(east[~kept], north[~kept], s=6, c="0.5", marker="x", lw=0.6,
+                   label="dropped segments")
+        seg = segment_labels(data)[idx]
+        name = data["line"].to_numpy()[idx] if "line" in data.columns else seg
+        for sid in np.unique(seg[~kept]):
+            j = np.flatnonzero((seg == sid) & ~kept)
+            mid = j[len(j) // 2]
+            ax.annotate(f"line {name[mid]}" if "line" in data.columns else f"segment {sid}",
+                        (east[mid], north[mid]), fontsize=8, color="C3",
+                        textcoords="offset points", xytext=(4, 4))
+        ax.legend(loc="upper right", fontsize=8)
+    ax.set_xlabel("east (m)")
+    ax.set_ylabel("north (m)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.ticklabel_format(useOffset=False, style="plain")
+    ax.set_title(f"Flight coloured by {column} (origin: first fix)")
+    ax.grid(alpha=0.3)
+    return _finish(fig, path)
