@@ -195,3 +195,16 @@ def test_subprocess_report(out_csv, tmp_path):
                         str(tmp_path / "sp")], capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr
     assert (tmp_path / "sp" / "report.html").exists()
+
+
+def test_dropped_segment_row_says_why(tmp_path):
+    df, _ = simulate_calibration(seed=4, n_boxes=1, faults={3: "noise_burst"})
+    df.to_csv(tmp_path / "cal.csv", index=False)
+    compensate_file(tmp_path / "cal.csv", tmp_path / "out.csv")
+    page = build_report(tmp_path / "out.csv", tmp_path / "rep")
+    rows = json.loads((page.parent / "qc.json").read_text())["segments"]
+    bad = [r for r in rows if not r["kept"]]
+    assert [r["segment"] for r in bad] == [3] and bad[0]["line"] == 3
+    assert "robust distance" in bad[0]["reason"] and "x the median" in bad[0]["reason"]
+    assert bad[0]["t_end"] > bad[0]["t_start"]
+    assert "class='dropped'" in page.read_text(encoding="utf-8")

@@ -219,6 +219,8 @@ def segment_rows(result: CompensationResult, qc: QCResult) -> list[dict[str, Any
             reason = e.get("reason") or e.get("drop_reason") or e.get("why")
             if isinstance(reason, dict):
                 reason = reason.get("text") or json.dumps(reason)
+            if not reason:
+                reason = _why_dropped(e, result.report.get("screening") or {})
             k = bool(e["kept"]) if "kept" in e else bool(kept[idx[first[j]]])
             rows.append({
                 "segment": sid, "line": None if line is None or pd.isna(line) else
@@ -229,6 +231,19 @@ def segment_rows(result: CompensationResult, qc: QCResult) -> list[dict[str, Any
                 "residual_std_nT": by_seg.get(str(sid)),
                 "model_residual_std_nT": e.get("residual_std")})
     return rows
+
+
+def _why_dropped(seg: dict[str, Any], screening: dict[str, Any]) -> str | None:
+    """Why the screening dropped a segment, in words and its own numbers (None: unknown)."""
+    d, cut = seg.get("robust_distance"), screening.get("cutoff")
+    res, exc = seg.get("residual_std"), seg.get("residual_excess")
+    tail = (f"; residual {res:.3g} nT = {exc:.3g}x the median of kept segments"
+            if res is not None and exc is not None else "")
+    if seg.get("pca_outlier") and d is not None and cut is not None:
+        return f"PCA outlier: robust distance\u00b2 {d:.4g} > {cut:.3g}{tail}"
+    if tail:
+        return f"residual far above the other segments'{tail}"
+    return None
 
 
 def build_report(
