@@ -23,3 +23,23 @@ class InputError(AeromagError, ValueError):
 
 class FitError(AeromagError, ValueError):
     """The compensation fit cannot be made (too few samples, ill-conditioned, ...)."""
+
+
+class ConfigError(InputError):
+    """An option value out of range; names the parameter (the command line names its flag).
+
+    Attributes
+    ----------
+    parameter : str
+        The keyword (``band_hz``, ``terms``...).
+    value : object
+        The value given.
+    reason : str
+        What the value must be.
+    """
+
+    def __init__(self, parameter: str, value: object, reason: str) -> None:
+        self.parameter = parameter
+        self.value = value
+        self.reason = reason
+        super().__init__(f"{parameter}={value!r}: {reason}")

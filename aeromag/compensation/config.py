@@ -17,27 +17,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError
-
-
-class ConfigError(InputError):
-    """A configuration value out of range; names the parameter.
-
-    Attributes
-    ----------
-    parameter : str
-        The keyword (``band_hz``, ``segment_seconds``...).
-    value : object
-        The value given.
-    reason : str
-        What the value must be.
-    """
-
-    def __init__(self, parameter: str, value: Any, reason: str) -> None:
-        self.parameter = parameter
-        self.value = value
-        self.reason = reason
-        super().__init__(f"{parameter}={value!r}: {reason}")
+from ..errors import ConfigError
+from .terms import parse_terms
 
 
 def _positive(name: str, v: float | None) -> None:
@@ -297,6 +278,7 @@ class CompensationConfig:
         self.band_hz = (float(self.band_hz[0]), float(self.band_hz[1]))
         for name in _GROUPS:  # each group checks its own parameters
             getattr(self, name)
+        parse_terms(self.terms)
 
     def _group(self, cls: type) -> Any:
         return cls(**{f.name: getattr(self, f.name) for f in fields(cls)})

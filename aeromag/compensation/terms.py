@@ -20,7 +20,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import ConfigError
 
 log = logging.getLogger(__name__)
 
@@ -101,9 +101,8 @@ def parse_terms(spec: str | Sequence[str]) -> tuple[str, ...]:
     else:
         items = [str(s).strip() for s in spec]
     if not items:
-        raise InputError(
-            "--terms: empty term set; use 16 or a list like permanent,induced_5,eddy_8"
-        )
+        raise ConfigError("terms", spec, "empty term set; use 16 or a list like"
+                          " permanent,induced_5,eddy_8")
     chosen: set[str] = set()
     for it in items:
         k = it.lower().lstrip(":")
@@ -114,10 +113,9 @@ def parse_terms(spec: str | Sequence[str]) -> tuple[str, ...]:
         elif k in _PRESETS:
             chosen.update(_PRESETS[k])
         else:
-            raise InputError(
-                f"--terms: unknown term or group {it!r}; use 16, 18, 9, or groups permanent,"
-                " induced[_6|_5|_3], eddy[_9|_8|_3], bias"
-            )
+            raise ConfigError(
+                "terms", spec, f"unknown term or group {it!r}; use 16, 18, 9, or groups"
+                " permanent, induced[_6|_5|_3], eddy[_9|_8|_3], bias")
     order = PERMANENT + INDUCED_6 + EDDY_9 + BIAS
     return tuple(t for t in order if t in chosen)
 
