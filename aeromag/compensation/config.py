@@ -246,32 +246,33 @@ class CompensationConfig:
         ``--no-decimate`` fits every sample.
     """
 
-    band_hz: tuple[float, float] = (0.1, 0.9)
+    # Defaults come from the option groups (one place for each).
+    band_hz: tuple[float, float] = FilterOptions.band_hz
     terms: str = "16"
-    segment_seconds: float = 60.0
-    screen: bool = True
-    filter_output: bool = True
-    lowpass_hz: float | None = None
-    order: int = 4
-    ridge: float = 0.0
-    shrink: float = 1.0
-    pca_variance: float = 0.8
-    screen_quantile: float = 0.975
-    max_iter: int = 10
-    min_segments: int = 6
-    min_excess: float = 1.5
-    min_excess_nT: float = 0.01
-    min_segment_seconds: float | None = None
-    max_gap_s: float | None = None
-    max_interp_s: float = 1.0
-    trim_s: float | None = None
+    segment_seconds: float = SegmentOptions.segment_seconds
+    screen: bool = ScreeningOptions.screen
+    filter_output: bool = FilterOptions.filter_output
+    lowpass_hz: float | None = FilterOptions.lowpass_hz
+    order: int = FilterOptions.order
+    ridge: float = FitChecks.ridge
+    shrink: float = ScreeningOptions.shrink
+    pca_variance: float = ScreeningOptions.pca_variance
+    screen_quantile: float = ScreeningOptions.screen_quantile
+    max_iter: int = ScreeningOptions.max_iter
+    min_segments: int = ScreeningOptions.min_segments
+    min_excess: float = ScreeningOptions.min_excess
+    min_excess_nT: float = ScreeningOptions.min_excess_nT
+    min_segment_seconds: float | None = SegmentOptions.min_segment_seconds
+    max_gap_s: float | None = SegmentOptions.max_gap_s
+    max_interp_s: float = SegmentOptions.max_interp_s
+    trim_s: float | None = FilterOptions.trim_s
     fom: bool | None = None
-    max_condition: float = 1e5
-    max_interference: float = 0.25
-    gross_excess: float = 10.0
-    inlier_excess: float = 2.5
-    inlier_own_excess: float = 4.0
-    decimate: bool = True
+    max_condition: float = FitChecks.max_condition
+    max_interference: float = FitChecks.max_interference
+    gross_excess: float = ScreeningOptions.gross_excess
+    inlier_excess: float = ScreeningOptions.inlier_excess
+    inlier_own_excess: float = ScreeningOptions.inlier_own_excess
+    decimate: bool = FilterOptions.decimate
     mag_from_fluxgate: bool = False
 
     def __post_init__(self) -> None:
