@@ -2,7 +2,7 @@
 
 The simulator is the project's ground truth for testing the compensation, the segment
 screening and the track checks.  It is written independently of the fitting code (it does not
-import :mod:`aeromag.tolles_lawson`): the aircraft interference is computed here from the
+import :mod:`aeromag.compensation`): the aircraft interference is computed here from the
 *true* body-frame field with the 16-term Tolles-Lawson convention of ``interface.md``.
 
 Physics
