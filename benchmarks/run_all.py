@@ -19,8 +19,8 @@ Run::
     python benchmarks/run_all.py             # + 1e7 rows and 1.2e7 at 1 kHz (~20 min)
 
 Generated logs are cached in ``--dir`` (default ``$TMPDIR/aeromag-bench-v3``).  deinterf is
-not a dependency of aeromag: install it to compare (``pip install deinterf``); without it
-those columns say so.  Not a test: speed is never asserted.
+not a dependency of aeromag: install it to compare (``pip install -e ".[bench]"``); without
+it those columns say n/a.  Not a test: speed is never asserted.
 """
 
 from __future__ import annotations
@@ -207,7 +207,7 @@ def main() -> None:
         khz = sorted(int(x) for x in args.khz_sizes)
     deinterf = not args.no_deinterf and have_deinterf()
     if not deinterf:
-        print("deinterf is not installed (pip install deinterf): its columns say n/a",
+        print("deinterf is not installed (pip install -e '.[bench]'): its columns say n/a",
               file=sys.stderr)
     width = 8 * len(COLUMNS)  # bytes per row in memory: 9 float64 columns
 
