@@ -187,3 +187,98 @@ def test_undetermined_flight_refused_like_the_batch_fit(tmp_path):
     with pytest.raises(FitError, match="no aircraft makes.*--forgetting"):
         compensate_online_file(src, out)
     assert not out.exists() and not out.with_suffix(".json").exists()
+
+
+# -- command line: compensate --online ----------------------------------------------------------
+
+def _survey_csv(tmp_path, **kw):
+    log, truth = simulate_online_tl(**{"duration_s": 600.0, "jump_s": 300.0, "seed": 5, **kw})
+    path = tmp_path / "survey.csv"
+    log.to_csv(path, index=False)
+    return path, truth
+
+
+def test_cli_compensate_online(tmp_path):
+    from typer.testing import CliRunner
+
+    from aeromag.cli import app
+
+    path, _ = _survey_csv(tmp_path)
+    out = tmp_path / "out.csv"
+    r = CliRunner().invoke(app, ["compensate", str(path), "--online", "--forgetting", "0.998",
+                                 "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    assert "online fit" in r.output
+    df = pd.read_csv(out)
+    for c in ("mag_tl", "mag_comp", "segment", "segment_kept"):
+        assert c in df.columns
+    js = json.loads(out.with_suffix(".json").read_text())
+    assert js["online"] is True and js["forgetting"] == 0.998 and len(js["coef"]) == 16
+    # --terms applies online too
+    out9 = tmp_path / "out9.csv"
+    r = CliRunner().invoke(app, ["compensate", str(path), "--online", "--terms", "9",
+                                 "-o", str(out9)])
+    assert r.exit_code == 0, r.output
+    assert len(json.loads(out9.with_suffix(".json").read_text())["coef"]) == 9
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--online", "--forgetting", "0"], "(0, 1]"),
+    (["--online", "--forgetting", "1.2"], "(0, 1]"),
+    (["--forgetting", "0.99"], "--online"),
+    (["--online", "--model", "m.json"], "--model"),
+])
+def test_cli_compensate_online_bad_options(tmp_path, args, needle):
+    from typer.testing import CliRunner
+
+    from aeromag.cli import app
+
+    path, _ = _survey_csv(tmp_path, duration_s=60.0, jump_s=None)
+    out = tmp_path / "bad.csv"
+    r = CliRunner().invoke(app, ["compensate", str(path), *args, "-o", str(out)])
+    assert r.exit_code == 1, r.output
+    lines = [ln for ln in r.output.strip().splitlines() if ln]
+    assert len(lines) == 1 and lines[0].startswith("error: ") and needle in lines[0], r.output
+    assert not out.exists() and not out.with_suffix(".json").exists()
+
+
+def test_cli_compensate_online_short_log(tmp_path):
+    from typer.testing import CliRunner
+
+    from aeromag.cli import app
+
+    log, _ = simulate_online_tl(duration_s=1.2, jump_s=None)
+    path = tmp_path / "short.csv"
+    log.to_csv(path, index=False)
+    out = tmp_path / "s.csv"
+    r = CliRunner().invoke(app, ["compensate", str(path), "--online", "-o", str(out)])
+    assert r.exit_code == 1 and r.output.startswith("error: "), r.output
+    assert not out.exists()
+
+
+def test_cli_compensate_online_subprocess(tmp_path):
+    import subprocess
+    import sys
+
+    path, _ = _survey_csv(tmp_path, duration_s=120.0, jump_s=None)
+    out = tmp_path / "sub.csv"
+    p = subprocess.run([sys.executable, "-m", "aeromag", "compensate", str(path), "--online",
+                        "-o", str(out)], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert json.loads(out.with_suffix(".json").read_text())["online"] is True
+
+
+def test_cli_simulate_online(tmp_path):
+    from typer.testing import CliRunner
+
+    from aeromag.cli import app
+
+    r = CliRunner().invoke(app, ["simulate", "-o", str(tmp_path / "sim"), "--small",
+                                 "--online"])
+    assert r.exit_code == 0, r.output
+    for name in ("compass.csv", "compass_truth.json", "online_tl.csv", "online_tl_truth.json"):
+        assert (tmp_path / "sim" / name).exists(), name
+    comp = pd.read_csv(tmp_path / "sim" / "compass.csv")
+    assert {"heading", "pitch", "roll", "lat", "truth_bx"} <= set(comp.columns)
+    truth = json.loads((tmp_path / "sim" / "online_tl_truth.json").read_text())
+    assert len(truth["coef_before"]) == len(truth["coef_after"]) == 16

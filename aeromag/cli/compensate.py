@@ -9,6 +9,7 @@ import typer
 from ..errors import InputError
 from ._app import column_options, setup_logging, strict_warnings, user_errors
 from ._options import Options, command
+from .online import dispatch as _online_dispatch  # registers --online and --forgetting
 
 
 def _warm(screen: bool, log: Path | None = None, fmt: str | None = None) -> None:
@@ -39,6 +40,8 @@ def compensate(opts: Options) -> None:
     plus mag_tl, mag_comp, segment, segment_kept) and OUT.json (coefficients, per-segment PCA
     scores, screening, metrics).
     """
+    if _online_dispatch(opts):  # --online: aeromag.workflows.online_compensate
+        return
     setup_logging(opts.verbose)
     output, model, chunk_rows = opts.output, opts.model, opts.chunk_rows
     _warm(screen=model is None and not opts.no_screen, log=None if chunk_rows else opts.survey,

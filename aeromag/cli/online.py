@@ -9,7 +9,7 @@ from __future__ import annotations
 import typer
 
 from ..errors import InputError
-from ._app import column_options, setup_logging, user_errors
+from ._app import column_options, setup_logging, strict_warnings, user_errors
 from ._options import OPTIONS, Option, Options, add_option
 
 _ONLINE = frozenset({"compensate"})
@@ -39,7 +39,7 @@ def run_online(opts: Options) -> None:
     from ..io import json_path_for
     from ..workflows.online_compensate import DEFAULT_FORGETTING, compensate_online_file
 
-    with user_errors():
+    with user_errors(), strict_warnings(bool(opts.get("strict", False))):
         for name, flag in (("model", "--model"), ("chunk_rows", "--chunk-rows"),
                            ("plot", "--plot")):
             if opts.get(name) is not None:
@@ -57,14 +57,23 @@ def run_online(opts: Options) -> None:
                f"residual {m['residual_std_nT']:.3f} nT")
 
 
-def check_forgetting_without_online(opts: Options) -> None:
-    """``--forgetting`` without ``--online`` is a mistake: say so.
+def dispatch(opts: Options) -> bool:
+    """Run the online fit when ``--online`` is given; refuse ``--forgetting`` without it.
 
     Parameters
     ----------
     opts : Options
         The options of the ``compensate`` command.
+
+    Returns
+    -------
+    bool
+        True when the online fit ran (the batch path must not).
     """
-    if opts.get("forgetting") is not None and not opts.get("online"):
+    if opts.get("online"):
+        run_online(opts)
+        return True
+    if opts.get("forgetting") is not None:
         with user_errors():
             raise InputError("--forgetting applies to the online fit: add --online")
+    return False

@@ -63,6 +63,10 @@ def simulate(
         "navigate': quadrotor_hover.csv (60 s at 2 m), quadrotor_rectangle.csv (60 s at 1.5 "
         "m/s), their *_truth.csv and quadrotor_truth.json (site, date, field, biases).")]
     = False,
+    online: Annotated[bool, typer.Option(
+        "--online", help="Also write the logs of the online estimators: compass.csv (the "
+        "compass-calibration study's manoeuvre at Taiyuan, interference switched at 15 s) and "
+        "online_tl.csv (a survey whose TL coefficients jump), with *_truth.json.")] = False,
     verbose: Annotated[bool, typer.Option("-v", "--verbose", help="Log progress details.")]
     = False,
 ) -> None:
@@ -77,5 +81,9 @@ def simulate(
             from ..workflows.quadrotor import write_quadrotor_files
 
             paths.update(write_quadrotor_files(output, seed=seed))
+        if online:
+            from ..workflows.simulate_online import write_online_simulation
+
+            paths.update(write_online_simulation(output, seed=seed, small=small))
     for path in paths.values():
         typer.echo(str(path))
