@@ -102,18 +102,6 @@ class TrackResult:
     report: dict[str, Any] = field(default_factory=dict)
     plan: pd.DataFrame | None = None
 
-    def plot_map(self, **kwargs: Any) -> Any:
-        """Planned vs flown track with the alarms (:func:`~aeromag.plot.track.plot_track_map`)."""
-        from ..plot.track import plot_track_map
-
-        return plot_track_map(self, **kwargs)
-
-    def plot_timeseries(self, **kwargs: Any) -> Any:
-        """Deviation and heading difference against time (``plot_track_timeseries``)."""
-        from ..plot.track import plot_track_timeseries
-
-        return plot_track_timeseries(self, **kwargs)
-
 
 def check_track(
     log_df: pd.DataFrame,
