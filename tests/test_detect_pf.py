@@ -228,3 +228,34 @@ def test_cli_defaults_match_the_library():
 
     assert cli_detect.DEFAULT_PARTICLES == DEFAULT_PARTICLES
     assert cli_detect.DEFAULT_WINDOW == DEFAULT_WINDOW
+
+
+def test_track_pf_adds_the_particle_filter_to_the_verdict(tmp_path):
+    df, plan, truth = simulate_mission(seed=1, line_m=250.0)
+    log = df.drop(columns=[c for c in df.columns if c.startswith("truth_")])
+    src, pln = tmp_path / "mission.csv", tmp_path / "plan.csv"
+    log.to_csv(src, index=False)
+    plan.to_csv(pln, index=False)
+    out = tmp_path / "track.csv"
+    r = CliRunner().invoke(app, ["track", str(src), "--plan", str(pln), "-o", str(out),
+                                 "--pf"])
+    assert r.exit_code == 0, r.output
+    res = pd.read_csv(out)
+    assert "pf_alarm" in res.columns
+    pf_alarm = res["pf_alarm"].astype(bool).to_numpy()
+    assert np.all(res["alarm"].astype(bool).to_numpy()[pf_alarm])   # pf alarms are alarms
+    rep = json.loads(out.with_suffix(".json").read_text())
+    names = [d["detector"] for d in rep["detectors"]]
+    assert "pf" in names
+    # the disturbed legs, and only they, are flagged; on the slow ones the pf fired first
+    disturbed = {g["leg"]: g["disturbance"] for g in truth["legs"] if g["disturbance"]}
+    assert sorted(rep["flagged_legs"]) == sorted(disturbed)
+    for row in rep["legs"]:
+        if disturbed.get(row["leg"]) == "slow":
+            assert row["first_detector"] == "pf", row
+    t = res["time"].to_numpy()
+    for g in truth["legs"]:
+        if g["disturbance"] == "slow":
+            on = (df["truth_leg"].to_numpy() == g["leg"]) & (t >= g["onset_time"])
+            first_pf = t[np.flatnonzero(pf_alarm & on)[0]]
+            assert first_pf - g["onset_time"] < 10.0

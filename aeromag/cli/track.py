@@ -59,6 +59,9 @@ def track(
         "check the navigated position where the log has no GNSS fix, and give the heading "
         "detector its attitude (without the magnetometer) when the log has no heading.")]
     = False,
+    pf: Annotated[bool, typer.Option(
+        "--pf", help="Also run the particle-filter detector of aeromag detect (needs a gyro "
+        "and a compass) and include pf_alarm in alarm.")] = False,
     plot: Annotated[Path | None, typer.Option("--plot", metavar="DIR",
                     help="Write track and time-series plots (PNG) to DIR.")] = None,
     col: Annotated[list[str] | None, typer.Option("--col", metavar="NAME=SOURCE",
@@ -96,6 +99,7 @@ def track(
             heading_sigma_floor_deg=heading_sigma_floor, declination_deg=declination,
             combine=combine, horizontal=horizontal, altitude_offset=altitude_offset,
             columns=columns, units=unit_map, plot_dir=plot, navigated=navigate,
+            extra_detectors=_pf_detectors(pf, calm_window, declination, survey),
         )
     rep = res.report
     flagged = rep.get("flagged_legs", [])
@@ -108,3 +112,13 @@ def track(
     if rep.get("warnings"):
         line += f"; {len(rep['warnings'])} warning(s) in {json_path_for(output).name}"
     typer.echo(line)
+
+
+def _pf_detectors(pf: bool, calm_window: str, declination: float, survey: Path) -> tuple:
+    """``--pf``: the particle-filter detector of ``aeromag detect`` as an extra detector."""
+    if not pf:
+        return ()
+    from ..workflows.detect import pf_track_detector
+
+    return (pf_track_detector(calm_window=calm_window, declination_deg=declination,
+                              source=str(survey)),)
