@@ -75,7 +75,10 @@ def test_chunked_equals_in_memory(tmp_path, model_path, with_line, ext):
     # The QC block too: noise levels from fourth differences across chunk edges, and the
     # per-segment residuals.
     qa, qb = a["qc"], b["qc"]
-    assert set(qa) == set(qb) and qb["fom"] is None
+    assert set(qa) == set(qb) and qb["fom"] == qa["fom"] and qb["notes"] == qa["notes"]
+    for k in ("improvement_ratio", "residual_std_nT", "std_before_nT", "n_samples"):
+        assert qb[k] == pytest.approx(qa[k], rel=1e-9), k
+        assert qb["all_data"][k] == pytest.approx(qa["all_data"][k], rel=1e-9), k
     for k, v in qa["noise"].items():
         assert qb["noise"][k] == pytest.approx(v, rel=1e-9), k
     assert qa["residual_std_by_segment_nT"].keys() == qb["residual_std_by_segment_nT"].keys()

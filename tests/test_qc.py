@@ -154,3 +154,23 @@ def test_fom_only_for_complete_boxes():
     # Not asked for (compensate without --fom): not applicable, not absent.
     fom = compute_qc(res, fit=False, fom=False).metrics["fom"]
     assert fom["applicable"] is False and "not computed" in fom["reason"]
+
+
+def test_out_json_qc_block_is_compute_qc_of_mag_minus_mag_tl():
+    """OUT.json's qc block is compute_qc's (band-passed mag - mag_tl per segment piece), not the
+    old low-passed mag_comp per stretch; a saved model's per-segment residuals are its."""
+    from aeromag.workflows.compensate import calibrate as wf_calibrate
+    from aeromag.workflows.compensate import compensate as wf_compensate
+
+    cal, _ = simulate_calibration(seed=5, n_boxes=1)
+    model = wf_calibrate(cal).model
+    sv, _ = simulate_calibration(seed=6, n_boxes=1)
+    res = wf_compensate(sv, model=model)
+    got = res.report["qc"]
+    want = compute_qc(res, fit=False, fom=False).metrics
+    assert got == want
+    assert got["definition"].startswith("rms of mag and of mag - mag_tl band-passed")
+    for e in res.report["segments"]:
+        assert e["residual_std"] == got["residual_std_by_segment_nT"][str(e["id"])]
+    with pytest.raises(TypeError):
+        quality_metrics(res.data, res.report, comp_bp=np.zeros(len(res.data)))

@@ -47,7 +47,8 @@ def test_compensate_plot_option_and_no_fom_by_default(cal, tmp_path):
                             str(tmp_path / "rep2")])
     assert r.exit_code == 0, r.output
     rep = json.loads(out.with_suffix(".json").read_text())
-    assert rep["qc"]["fom"] is None
+    assert rep["qc"]["fom"]["applicable"] is False and rep["qc"]["fom"]["fom_after_nT"] is None
+    assert "not computed for this run" in rep["qc"]["fom"]["reason"]
     assert (tmp_path / "rep2" / "pca_scores.png").stat().st_size > 1000
     r = runner.invoke(app, ["compensate", str(d / "cal.csv"), "-o", str(out), "--fom"])
     assert json.loads(out.with_suffix(".json").read_text())["qc"]["fom"]["n_maneuvers"] == 12

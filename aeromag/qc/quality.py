@@ -24,21 +24,41 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .._core.stretches import find_stretches
 from ..compensation.config import CompensationConfig
-from ..compensation.metrics import compensation_metrics
 from ..compensation.terms import TERMS_16
 from ..errors import AeromagError, InputError
 from .diagnostics import fit_diagnostics
 from .fom import fom_not_applicable, fom_summary, fom_table
 from .labels import kept_mask, segment_labels
 from .maneuvers import CARDINALS, ManeuverResult, detect_maneuvers
-from .noise import band_passed, fourth_difference_noise, grouped_std
+from .noise import fourth_difference_noise, grouped_std
 from .residuals import PieceResiduals, piece_residuals
 
 __all__ = ["QCResult", "compute_qc", "quality_metrics"]
 
 log = logging.getLogger(__name__)
+
+QC_SKIPPED_NOTE = "manoeuvre detection skipped (no FOM): run 'aeromag report' or --fom"
+QC_SKIPPED_FOM = ("not computed for this run (FOM is for calibration flights: `aeromag"
+                  " calibrate`, --fom, or `aeromag report`)")
+
+
+def residual_definition(trim_s: float) -> str:
+    """What the headline residual metrics are (the ``qc.definition`` text).
+
+    Parameters
+    ----------
+    trim_s : float
+        Edge trimmed at each end of every segment piece [s].
+
+    Returns
+    -------
+    str
+    """
+    return ("rms of mag and of mag - mag_tl band-passed in band_hz (zero-phase Butterworth),"
+            " each segment piece (one segment within one continuous stretch) filtered on its"
+            f" own, {trim_s:g} s trimmed at its ends; headline over the kept segments, all_data"
+            " over every piece")
 
 
 @dataclass
@@ -131,12 +151,9 @@ def compute_qc(
 def _compute(
     data: pd.DataFrame, report: dict[str, Any], cfg: CompensationConfig, *,
     maneuvers: ManeuverResult | None, maneuver_column: str | None, fit: bool, fom_on: bool,
-    base_metrics: dict[str, Any] | None = None, comp_bp: np.ndarray | None = None,
-    segment: np.ndarray | None = None, fs_hz: float | None = None, legacy: bool = False,
 ) -> QCResult:
     terms = tuple(report.get("terms") or TERMS_16)
-    if base_metrics is None:
-        base_metrics = report.get("metrics") or None
+    base_metrics = report.get("metrics") or None
     notes: list[str] = []
     t = data["time"].to_numpy(dtype=np.float64)
     if "mag_comp" not in data.columns:
@@ -148,47 +165,26 @@ def _compute(
                              axis=1)
     comp = data["mag_comp"].to_numpy(dtype=np.float64)
     band = cfg.band_hz
-    seg = segment_labels(data) if segment is None else np.asarray(segment)
+    seg = segment_labels(data)
     has_tl = "mag_tl" in data.columns
     raw_after = mag - data["mag_tl"].to_numpy(dtype=np.float64) if has_tl else comp
     metrics: dict[str, Any] = {"band_hz": list(band)}
-    pieces = None
-    if legacy:
-        # The pipeline's qc block until it calls compute_qc: band-passed mag_comp per stretch.
-        if base_metrics is None:
-            st = find_stretches(t, np.isfinite(mag) & np.isfinite(comp), cfg.max_gap_s)
-            base_metrics = compensation_metrics(mag, comp, t, st, cfg)
-        metrics.update(improvement_ratio=base_metrics["improvement_ratio"],
-                       residual_std_nT=base_metrics["residual_std_nT"],
-                       std_before_nT=base_metrics["std_before_nT"])
-        if comp_bp is None:
-            trim = (0.5 / band[0]) if cfg.trim_s is None else cfg.trim_s
-            comp_bp = band_passed(comp, t, band, cfg.order, cfg.max_gap_s, trim_s=trim,
-                                  fs_hz=fs_hz)
-        seg_std = grouped_std(comp_bp, seg)
-        resid_bp = comp_bp
-        band_before = base_metrics["std_before_nT"]
-        band_after = base_metrics["residual_std_nT"]
-    else:
-        if not has_tl:
-            notes.append("no mag_tl column: residuals are band-passed mag_comp (low-passed)")
-        pieces = piece_residuals(t, mag, mag - raw_after, seg, kept_mask(data), band, cfg.order,
-                                 trim_s=cfg.trim_s, max_gap_s=cfg.max_gap_s, fs_hz=fs_hz)
-        k, a = pieces.kept, pieces.all
-        metrics.update(
-            definition=("rms of mag and of mag - mag_tl band-passed in band_hz (zero-phase"
-                        " Butterworth), each segment piece (one segment within one continuous"
-                        f" stretch) filtered on its own, {pieces.trim_s:g} s trimmed at its"
-                        " ends; headline over the kept segments, all_data over every piece"),
-            improvement_ratio=k["improvement_ratio"], residual_std_nT=k["residual_std_nT"],
-            std_before_nT=k["std_before_nT"], n_samples=k["n_samples"],
-            all_data=a)
-        if base_metrics:
-            metrics["compensation_metrics"] = base_metrics
-        seg_std = pieces.by_segment
-        resid_bp = pieces.after_bp
-        band_before = a["std_before_nT"]
-        band_after = a["residual_std_nT"]
+    if not has_tl:
+        notes.append("no mag_tl column: residuals are band-passed mag_comp (low-passed)")
+    pieces = piece_residuals(t, mag, mag - raw_after, seg, kept_mask(data), band, cfg.order,
+                             trim_s=cfg.trim_s, max_gap_s=cfg.max_gap_s)
+    k, a = pieces.kept, pieces.all
+    metrics.update(
+        definition=residual_definition(pieces.trim_s),
+        improvement_ratio=k["improvement_ratio"], residual_std_nT=k["residual_std_nT"],
+        std_before_nT=k["std_before_nT"], n_samples=k["n_samples"],
+        all_data=a)
+    if base_metrics:
+        metrics["compensation_metrics"] = base_metrics
+    seg_std = pieces.by_segment
+    resid_bp = pieces.after_bp
+    band_before = a["std_before_nT"]
+    band_after = a["residual_std_nT"]
     metrics["residual_std_by_segment_nT"] = {str(k): v for k, v in seg_std.items()}
     metrics["noise"] = {
         "band_hz": list(band),
@@ -199,22 +195,18 @@ def _compute(
     }
     # Manoeuvres, heading legs, FOM.
     fom_tab = None
-    skipped = "manoeuvre detection skipped (no FOM): run 'aeromag report' or --fom"
     if maneuvers is None and not fom_on and maneuver_column is None:
-        notes.append(skipped)
+        notes.append(QC_SKIPPED_NOTE)
     elif maneuvers is None:
         try:
             maneuvers = detect_maneuvers(data, maneuver_column=maneuver_column,
                                          max_gap_s=cfg.max_gap_s)
         except AeromagError as exc:
             notes.append(f"manoeuvre detection failed: {exc}")
-    fom_block: dict[str, Any] | None = None if legacy else fom_not_applicable(
-        "not computed for this run (FOM is for calibration flights: `aeromag calibrate`,"
-        " --fom, or `aeromag report`)")
+    fom_block: dict[str, Any] | None = fom_not_applicable(QC_SKIPPED_FOM)
     if maneuvers is not None:
-        hl = maneuvers.labels["heading_leg"].to_numpy()
-        if not legacy:  # over the kept segments, like the headline
-            hl = np.where(kept_mask(data), hl, -1)
+        # over the kept segments, like the headline
+        hl = np.where(kept_mask(data), maneuvers.labels["heading_leg"].to_numpy(), -1)
         metrics["residual_std_by_heading_nT"] = {
             CARDINALS[k]: v for k, v in grouped_std(resid_bp, hl).items()}
         metrics["maneuvers"] = {
@@ -231,15 +223,14 @@ def _compute(
         else:
             why = "no pitch/roll/yaw manoeuvre found (not a calibration flight?)"
             notes.append("no pitch/roll/yaw manoeuvre found: no FOM (not a calibration flight?)")
-            fom_block = None if legacy else fom_not_applicable(why)
-    elif not legacy and fom_on:
+            fom_block = fom_not_applicable(why)
+    elif fom_on:
         fom_block = fom_not_applicable("the manoeuvres could not be detected")
     metrics["fom"] = fom_block
     segs = pd.DataFrame({"segment": list(seg_std), "residual_std_nT": list(seg_std.values())})
-    if pieces is not None:
-        segs["n"] = [pieces.n_by_segment[s] for s in seg_std]
+    segs["n"] = [pieces.n_by_segment[s] for s in seg_std]
     fitted = report.get("fit") or {}
-    if fit and not legacy and fitted.get("vif"):  # the fit measured them on its own data
+    if fit and fitted.get("vif"):  # the fit measured them on its own data
         metrics["fit"] = {"source": "the fit (model file)", **{
             k: fitted.get(k) for k in ("condition_number", "condition_number_scaled", "vif",
                                        "max_vif", "cv_residual_std_nT", "cv_ratio")},
@@ -249,8 +240,7 @@ def _compute(
         try:
             diag, cv = fit_diagnostics(data, cfg, terms)
             metrics["fit"] = diag
-            if pieces is not None:
-                cv = cv.drop(columns=["n"])
+            cv = cv.drop(columns=["n"])
             segs = cv.merge(segs, on="segment", how="outer")
         except AeromagError as exc:
             notes.append(f"fit diagnostics failed: {exc}")
@@ -264,7 +254,6 @@ def quality_metrics(
     data: pd.DataFrame, report: dict[str, Any] | None = None,
     cfg: CompensationConfig | None = None, *, detect: bool = True, fit: bool = True,
     maneuver_column: str | None = None, maneuvers: ManeuverResult | None = None,
-    **legacy: Any,
 ) -> dict[str, Any]:
     """JSON-ready QC metrics of a compensated log given as a table and its report.
 
@@ -284,26 +273,16 @@ def quality_metrics(
         Column naming each sample's manoeuvre.
     maneuvers : ManeuverResult, optional
         Already detected manoeuvres.
-    **legacy
-        ``base_metrics``, ``comp_bp``, ``segment``, ``fs_hz``: deprecated pass-through of
-        arrays the compensation already computed.
 
     Returns
     -------
     dict
         See :func:`compute_qc`.
     """
-    if legacy:
-        unknown = set(legacy) - {"base_metrics", "comp_bp", "segment", "fs_hz"}
-        if unknown:
-            raise TypeError(f"quality_metrics: unexpected argument(s) {sorted(unknown)}")
-        warnings.warn("quality_metrics(base_metrics=, comp_bp=, segment=, fs_hz=) is deprecated:"
-                      " call aeromag.qc.compute_qc on the CompensationResult",
-                      DeprecationWarning, stacklevel=2)
     rep = report or {}
     cfg = cfg if cfg is not None else _config_of(rep)
     return _compute(data, rep, cfg, maneuvers=maneuvers, maneuver_column=maneuver_column,
-                    fit=fit, fom_on=detect, legacy=bool(legacy), **legacy).metrics
+                    fit=fit, fom_on=detect).metrics
 
 
 def _config_of(report: dict[str, Any]) -> CompensationConfig:

@@ -20,7 +20,7 @@ import numpy as np
 from .._core.filters import butter_sos, filter_stretches, sampling_rate, trim_mask
 from .._core.stretches import find_stretches
 
-__all__ = ["PieceResiduals", "piece_labels", "piece_residuals"]
+__all__ = ["PieceResiduals", "piece_labels", "piece_residuals", "rms_summary"]
 
 
 @dataclass
@@ -83,15 +83,34 @@ def piece_labels(time_s: np.ndarray, valid: np.ndarray, segment: np.ndarray,
     return lab
 
 
-def _summary(before: np.ndarray, after: np.ndarray, use: np.ndarray) -> dict[str, Any]:
-    n = int(use.sum())
+def rms_summary(n: float, sum_before2: float, sum_after2: float) -> dict[str, Any]:
+    """Headline numbers from sums of squares of the band-passed fields.
+
+    Parameters
+    ----------
+    n : float
+        Samples used.
+    sum_before2, sum_after2 : float
+        Sums of squares of band-passed ``mag`` and ``mag - mag_tl`` [nT²].
+
+    Returns
+    -------
+    dict
+        ``residual_std_nT`` and ``std_before_nT`` (rms [nT]), ``improvement_ratio`` (their
+        ratio), ``n_samples``; None values when ``n`` is 0.
+    """
+    n = int(n)
     if n == 0:
         return {"residual_std_nT": None, "std_before_nT": None, "improvement_ratio": None,
                 "n_samples": 0}
-    rb = float(np.sqrt(np.mean(before[use] ** 2)))
-    ra = float(np.sqrt(np.mean(after[use] ** 2)))
+    rb = float(np.sqrt(sum_before2 / n))
+    ra = float(np.sqrt(sum_after2 / n))
     return {"residual_std_nT": ra, "std_before_nT": rb,
             "improvement_ratio": rb / ra if ra > 0 else None, "n_samples": n}
+
+
+def _summary(before: np.ndarray, after: np.ndarray, use: np.ndarray) -> dict[str, Any]:
+    return rms_summary(use.sum(), np.sum(before[use] ** 2), np.sum(after[use] ** 2))
 
 
 def piece_residuals(

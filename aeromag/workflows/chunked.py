@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .._core.filters import butter_sos, filter_stretches, min_filter_length
+from .._core.filters import butter_sos, filter_stretches, min_filter_length, trim_mask
 from .._core.moments import StreamingMoments
 from .._core.stretches import find_stretches, interpolate_short_gaps
 from ..compensation.config import CompensationConfig
@@ -56,6 +56,7 @@ from ..io import (
 from ..io.formats import output_format
 from ..io.log import duplicates_warning
 from ..io.stream import duplicate_rows, iter_log_batches, locate_row
+from ..qc.residuals import piece_labels
 from .compensate import check_outputs
 
 log = logging.getLogger(__name__)
@@ -252,7 +253,9 @@ def apply_model_chunked(
         vals = np.array(sorted(lines))
         if not np.all(vals == np.round(vals)):
             line_codes = vals
-    overlap = overlap_rows(fs, cfg)
+    # The QC trims each piece's ends: a window's edge (not a piece end) must stay in its overlap.
+    qc_trim = 0.25 / cfg.band_hz[0] if cfg.trim_s is None else float(cfg.trim_s)
+    overlap = max(overlap_rows(fs, cfg), int(math.ceil(2 * qc_trim * fs)) + 1)
     need = ["time", *FLUX_COLUMNS, *(["mag"] if has_mag else [])]
 
     def arrays(w: pd.DataFrame) -> dict[str, np.ndarray]:
@@ -300,6 +303,7 @@ def apply_model_chunked(
     d4_after = StreamingMoments(mean=np.zeros(1), m2=np.zeros(1))
     seg_n: dict[int, int] = {}
     seg_stats: dict[int, np.ndarray] = {}
+    q_sums = {"all": np.zeros(3), "seg": np.zeros(3)}  # n, sum before^2, sum after^2
     out_csv = Path(out_path)
     header_written = False
     import pyarrow as pa
@@ -358,14 +362,22 @@ def apply_model_chunked(
             ids, cnt = np.unique(sc[sc >= 0], return_counts=True)
             for i, c in zip(ids.tolist(), cnt.tolist(), strict=True):
                 seg_n[i] = seg_n.get(i, 0) + c
-            good = use[core] & (sc >= 0)  # edges trimmed, as compensate() does
-            if good.any():
-                gi, ginv = np.unique(sc[good], return_inverse=True)
-                cf = Xc[1][good]
-                acc = np.vstack([np.bincount(ginv), np.bincount(ginv, cf),
-                                 np.bincount(ginv, cf * cf)])
+            # The QC residuals as aeromag.qc.piece_residuals: mag and mag - mag_tl band-passed
+            # per piece (one segment in one stretch), trimmed at the piece's ends; a window's
+            # edge is not a piece end, and the overlap (> trim) keeps its trim out of the core.
+            qx = np.vstack([raw_mag, raw_mag - mag_tl])
+            lab = piece_labels(t, np.isfinite(qx).all(axis=0), seg, max_gap)
+            qf = filter_stretches(qx, lab, sos_band, axis=1)
+            quse = (trim_mask(lab, t, qc_trim) & np.isfinite(qf).all(axis=0))[core]
+            qf = qf[:, core]
+            qseg = quse & (sc >= 0)
+            for key, m in (("all", quse), ("seg", qseg)):
+                q_sums[key] += [m.sum(), np.sum(qf[0, m] ** 2), np.sum(qf[1, m] ** 2)]
+            if qseg.any():
+                gi, ginv = np.unique(sc[qseg], return_inverse=True)
+                acc = np.vstack([np.bincount(ginv), np.bincount(ginv, qf[1, qseg] ** 2)])
                 for j, i in enumerate(gi.tolist()):
-                    seg_stats[i] = seg_stats.get(i, np.zeros(3)) + acc[:, j]
+                    seg_stats[i] = seg_stats.get(i, np.zeros(2)) + acc[:, j]
             out = w.iloc[a:b].copy()
             out["mag_tl"] = mag_tl[core]
             out["mag_comp"] = comp_out[core]
@@ -393,9 +405,9 @@ def apply_model_chunked(
                 write_arrow_csv(table, fh, "needed")
         fh.flush()
         metrics = _metrics(m_use, m_kept, cfg, fs, source)
-        residual = {i: float(np.sqrt(max(s[2] / s[0] - (s[1] / s[0]) ** 2, 0.0)))
-                    for i, s in seg_stats.items()}
-        qc = _qc_block(metrics, residual, d4_before, d4_after, cfg)
+        residual = {i: float(np.sqrt(s[1] / s[0])) for i, s in seg_stats.items()}
+        qc = _qc_block(metrics, residual, q_sums if seg_n else {**q_sums, "seg": q_sums["all"]},
+                       d4_before, d4_after, cfg, qc_trim)
         report = applied_report(AppliedRun(
             source, model, cfg, fs, {int(i): int(n) for i, n in seg_n.items()}, metrics,
             residual, qc, {"n_rows": n_rows, "chunked": {"chunk_rows": int(chunk_rows),
@@ -421,30 +433,39 @@ def _fourth_differences(x: np.ndarray, t: np.ndarray, max_gap_s: float, a: int, 
     return d4[same]
 
 
-def _qc_block(metrics: dict[str, Any], residual: dict[int, float], d4_before: StreamingMoments,
-              d4_after: StreamingMoments, cfg: CompensationConfig) -> dict[str, Any]:
-    """The report's ``qc`` block, as ``compensate()`` writes it for an applied model."""
+def _qc_block(metrics: dict[str, Any], residual: dict[int, float],
+              sums: dict[str, np.ndarray], d4_before: StreamingMoments,
+              d4_after: StreamingMoments, cfg: CompensationConfig, trim_s: float
+              ) -> dict[str, Any]:
+    """The report's ``qc`` block, as :func:`aeromag.qc.compute_qc` gives it for a saved model."""
     from ..qc import FOURTH_DIFF_NORM
+    from ..qc.fom import fom_not_applicable
+    from ..qc.quality import QC_SKIPPED_FOM, QC_SKIPPED_NOTE, residual_definition
+    from ..qc.residuals import rms_summary
 
     def noise(m: StreamingMoments) -> float:
         return float(m.std()[0] / FOURTH_DIFF_NORM) if m.n else float("nan")
 
-    note = "manoeuvre detection skipped (no FOM): run 'aeromag report' or --fom"
+    every, kept = rms_summary(*sums["all"]), rms_summary(*sums["seg"])
     return {
         "band_hz": list(cfg.band_hz),
-        "improvement_ratio": metrics["improvement_ratio"],
-        "residual_std_nT": metrics["residual_std_nT"],
-        "std_before_nT": metrics["std_before_nT"],
+        "definition": residual_definition(trim_s),
+        "improvement_ratio": kept["improvement_ratio"],
+        "residual_std_nT": kept["residual_std_nT"],
+        "std_before_nT": kept["std_before_nT"],
+        "n_samples": kept["n_samples"],
+        "all_data": every,
+        "compensation_metrics": metrics,
         "residual_std_by_segment_nT": {str(k): v for k, v in sorted(residual.items())},
         "noise": {
             "band_hz": list(cfg.band_hz),
-            "band_std_before_nT": metrics["std_before_nT"],
-            "band_std_after_nT": metrics["residual_std_nT"],
+            "band_std_before_nT": every["std_before_nT"],
+            "band_std_after_nT": every["residual_std_nT"],
             "fourth_difference_before_nT": noise(d4_before),
             "fourth_difference_after_nT": noise(d4_after),
         },
-        "fom": None,
-        "notes": [note],
+        "fom": fom_not_applicable(QC_SKIPPED_FOM),
+        "notes": [QC_SKIPPED_NOTE],
     }
 
 

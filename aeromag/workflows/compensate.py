@@ -12,7 +12,6 @@ import dataclasses
 import logging
 import os
 import time
-import warnings
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
@@ -209,17 +208,13 @@ def _run(res: CompensationResult) -> CompensationRun:
 def _add_qc(res: CompensationResult) -> None:
     """Add the ``qc`` block and, for an applied model, each segment's residual.
 
-    The FOM only when ``cfg.fom``; the fit diagnostics are in ``report["fit"]`` already.
+    :func:`aeromag.qc.compute_qc` (band-passed ``mag - mag_tl`` per segment piece, as the
+    report computes it); the FOM only when ``cfg.fom``; the fit diagnostics are in
+    ``report["fit"]`` already.
     """
-    from ..qc import quality_metrics
+    from ..qc import compute_qc
 
-    cfg = res.config
-    with warnings.catch_warnings():  # the arrays the metrics used, not filtered again
-        warnings.simplefilter("ignore", DeprecationWarning)
-        res.report["qc"] = quality_metrics(
-            res.data, res.report, cfg, fit=False, detect=bool(cfg.fom),
-            base_metrics=res.report.get("metrics"), comp_bp=res.comp_bp_nT,
-            segment=res.segment, fs_hz=res.fs_hz)
+    res.report["qc"] = compute_qc(res, fit=False, fom=bool(res.config.fom)).metrics
     if res.fit is None:
         by_seg = res.report["qc"].get("residual_std_by_segment_nT") or {}
         for e in res.report["segments"]:
