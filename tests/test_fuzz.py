@@ -46,8 +46,6 @@ from aeromag.cli import app
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data_samples"
 SAMPLES = ROOT.parent / "shared" / "data" / "formats"
-if not SAMPLES.is_dir():
-    SAMPLES = Path("/work/shared/data/formats")
 
 settings.register_profile("aeromag-fuzz-ci", max_examples=int(os.environ.get(
     "AEROMAG_FUZZ_EXAMPLES", "30")), deadline=None,

@@ -20,8 +20,6 @@ from aeromag.io.formats import read_table, write_table
 from aeromag.io.model_file import read_model_document
 
 SAMPLES = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "formats"
-if not SAMPLES.is_dir():
-    SAMPLES = Path("/work/shared/data/formats")
 MAGDRONE = SAMPLES / "magdrone_r3_sample.csv"
 MAGARROW = SAMPLES / "magarrow_sample.csv"
 need_samples = pytest.mark.skipif(not MAGDRONE.exists(), reason="../shared format samples absent")
