@@ -105,3 +105,56 @@ def test_working_rate_finds_the_same_manoeuvres(rate_hz):
     # The table's sample counts are the labels' (every sample of a manoeuvre counted once).
     counts = np.bincount(fast.labels["maneuver_id"].to_numpy() + 1)[1:]
     assert (counts == a["n"].to_numpy()).all()
+
+
+def _resolve_reference(lid, man, amb):
+    """The per-leg loop the vectorised _resolve_ambiguous replaced (the rule in words)."""
+    from aeromag.qc.maneuvers import MANEUVERS
+
+    man = man.copy()
+    for leg in np.unique(lid[amb]):
+        runs = np.flatnonzero(lid == leg)
+        sure = {int(man[r]) for r in runs if not amb[r]}
+        missing = [j for j in range(len(MANEUVERS)) if j not in sure]
+        unsure = [r for r in runs if amb[r]]
+        if len(unsure) == len(missing):
+            for r, j in zip(unsure, missing, strict=True):
+                man[r] = j
+    return man
+
+
+def test_resolve_ambiguous_names_unsure_runs_by_the_missing_manoeuvres():
+    from aeromag.qc.maneuvers import _resolve_ambiguous
+
+    # Hand case: leg 0 has a sure pitch and two unsure runs -> roll, yaw in flight order;
+    # leg 1 has one unsure run but two missing manoeuvres -> left as it was.
+    lid = np.array([0, 0, 0, 1, 1])
+    man = np.array([0, 2, 2, 1, 1])
+    amb = np.array([False, True, True, False, True])
+    notes: list[str] = []
+    _resolve_ambiguous(lid, man, amb, notes)
+    assert man.tolist() == [0, 1, 2, 1, 1]
+    assert "(1 renamed)" in notes[0]
+    rng = np.random.default_rng(3)
+    for _ in range(300):
+        n = int(rng.integers(1, 40))
+        lid = np.sort(rng.integers(0, 8, n))
+        man = rng.integers(0, 3, n)
+        amb = rng.random(n) < 0.4
+        want = _resolve_reference(lid, man, amb)
+        _resolve_ambiguous(lid, man, amb, [])
+        assert man.tolist() == want.tolist()
+
+
+def test_heading_unit_vector_is_the_heading_sources():
+    from aeromag.qc.maneuvers import _heading_source, _heading_unit
+
+    df, _ = simulate_calibration(seed=2, n_boxes=1)
+    df.loc[5:7, "flux_y"] = np.nan
+    for cols, decl in (([], 0.0), (["heading"], 12.5), (["heading", "pitch", "roll"], -7.0)):
+        d = df.drop(columns=cols)
+        h, _ = _heading_source(d, decl)
+        cs, ok = _heading_unit(d, decl)
+        assert (ok == np.isfinite(h)).all()
+        np.testing.assert_allclose(cs[ok, 0], np.cos(np.deg2rad(h[ok])), atol=1e-12)
+        np.testing.assert_allclose(cs[ok, 1], np.sin(np.deg2rad(h[ok])), atol=1e-12)

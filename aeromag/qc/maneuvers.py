@@ -145,6 +145,43 @@ def _heading_source(df: pd.DataFrame, declination_deg: float) -> tuple[np.ndarra
     return h, "fluxgate"
 
 
+def _heading_unit(df: pd.DataFrame, declination_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(cos, sin)`` of :func:`_heading_source`'s heading and where it is finite.
+
+    From the fluxgate without trigonometry: ``(Xh, -Yh) / |(Xh, Yh)|``, rotated by the
+    declination.
+    """
+    if "heading" in df.columns and df["heading"].notna().any():
+        h, _ = _heading_source(df, declination_deg)
+        ok = np.isfinite(h)
+        rad = np.deg2rad(np.where(ok, h, 0.0))
+        return np.column_stack([np.cos(rad), np.sin(rad)]), ok
+    if not {"flux_x", "flux_y", "flux_z"} <= set(df.columns):
+        raise InputError("manoeuvre detection needs a 'heading' column or flux_x/flux_y/flux_z")
+    bx, by, bz = (df[c].to_numpy(dtype=np.float64) for c in ("flux_x", "flux_y", "flux_z"))
+    pitch = df["pitch"].to_numpy(dtype=np.float64) if "pitch" in df.columns else None
+    roll = df["roll"].to_numpy(dtype=np.float64) if "roll" in df.columns else None
+    th = np.deg2rad(np.nan_to_num(pitch)) if pitch is not None else None
+    ph = np.deg2rad(np.nan_to_num(roll)) if roll is not None else None
+    if (th is None or not th.any()) and (ph is None or not ph.any()):
+        xh, yh = bx, by
+    else:
+        th = np.zeros(len(df)) if th is None else th
+        ph = np.zeros(len(df)) if ph is None else ph
+        xh = bx * np.cos(th) + (by * np.sin(ph) + bz * np.cos(ph)) * np.sin(th)
+        yh = by * np.cos(ph) - bz * np.sin(ph)
+    r = np.hypot(xh, yh)
+    ok = np.isfinite(r)
+    pos = ok & (r > 0)  # a zero horizontal field has heading 0, as arctan2(0, 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cs = np.column_stack([np.where(pos, xh / r, 1.0), np.where(pos, -yh / r, 0.0)])
+    if declination_deg:
+        d = np.deg2rad(float(declination_deg))
+        cd, sd = np.cos(d), np.sin(d)
+        cs = np.column_stack([cs[:, 0] * cd - cs[:, 1] * sd, cs[:, 0] * sd + cs[:, 1] * cd])
+    return cs, ok
+
+
 # --------------------------------------------------------------------------- heading legs
 def detect_heading_legs(
     df: pd.DataFrame,
@@ -197,18 +234,21 @@ def detect_heading_legs(
         offset = 0.0
         stretch = find_stretches(t, None, max_gap_s)
     else:
-        h, _ = _heading_source(df, declination_deg)
-        ok = np.isfinite(h)
+        unit, ok = _heading_unit(df, declination_deg)
         stretch = find_stretches(t, ok, max_gap_s)
-        rad = np.deg2rad(np.where(ok, h, 0.0))
         half = max(1, int(round(smooth_s * fs / 2)))
-        sc = moving_mean(np.column_stack([np.cos(rad), np.sin(rad)]), stretch, half)
+        sc = moving_mean(unit, stretch, half)
         hs = np.rad2deg(np.arctan2(sc[:, 1], sc[:, 0]))
         good = np.isfinite(hs)
         if not good.any():
             raise InputError("no usable heading samples for heading-leg detection")
-        four = np.deg2rad(4.0 * hs[good])
-        offset = float(np.rad2deg(np.arctan2(np.sin(four).mean(), np.cos(four).mean())) / 4.0)
+        # Mean of the angle 4*hs (the cardinals fold onto one direction) without trigonometry:
+        # from the unit vector (u, v) of hs, cos 2a = u^2 - v^2, sin 2a = 2uv, then again.
+        u, v = sc[good, 0], sc[good, 1]
+        r2 = u * u + v * v
+        c2, s2 = (u * u - v * v) / r2, 2.0 * u * v / r2
+        offset = float(np.rad2deg(np.arctan2(np.mean(2.0 * c2 * s2),
+                                             np.mean(c2 * c2 - s2 * s2))) / 4.0)
         rel = wrap_deg(hs - offset)
         k = np.round(rel / 90.0)
         close = good & (np.abs(rel - 90.0 * k) <= tolerance_deg)
@@ -558,15 +598,23 @@ def _resolve_ambiguous(lid: np.ndarray, man: np.ndarray, amb: np.ndarray,
     and ``amb`` (ambiguous flag) describe the runs.
     """
     n_fixed = 0
-    for leg in np.unique(lid[amb]):
-        runs = np.flatnonzero(lid == leg)
-        sure = {int(man[r]) for r in runs if not amb[r]}
-        missing = [j for j in range(len(MANEUVERS)) if j not in sure]
-        unsure = [r for r in runs if amb[r]]  # already in flight order
-        if len(unsure) == len(missing):
-            for r, j in zip(unsure, missing, strict=True):
-                n_fixed += int(man[r] != j)
-                man[r] = j
+    if amb.any():  # vectorised over legs (a Python loop per leg is quadratic in the legs)
+        legs, pos = np.unique(lid, return_inverse=True)
+        nm = len(MANEUVERS)
+        sure = np.zeros((len(legs), nm), dtype=bool)
+        sure[pos[~amb], man[~amb]] = True
+        n_missing = nm - sure.sum(axis=1)
+        n_unsure = np.bincount(pos[amb], minlength=len(legs))
+        runs = np.flatnonzero(amb & (n_unsure == n_missing)[pos])
+        runs = runs[np.argsort(pos[runs], kind="stable")]  # by leg, in flight order
+        if len(runs):
+            leg_of = pos[runs]
+            first = np.searchsorted(leg_of, leg_of)  # first run of the same leg
+            rank = np.arange(len(runs)) - first
+            missing = np.argsort(sure, axis=1, kind="stable")  # missing manoeuvres first
+            new = missing[leg_of, rank]
+            n_fixed = int(np.count_nonzero(man[runs] != new))
+            man[runs] = new
     if amb.any():
         notes.append("fluxgate only: roll and yaw cannot be told apart on headings along the"
                      " magnetic meridian; ambiguous manoeuvres were named in flight order"
