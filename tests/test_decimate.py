@@ -209,3 +209,19 @@ def test_decimate_is_a_filter_option():
     assert CompensationConfig(decimate=False).filter.decimate is False
     cfg = CompensationConfig.from_groups(filter=FilterOptions(decimate=False))
     assert cfg.decimate is False
+
+
+def test_attitude_step_within_a_sample_is_fitted_at_full_rate(caplog):
+    """A 90 deg heading step inside a stretch (no aircraft turns in 1 ms) cannot be represented
+    at the fitting rate: the products of cosines and derivatives would not match, so every
+    sample is fitted, with a warning, and the fit is as good as ever."""
+    from aeromag.compensation import CompensationConfig, compensate
+
+    from .conftest import hand_flight
+
+    df, h = hand_flight(seed=3, n=120_000, fs=1000.0, seg_s=25)
+    with caplog.at_level("WARNING"):
+        res = compensate(df, CompensationConfig())
+    assert res.report["fit"]["decimation_factor"] == 1
+    assert any("fitting every sample" in r.getMessage() for r in caplog.records)
+    assert res.report["metrics"]["improvement_ratio"] > 1000

@@ -19,6 +19,15 @@ from .prepare import Prepared
 
 log = logging.getLogger(__name__)
 
+#: Largest change of the field's direction (a direction-cosine difference) that the
+#: anti-aliasing filter may remove at a decimated sample; beyond it the attitude changed faster
+#: than the fitting rate can represent (a heading step within one sample: a logging glitch),
+#: and the products of cosines and their derivatives in the induced and eddy terms would no
+#: longer match the full-rate ones, so every sample is fitted instead.  Flight, including
+#: rotor vibration a magnetometer tolerates, stays far below it (fluxgate noise of 0.5 nT is
+#: 1e-5).
+MAX_DIRECTION_LOSS = 0.01
+
 
 def fit_arrays(prep: Prepared, cfg: CompensationConfig) -> tuple[Prepared, int]:
     """The prepared log the fit uses, decimated per stretch when the rate allows.
@@ -50,11 +59,39 @@ def fit_arrays(prep: Prepared, cfg: CompensationConfig) -> tuple[Prepared, int]:
     f = prep.flux
     (fx, fy, fz, mag), idx = decimate_stretches([f[:, 0], f[:, 1], f[:, 2], prep.mag],
                                                 prep.stretch, q)
+    flux_dec = np.column_stack([fx, fy, fz])
+    loss = _direction_loss(f[idx], flux_dec)
+    worst = int(np.argmax(loss)) if loss.size else 0
+    if loss.size and loss[worst] > MAX_DIRECTION_LOSS:
+        log.warning(
+            "%s: the fluxgate's direction changes faster than a fit at %.4g Hz represents"
+            " (anti-aliasing would change a direction cosine by %.3g near t = %.6g s; a"
+            " step within one sample?): fitting every sample, not decimated",
+            prep.source, prep.fs / q, float(loss[worst]), float(prep.time[idx[worst]]))
+        return prep, 1
     ones = np.ones(len(idx), dtype=bool)
     out = dataclasses.replace(
-        prep, time=prep.time[idx], flux=np.column_stack([fx, fy, fz]), mag=mag,
+        prep, time=prep.time[idx], flux=flux_dec, mag=mag,
         flux_ok=ones, valid=ones, stretch=prep.stretch[idx], segment=prep.segment[idx],
         fs=prep.fs / q)
     log.info("%s: fitting at %.4g Hz (every %d-th sample, anti-aliased per stretch): %d of %d"
              " samples", prep.source, out.fs, q, len(idx), len(prep.time))
     return out, q
+
+
+def _direction_loss(flux: np.ndarray, flux_dec: np.ndarray) -> np.ndarray:
+    """Largest direction-cosine change the anti-aliasing removed, per decimated sample.
+
+    Parameters
+    ----------
+    flux, flux_dec : ndarray, shape (m, 3)
+        The fluxgate at the decimated samples, as recorded and anti-aliased [nT].
+
+    Returns
+    -------
+    ndarray, shape (m,)
+        ``max |c - c_dec|`` over the three axes (dimensionless).
+    """
+    c = flux / np.linalg.norm(flux, axis=1)[:, None]
+    cd = flux_dec / np.linalg.norm(flux_dec, axis=1)[:, None]
+    return np.abs(c - cd).max(axis=1)
