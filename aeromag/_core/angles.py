@@ -21,7 +21,11 @@ def wrap_deg(angle: np.ndarray | float) -> np.ndarray:
         The same angles, degrees, in [-180, 180).
     """
     a = np.asarray(angle, dtype=np.float64)
-    return np.mod(a + 180.0, 360.0) - 180.0
+    # np.mod(-tiny, 360) rounds to 360.0: fold that case back so that the result is always
+    # in the half-open range (an angle just below -180 would otherwise come out as +180).
+    w = np.mod(a + 180.0, 360.0)
+    w = np.where(w >= 360.0, 0.0, w) - 180.0
+    return np.where(w >= 180.0, -180.0, w)
 
 
 def wrap360_deg(angle: np.ndarray | float) -> np.ndarray:
@@ -55,7 +59,9 @@ def wrap_rad(angle: np.ndarray | float) -> np.ndarray:
         The same angles, rad, in [-pi, pi).
     """
     a = np.asarray(angle, dtype=np.float64)
-    return np.mod(a + np.pi, 2.0 * np.pi) - np.pi
+    w = np.mod(a + np.pi, 2.0 * np.pi)
+    w = np.where(w >= 2.0 * np.pi, 0.0, w) - np.pi
+    return np.where(w >= np.pi, -np.pi, w)
 
 
 def circular_mean_rad(angle: np.ndarray, weights: np.ndarray | None = None,
