@@ -10,6 +10,7 @@ from html.parser import HTMLParser
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
@@ -208,3 +209,30 @@ def test_dropped_segment_row_says_why(tmp_path):
     assert "robust distance" in bad[0]["reason"] and "x the median" in bad[0]["reason"]
     assert bad[0]["t_end"] > bad[0]["t_start"]
     assert "class='dropped'" in page.read_text(encoding="utf-8")
+
+
+def test_load_compensated_reads_many_batches_into_the_same_columns(tmp_path, monkeypatch):
+    """The report's reader (arrays allocated once, filled batch by batch) gives the log's
+    columns exactly, across many batches and when its row bound is too small."""
+    import aeromag.workflows.report as wr
+    from aeromag.compensation.pipeline import compensate as pipe_compensate
+    from aeromag.io import write_csv as io_write_csv
+    from aeromag.synthetic import simulate_calibration as sim
+
+    df, _ = sim(seed=4, n_boxes=1)
+    res = pipe_compensate(df)
+    io_write_csv(res.data, tmp_path / "out.csv")
+    monkeypatch.setattr(wr, "_BATCH_ROWS", 250)
+    want = pd.read_csv(tmp_path / "out.csv")
+    for cap in (None, 100):
+        if cap is not None:
+            monkeypatch.setattr(wr, "_row_capacity", lambda src, cap=cap: cap)
+        got = wr._read_columns(tmp_path / "out.csv")
+        assert len(got) == len(want)
+        for c in got.columns:
+            x = got[c].to_numpy()
+            if x.dtype.kind == "f":
+                np.testing.assert_allclose(x, want[c].to_numpy(float), rtol=1e-6 if
+                                           x.dtype == np.float32 else 0, equal_nan=True)
+            else:
+                assert list(x) == list(want[c]), c

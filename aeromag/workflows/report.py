@@ -204,6 +204,7 @@ def segment_rows(result: CompensationResult, qc: QCResult) -> list[dict[str, Any
     rep = {int(s["id"]): s for s in result.report.get("segments") or [] if "id" in s}
     by_seg = qc.metrics.get("residual_std_by_segment_nT") or {}
     kept = kept_mask(data)
+    line_col = data["line"].to_numpy() if "line" in data.columns else None
     ok = seg >= 0
     rows = []
     if ok.any():
@@ -214,8 +215,8 @@ def segment_rows(result: CompensationResult, qc: QCResult) -> list[dict[str, Any
         for j, sid in enumerate(ids.tolist()):
             e = rep.get(sid, {})
             line = e.get("line")
-            if line is None and "line" in data.columns:
-                line = data["line"].iloc[idx[first[j]]]
+            if line is None and line_col is not None:
+                line = line_col[idx[first[j]]]
             reason = e.get("reason") or e.get("drop_reason") or e.get("why")
             if isinstance(reason, dict):
                 reason = reason.get("text") or json.dumps(reason)
@@ -330,31 +331,76 @@ def load_compensated(
     return CompensationResult(data, model, report, config=config), config
 
 
+#: Rows per batch when reading a compensated log: pyarrow's CSV reader needs tens of times
+#: its block in transient memory, so small blocks (about 1 MB) keep the peak down.
+_BATCH_ROWS = 4_000
+
+
 def _read_columns(src: Path) -> pd.DataFrame:
     """The columns of a compensated log the report uses, read in row batches.
 
-    Only :data:`_COLUMNS` are read, each assembled into one array (the batches of a column
-    are freed as it is joined), so a 2e6-row log with 20 columns costs its 17 used columns
-    once, not the whole table twice.
+    Only :data:`_COLUMNS` are read.  Float columns are written batch by batch into arrays
+    allocated once for an upper bound of the rows (no list of batches, no concatenation:
+    the peak is the columns themselves plus one small batch); the others are joined at the
+    end.
     """
+    cap = _row_capacity(src)
+    floats: dict[str, np.ndarray] = {}
     parts: dict[str, list[np.ndarray]] = {}
-    for b in iter_log_batches(src, None, columns=list(_COLUMNS), batch_rows=20_000):
+    n = 0
+    order: list[str] = []
+    for b in iter_log_batches(src, None, columns=list(_COLUMNS), batch_rows=_BATCH_ROWS):
+        k = len(b)
+        if not order:
+            order = list(b.columns)
+        if n + k > cap:  # the bound was too small (not expected): grow
+            cap = max(2 * cap, n + k)
+            floats = {c: np.resize(x, cap) for c, x in floats.items()}
         for c in b.columns:
             x = b[c].to_numpy()
-            if c in _FLOAT32 and x.dtype == np.float64:
-                x = x.astype(np.float32)
-            parts.setdefault(c, []).append(x)
+            if c not in floats and c not in parts:
+                if x.dtype.kind == "f" and n == 0:
+                    dt = np.float32 if c in _FLOAT32 else np.float64
+                    floats[c] = np.empty(cap, dtype=dt)
+                else:
+                    parts[c] = []
+            if c in floats:
+                floats[c][n:n + k] = x
+            else:
+                parts[c].append(x)
+        n += k
     _release_arrow_memory()
-    if not parts:
+    if not n:
         raise InputError(f"{src}: no rows")
-    cols = {}
-    for c in list(parts):
-        chunks = parts.pop(c)
-        cols[c] = chunks[0] if len(chunks) == 1 else np.concatenate(chunks)
-        del chunks
+    cols: dict[str, np.ndarray] = {}
+    for c in order:
+        if c in floats:
+            cols[c] = floats.pop(c)[:n]
+        else:
+            chunks = parts.pop(c)
+            cols[c] = chunks[0] if len(chunks) == 1 else np.concatenate(chunks)
     data = pd.DataFrame(cols, copy=False)
     data.attrs["source"] = str(src)
     return data
+
+
+def _row_capacity(src: Path) -> int:
+    """An upper bound of the data rows of a log: Parquet's row count, else newlines + 1."""
+    if src.suffix.lower() in (".parquet", ".pq"):
+        try:
+            import pyarrow.parquet as pq
+
+            return max(1, int(pq.ParquetFile(src).metadata.num_rows))
+        except Exception:  # noqa: BLE001 - the reader reports a bad file in its own words
+            return 1 << 16
+    n = 1
+    try:
+        with open(src, "rb") as fh:
+            while chunk := fh.read(1 << 23):
+                n += chunk.count(b"\n")
+    except OSError:
+        return 1 << 16
+    return n
 
 
 def _release_arrow_memory() -> None:
