@@ -87,13 +87,20 @@ def test_cli_gps_use_and_outage(log_csv, tmp_path):
     assert rep["innovations"]["gps_pos"]["n_fused"] > 50
     out2 = tmp_path / "gap.csv"
     r = runner.invoke(app, ["navigate", str(log_csv), "-o", str(out2), "--gps", "4:8", *FIELD,
-                            "--accel-bias", "--without", "baro"])
+                            "--without", "baro"])
     assert r.exit_code == 0, r.output
     rep = json.loads(out2.with_suffix(".json").read_text())
     iv = rep["gps"]["intervals"]
     assert len(iv) == 2 and iv[0][1] < 4.0 and iv[1][0] >= 8.0
     assert rep["gps"]["mode"] == {"outage_s": [4.0, 8.0]}
     assert "baro" not in rep["settings"]["sensors"] and rep["settings"]["accel_bias"]
+    assert "bax_ms2" in rep["settings"]["states"]          # the default estimates them
+    out3 = tmp_path / "study.csv"
+    r = runner.invoke(app, ["navigate", str(log_csv), "-o", str(out3), *FIELD,
+                            "--no-accel-bias"])
+    assert r.exit_code == 0, r.output
+    rep = json.loads(out3.with_suffix(".json").read_text())
+    assert not rep["settings"]["accel_bias"] and "bax_ms2" not in rep["settings"]["states"]
 
 
 def test_navigate_as_a_real_process(log_csv, tmp_path):

@@ -39,8 +39,10 @@ def navigate(
                           help="Gyro white noise, rms per sample, deg/s.")] = 0.05,
     accel_noise: Annotated[float, typer.Option("--accel-noise", metavar="G",
                            help="Accelerometer white noise, rms per sample, g.")] = 0.05,
-    accel_bias: Annotated[bool, typer.Option("--accel-bias", help="Also estimate accelerometer"
-                          " biases (15 states + ground).")] = False,
+    accel_bias: Annotated[bool, typer.Option(
+        "--accel-bias/--no-accel-bias",
+        help="Estimate accelerometer biases (default; --no-accel-bias: the study's 12 states,"
+             " overconfident in attitude on a real IMU).")] = True,
     flow_noise: Annotated[float, typer.Option("--flow-noise", metavar="M/S",
                           help="Optical-flow noise as a ground speed, m/s.")] = 0.01,
     flow_min_quality: Annotated[int, typer.Option("--flow-min-quality", metavar="Q",

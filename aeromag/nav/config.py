@@ -30,7 +30,9 @@ class NavConfig:
     gyro_bias_walk_dps_rt_s : float
         Gyro bias random walk, °/s/sqrt(s).
     accel_bias : bool
-        Estimate accelerometer biases (15 states instead of 12).
+        Estimate accelerometer biases (15 states instead of the study's 12; default, because
+        a real MEMS accelerometer always has a bias and the 12-state filter then believes its
+        tilt too well: see ``docs/navigate.md``).
     accel_bias_init_ms2 : float
         Initial one-sigma accelerometer bias, m/s².
     accel_bias_walk_ms2_rt_s : float
@@ -51,6 +53,8 @@ class NavConfig:
         Flow and range are not used beyond this tilt (flat-ground model).
     baro_noise_m : float
         Barometer noise, m.
+    baro_walk_m_rt_s : float
+        Random walk of the barometer's datum (drift with weather and temperature), m/sqrt(s).
     baro_with_range : bool
         Fuse the barometer also while the rangefinder is valid (default: only without it).
     baro_interval_s, mag_interval_s, gravity_interval_s : float
@@ -103,7 +107,7 @@ class NavConfig:
     accel_noise_g: float = 0.05
     gyro_bias_init_dps: float = 0.5
     gyro_bias_walk_dps_rt_s: float = 0.002
-    accel_bias: bool = False
+    accel_bias: bool = True
     accel_bias_init_ms2: float = 0.1
     accel_bias_walk_ms2_rt_s: float = 1e-4
     flow_noise_ms: float = 0.01
@@ -115,6 +119,7 @@ class NavConfig:
     ground_walk_m_rt_s: float = 0.001
     max_tilt_deg: float = 30.0
     baro_noise_m: float = 0.5
+    baro_walk_m_rt_s: float = 0.01
     baro_with_range: bool = False
     baro_interval_s: float = 0.1
     mag_interval_s: float = 0.1

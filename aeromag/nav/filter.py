@@ -98,10 +98,11 @@ class NavFilter(FusionMixin):
             raise ValueError(f"unknown sensors {sorted(unknown)}; known: {ALL_SENSORS}")
         self.mag_ref = (None if mag_reference_ned_nT is None
                         else np.asarray(mag_reference_ned_nT, dtype=np.float64))
-        self.n = (15 if self.config.accel_bias else 12) + 1
-        self.ig = self.n - 1  # ground level (down coordinate of the flat ground), m
+        self.n = (15 if self.config.accel_bias else 12) + 2
+        self.ig = self.n - 2  # ground level (down coordinate of the flat ground), m
+        self.ib = self.n - 1  # barometer datum: baro_alt + p_d, m (a random walk: drift)
         self.names = (STATE_NAMES + (ACCEL_BIAS_NAMES if self.config.accel_bias else ())
-                      + ("ground_d_m",))
+                      + ("ground_d_m", "baro_offset_m"))
         self.ukf: UnscentedKalmanFilter | None = None
         self.baro_offset: float | None = None
         self.warnings: list[str] = []
@@ -122,6 +123,7 @@ class NavFilter(FusionMixin):
         if c.accel_bias:
             q[12:15] = c.accel_bias_walk_ms2_rt_s ** 2
         q[self.ig] = c.ground_walk_m_rt_s ** 2
+        q[self.ib] = c.baro_walk_m_rt_s ** 2
         return q
 
     def start(self, t0: float, acc_mean: np.ndarray, flux_mean: np.ndarray | None = None,
@@ -176,7 +178,9 @@ class NavFilter(FusionMixin):
         if c.accel_bias:
             sd[12:15] = c.accel_bias_init_ms2
         sd[self.ig] = 1.0  # set from the first valid range (see _init_ground)
+        sd[self.ib] = 1.0  # set from the first barometer sample (see _init_baro)
         self._ground_set = False
+        self.baro_offset = None
         self.ukf = UnscentedKalmanFilter(x0, np.diag(np.maximum(sd, 1e-9) ** 2),
                                          alpha=c.alpha, beta=c.beta, kappa=c.kappa,
                                          angle_idx=ANGLES, state_names=self.names)
@@ -210,6 +214,23 @@ class NavFilter(FusionMixin):
         P[ig, ig] = P[2, 2] + self.config.range_noise_m ** 2
         ukf.P = P
         self._ground_set = True
+
+    def _init_baro(self, baro_alt_m: float) -> None:
+        """Set the barometer datum from its first sample used.
+
+        ``offset = baro_alt + p_d``, correlated with ``p_d`` as that sum is, so the height's
+        uncertainty at that moment (e.g. the first GNSS fix's vertical error) stays in the
+        covariance instead of being frozen into the datum; the datum is then a random walk
+        (``baro_walk_m_rt_s``: a barometer drifts with the weather and the temperature).
+        """
+        ukf, ib = self.ukf, self.ib
+        ukf.x[ib] = baro_alt_m + ukf.x[2]
+        P = ukf.P
+        P[ib, :] = P[2, :]
+        P[:, ib] = P[:, 2]
+        P[ib, ib] = P[2, 2] + self.config.baro_noise_m ** 2
+        ukf.P = P
+        self.baro_offset = float(ukf.x[ib])
 
     def _declination(self) -> float:
         if self.mag_ref is None or not np.all(np.isfinite(self.mag_ref)):
@@ -619,7 +640,8 @@ class NavFilter(FusionMixin):
         src = np.where(src < 0, i0, src)
         xs, sds = xs[src], sds[src]
         info = {"d_ground_m": float(self.ukf.x[self.ig]) if self._ground_set else None,
-                "baro_offset_m": self.baro_offset,
+                "baro_offset_m": (float(self.ukf.x[self.ib]) if self.baro_offset is not None
+                                  else None),
                 "mag_reference_ned_nT": None if self.mag_ref is None else self.mag_ref.tolist(),
                 "declination_deg": float(np.rad2deg(self._declination())),
                 "imu_interval_s": dt_med, "warnings": list(self.warnings),

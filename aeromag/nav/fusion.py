@@ -72,10 +72,10 @@ class FusionMixin:
             if not c.baro_with_range and t - self._last_range_t < _RANGE_RECENT_S:
                 st["baro"].n_gated += 1
             elif self.baro_offset is None:
-                self.baro_offset = float(e.baro + x[2])
+                self._init_baro(float(e.baro))
             else:
-                off = self.baro_offset
-                blocks.append(("baro", np.array([e.baro]), lambda X, off=off: h_baro(X, off),
+                ib = self.ib
+                blocks.append(("baro", np.array([e.baro]), lambda X, ib=ib: h_baro(X, ib),
                                np.array([[c.baro_noise_m**2]]), ()))
         if e.grav_acc is not None and "gravity" in use:
             v = x[3:6].copy()

@@ -10,7 +10,7 @@ optionally accelerometer biases) and returns the predicted measurement ``(S, m)`
   minus the bias state) and ``r`` the distance from the sensor to flat ground along the body
   z axis, ``(d_ground - p_d) / (cos roll cos pitch)``.
 * Rangefinder: the same distance ``r`` (flat ground; its level ``d_ground`` is a state).
-* Barometer: ``baro_alt = offset - p_d``.
+* Barometer: ``baro_alt = offset - p_d`` (its datum ``offset`` is a state).
 * Gravity vector: specific force at rest or in uniform motion ``f_b = -C_nb^T g_n (+ b_a)``.
 * Magnetic north: the magnetometer vector rotated to the level frame with each sigma point's
   own roll and pitch gives a magnetic heading; the model returns ``yaw - heading_mag``
@@ -64,9 +64,12 @@ def h_range(X: np.ndarray, ground_idx: int) -> np.ndarray:
     return ground_distance(X, ground_idx)[:, None]
 
 
-def h_baro(X: np.ndarray, offset_m: float) -> np.ndarray:
-    """Predicted barometric altitude (m), shape (S, 1)."""
-    return (offset_m - X[:, 2])[:, None]
+def h_baro(X: np.ndarray, offset_idx: int) -> np.ndarray:
+    """Predicted barometric altitude (m), shape (S, 1).
+
+    ``X[:, offset_idx]`` is the barometer's datum (``baro_alt + p_d``, a state).
+    """
+    return (X[:, offset_idx] - X[:, 2])[:, None]
 
 
 def h_gravity(X: np.ndarray, accel_bias: bool = False) -> np.ndarray:
