@@ -174,3 +174,30 @@ def test_out_json_qc_block_is_compute_qc_of_mag_minus_mag_tl():
         assert e["residual_std"] == got["residual_std_by_segment_nT"][str(e["id"])]
     with pytest.raises(TypeError):
         quality_metrics(res.data, res.report, comp_bp=np.zeros(len(res.data)))
+
+
+def test_fom_after_is_band_passed_mag_minus_mag_tl_not_mag_comp(cal_result):
+    """The per-manoeuvre 'after' numbers are of mag - mag_tl band-passed once: a signal added
+    to mag_comp alone (e.g. the final low-pass's doing) does not change them."""
+    from aeromag._core.runs import run_bounds
+    from aeromag.qc import detect_maneuvers
+    from aeromag.qc.noise import band_passed
+
+    res, _ = cal_result
+    data = res.data.copy()
+    t = data["time"].to_numpy(float)
+    data["mag_comp"] = data["mag_comp"] + 50.0 * np.sin(2 * np.pi * 0.3 * t)
+    man = detect_maneuvers(data)
+    tab = fom_table(data, man, band_hz=(0.1, 0.9))
+    assert tab.attrs["fields"] == {"before": "mag", "after": "mag - mag_tl",
+                                   "truth": "truth_mag_tl"}
+    r = (data["mag"] - data["mag_tl"]).to_numpy(float)
+    rf = band_passed(r, t, (0.1, 0.9), 4, None)
+    a, b, ids = run_bounds(man.labels["maneuver_id"].to_numpy())
+    for _, row in tab.iterrows():
+        j = int(np.flatnonzero(ids == row["id"])[0])
+        seg = rf[a[j]:b[j]]
+        assert row["ptp_after_nT"] == pytest.approx(np.nanmax(seg) - np.nanmin(seg), rel=1e-12)
+    assert tab["ptp_after_nT"].max() < 5.0  # not the 100 nT of the added mag_comp signal
+    s = fom_summary(tab)
+    assert s["fields"]["ptp_after_nT"] == "mag - mag_tl" and "peak-to-peak" in s["definition"]

@@ -2,7 +2,9 @@
 
 For every manoeuvre found by :func:`aeromag.qc.maneuvers.detect_maneuvers`, the peak-to-peak
 amplitude of the field band-passed in the fitting band within the manoeuvre interval; a box's
-FOM is the sum over its 12 (heading, manoeuvre) pairs.  See ``docs/qc.md``.
+FOM is the sum over its 12 (heading, manoeuvre) pairs.  "After" is ``mag - mag_tl`` (the
+residual without the pipeline's final low-pass, as MagNav.jl and deinterf users compute it).
+See ``docs/qc.md``.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ def fom_table(
     band_hz: tuple[float, float] = (0.1, 0.9),
     order: int = 4,
     before: str = "mag",
-    after: str = "mag_comp",
+    after: str | None = None,
     truth: str | None = "truth_mag_tl",
     max_gap_s: float | None = None,
     **detect_kw: Any,
@@ -45,9 +47,13 @@ def fom_table(
         Pass band applied before taking peak-to-peak values [Hz].
     order : int
         Butterworth order.
-    before, after : str
-        Columns of the uncompensated and compensated fields [nT].  When ``before`` is absent
-        the fluxgate magnitude is used (as the pipeline does).
+    before : str
+        Column of the uncompensated field [nT].  When absent the fluxgate magnitude is used
+        (as the pipeline does).
+    after : str, optional
+        Column of the compensated field [nT].  Default: ``before - mag_tl`` (the residual
+        without the pipeline's final low-pass, as MagNav.jl and deinterf compute the FOM),
+        ``mag_comp`` only when the log has no ``mag_tl``.
     truth : str or None
         Column of the true interference [nT] (simulations); ignored when absent.
     max_gap_s : float, optional
@@ -57,7 +63,9 @@ def fom_table(
     -------
     DataFrame
         One row per manoeuvre: ``id``, ``box``, ``heading_leg``, ``heading``, ``maneuver``,
-        ``t_start``, ``t_end`` [s], ``ptp_before_nT``, ``ptp_after_nT`` (and ``ptp_truth_nT``).
+        ``t_start``, ``t_end`` [s], ``ptp_before_nT``, ``ptp_after_nT`` (and ``ptp_truth_nT``):
+        peak-to-peak [nT] within the manoeuvre of the field band-passed once (zero-phase,
+        per continuous stretch).  ``attrs["fields"]`` names the field of each.
     """
     if maneuvers is None:
         maneuvers = detect_maneuvers(data, max_gap_s=max_gap_s, **detect_kw)
@@ -69,11 +77,20 @@ def fom_table(
                            axis=1)
     else:
         raise InputError(f"FOM needs a {before!r} column (or the fluxgate)")
-    if after not in data.columns:
-        raise InputError(f"FOM needs a {after!r} column; run 'aeromag compensate' first")
-    cols = {"before": b, "after": data[after].to_numpy(dtype=np.float64)}
+    b_name = before if before in data.columns else "|flux|"
+    if after is None and "mag_tl" in data.columns:
+        after_x = b - data["mag_tl"].to_numpy(dtype=np.float64)
+        a_name = f"{b_name} - mag_tl"
+    else:
+        a_name = "mag_comp" if after is None else after
+        if a_name not in data.columns:
+            raise InputError(f"FOM needs a {a_name!r} column; run 'aeromag compensate' first")
+        after_x = data[a_name].to_numpy(dtype=np.float64)
+    cols = {"before": b, "after": after_x}
+    fields = {"before": b_name, "after": a_name}
     if truth and truth in data.columns:
         cols["truth"] = data[truth].to_numpy(dtype=np.float64)
+        fields["truth"] = truth
     mid = maneuvers.labels["maneuver_id"].to_numpy()
     tab = maneuvers.table[["id", "box", "heading_leg", "heading", "maneuver", "t_start",
                            "t_end"]].copy()
@@ -90,7 +107,9 @@ def fom_table(
                 lo = np.fmin.reduceat(xf, a)
             ptp[found] = (hi - lo)[pos[found]]
         tab[f"ptp_{name}_nT"] = ptp
-    return tab.reset_index(drop=True)
+    tab = tab.reset_index(drop=True)
+    tab.attrs["fields"] = fields
+    return tab
 
 
 def fom_summary(table: pd.DataFrame) -> dict[str, Any]:
@@ -113,7 +132,8 @@ def fom_summary(table: pd.DataFrame) -> dict[str, Any]:
         ``fom_before_nT``, ``fom_after_nT``... for complete boxes), ``complete_boxes``,
         ``fom_before_nT``/``fom_after_nT`` (mean over complete boxes, None when none),
         ``fom_reduction`` (before / after), ``n_maneuvers`` and ``per_maneuver`` (heading,
-        manoeuvre -> mean peak-to-peak over the complete boxes).
+        manoeuvre -> mean peak-to-peak over the complete boxes), ``fields`` (the field each
+        ``ptp_*_nT`` is of) and ``definition`` (the words for it).
     """
     cols = [c for c in ("before", "after", "truth") if f"ptp_{c}_nT" in table.columns]
     boxes = []
@@ -129,6 +149,14 @@ def fom_summary(table: pd.DataFrame) -> dict[str, Any]:
     complete = [e["box"] for e in boxes if e["complete"]]
     out: dict[str, Any] = {"applicable": bool(complete), "reason": None, "boxes": boxes,
                            "complete_boxes": complete, "n_maneuvers": len(table)}
+    fields = table.attrs.get("fields") or {}
+    if fields:
+        out["fields"] = {f"ptp_{k}_nT": v for k, v in fields.items()}
+        out["definition"] = (
+            "ptp_X_nT: peak-to-peak [nT] within one manoeuvre of field X band-passed once in"
+            " band_hz (zero-phase Butterworth per continuous stretch), X as in 'fields'"
+            " (after = mag - mag_tl: the residual without the final low-pass); fom_X_nT: their"
+            " sum over the 12 manoeuvres of a complete box, averaged over complete boxes")
     for c in cols:
         vals = [e[f"fom_{c}_nT"] for e in boxes if e["complete"]]
         out[f"fom_{c}_nT"] = float(np.mean(vals)) if vals else None
