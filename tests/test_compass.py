@@ -307,3 +307,47 @@ def test_excitation_windows_match_direct_statistics():
         s = (t >= w.start_time) & (t <= w.end_time)
         p = log["pitch"].to_numpy()[s]
         assert w.pitch_range_deg == pytest.approx(p.max() - p.min())
+
+
+# -- multi-rate logs ---------------------------------------------------------------------------
+
+def test_multirate_log_interpolates_attitude_to_magnetometer_rows():
+    """Attitude and magnetometer rows interleaved (interface: empty cells where a sensor has
+    no sample): the attitude is interpolated to the magnetometer rows, and the heading error
+    after convergence is that of the single-rate log.  Before: 'only 0 samples'."""
+    from aeromag.workflows.compass import compass_frame
+
+    log, truth = simulate_compass(amplitude_deg=40.0, seed=1, duration_s=20.0, switch_s=None)
+    m = np.array(truth["earth_ned_nT"])
+    ef = (float(np.linalg.norm(m)), float(np.degrees(np.arctan2(m[2], np.hypot(m[0], m[1])))),
+          float(np.degrees(np.arctan2(m[1], m[0]))))
+    _, rep1, res1 = compass_frame(log, forgetting=0.975, earth_field=ef)
+    att = log[["time", "heading", "pitch", "roll"]].iloc[0::2]
+    mag = log[["time", *FLUX]].iloc[1::2]
+    mr = pd.concat([att, mag]).sort_values("time").reset_index(drop=True)
+    mr.loc[mr["heading"].notna(), "heading"] %= 360.0
+    out, rep, _ = compass_frame(mr, forgetting=0.975, earth_field=ef)
+    magrow = out["flux_x"].notna().to_numpy().copy()
+    # the last row is a magnetometer row with no attitude after it: never extrapolated
+    assert rep["metrics"]["n_attitude_interpolated"] == magrow.sum() - 1
+    magrow[-1] = False
+    assert out.loc[magrow, ["flux_cal_x", "mag_heading_cal", "heading_err_deg"]].notna().all().all()
+    t = out["time"].to_numpy()
+    late = magrow & (t > 10)
+    rms = np.sqrt(np.mean(out["heading_err_deg"].to_numpy()[late] ** 2))
+    t1 = log["time"].to_numpy()
+    rms1 = np.sqrt(np.mean(res1.extra["heading_err_deg"][t1 > 10] ** 2))
+    assert rms < 1.5 * rms1 + 0.05
+
+
+def test_attitude_not_interpolated_across_a_gap():
+    from aeromag.compass import attitude_at_samples
+
+    t = np.array([0.0, 0.01, 0.02, 0.5, 1.0])
+    h = np.array([359.0, np.nan, 1.0, np.nan, 3.0])
+    p = np.array([0.0, np.nan, 2.0, np.nan, 2.0])
+    want = np.array([False, True, False, True, False])
+    hh, pp, rr, filled = attitude_at_samples(t, h, p, p, want)
+    assert filled.tolist() == [False, True, False, False, False]
+    assert hh[1] == pytest.approx(0.0, abs=1e-9) and pp[1] == pytest.approx(1.0)
+    assert np.isnan(hh[3])

@@ -12,6 +12,7 @@ from .calibration import (
     CompassCalibration,
     CompassResult,
     ExcitationWindow,
+    attitude_at_samples,
     calibrate_compass,
     compass_heading,
     convergence_time,
@@ -22,6 +23,6 @@ from .calibration import (
 from .reference import IGRF_RANGE, ReferenceField, explicit_field, igrf_field
 
 __all__ = ["EXCITATION_THRESHOLD", "IGRF_RANGE", "CompassCalibration", "CompassResult",
-           "ExcitationWindow", "ReferenceField", "calibrate_compass", "compass_heading",
-           "convergence_time", "excitation_windows", "explicit_field", "heading_error_stats",
-           "igrf_field", "reference_in_body"]
+           "ExcitationWindow", "ReferenceField", "attitude_at_samples", "calibrate_compass",
+           "compass_heading", "convergence_time", "excitation_windows", "explicit_field",
+           "heading_error_stats", "igrf_field", "reference_in_body"]

@@ -27,7 +27,8 @@ from ..errors import InputError
 
 log = logging.getLogger(__name__)
 
-__all__ = ["CompassCalibration", "CompassResult", "ExcitationWindow", "compass_heading",
+__all__ = ["CompassCalibration", "CompassResult", "ExcitationWindow", "attitude_at_samples",
+           "compass_heading",
            "excitation_windows", "heading_error_stats", "EXCITATION_THRESHOLD",
            "calibrate_compass", "convergence_time", "reference_in_body"]
 
@@ -349,6 +350,65 @@ class CompassCalibration:
             matrix_history=np.transpose(th[:, :3, :], (0, 2, 1)),
             offset_history_nT=th[:, 3, :] * self.f0, skipped=res.skipped,
             forgetting=self.forgetting)
+
+
+#: Longest interval [s] between two attitude samples across which the attitude is
+#: interpolated to a magnetometer row of a multi-rate log (flight controllers log attitude
+#: at 10-250 Hz; a longer interval is a gap, and its magnetometer rows stay unused).
+ATTITUDE_MAX_GAP_S = 0.25
+
+
+def attitude_at_samples(time_s: np.ndarray, heading_deg: np.ndarray, pitch_deg: np.ndarray,
+                        roll_deg: np.ndarray, want: np.ndarray, *,
+                        max_gap_s: float = ATTITUDE_MAX_GAP_S,
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Attitude at the rows of a multi-rate log that have a magnetometer sample but no attitude.
+
+    A log whose sensors are sampled at different rates has one row per sample time of any
+    sensor, a sensor's columns empty on the others' rows (interface.md).  The attitude of a
+    row in ``want`` without a complete attitude is interpolated linearly in time between the
+    attitude samples just before and just after it (heading unwrapped, so 359 -> 1 deg passes
+    through 0), when those are at most ``max_gap_s`` apart; otherwise it stays NaN (the row is
+    skipped by the calibration and counted).
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,)
+        Row times [s], increasing.
+    heading_deg, pitch_deg, roll_deg : ndarray, shape (n,)
+        Attitude [deg], NaN where the row has none.
+    want : ndarray of bool, shape (n,)
+        Rows that need an attitude (those with a magnetometer sample).
+    max_gap_s : float
+        Longest interval between the bracketing attitude samples [s].
+
+    Returns
+    -------
+    heading, pitch, roll : ndarray, shape (n,)
+        Attitude [deg], heading in [0, 360) where interpolated.
+    filled : ndarray of bool, shape (n,)
+        Rows whose attitude was interpolated.
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    h, p, r = (np.array(x, dtype=np.float64) for x in (heading_deg, pitch_deg, roll_deg))
+    have = np.isfinite(h) & np.isfinite(p) & np.isfinite(r) & np.isfinite(t)
+    need = np.asarray(want, dtype=bool) & ~have & np.isfinite(t)
+    filled = np.zeros(len(t), dtype=bool)
+    if not need.any() or have.sum() < 2:
+        return h, p, r, filled
+    ta = t[have]
+    k = np.searchsorted(ta, t[need])  # attitude sample after (or at) each wanted row
+    inside = (k > 0) & (k < len(ta))
+    ks = np.clip(k, 1, len(ta) - 1)
+    inside &= (ta[ks] - ta[ks - 1]) <= max_gap_s
+    rows = np.flatnonzero(need)[inside]
+    tq = t[rows]
+    hu = np.rad2deg(np.unwrap(np.deg2rad(h[have])))
+    h[rows] = wrap360_deg(np.interp(tq, ta, hu))
+    p[rows] = np.interp(tq, ta, p[have])
+    r[rows] = np.interp(tq, ta, r[have])
+    filled[rows] = True
+    return h, p, r, filled
 
 
 def reference_in_body(ref_ned_nT: np.ndarray, heading_deg: np.ndarray, pitch_deg: np.ndarray,

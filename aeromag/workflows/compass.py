@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 
 from .._core.rls import check_forgetting
-from ..compass.calibration import CompassResult, calibrate_compass
+from ..compass.calibration import CompassResult, attitude_at_samples, calibrate_compass
 from ..compass.reference import ReferenceField, explicit_field, igrf_field
 from ..errors import InputError
 from ..io import atomic_path, json_path_for, read_log, write_csv, write_json
@@ -120,6 +120,13 @@ def compass_frame(df: pd.DataFrame, *, forgetting: float = 0.975, date: str | No
     flux = df[list(_FLUX)].to_numpy(dtype=np.float64)
     hdg, pitch, roll = (df[c].to_numpy(dtype=np.float64) for c in _ATTITUDE)
     t = df["time"].to_numpy(dtype=np.float64)
+    # A multi-rate log: magnetometer rows carry no attitude; interpolate it to them between
+    # the attitude samples on either side (never across a gap).
+    hdg, pitch, roll, filled = attitude_at_samples(t, hdg, pitch, roll,
+                                                   np.isfinite(flux).all(axis=1))
+    if filled.any():
+        log.info("%s: attitude interpolated to %d magnetometer rows without one (multi-rate "
+                 "log)", src, int(filled.sum()))
     try:
         res = calibrate_compass(flux, hdg, pitch, roll, ref.ned_nT, time_s=t, forgetting=lam,
                                 alpha=alpha, window_s=window_s)
@@ -149,7 +156,8 @@ def compass_frame(df: pd.DataFrame, *, forgetting: float = 0.975, date: str | No
         "alpha": alpha,
         "reference": ref.info,
         "metrics": {**res.extra["metrics"], "n_samples": n,
-                    "n_skipped": int(res.skipped.sum())},
+                    "n_skipped": int(res.skipped.sum()),
+                    "n_attitude_interpolated": int(filled.sum())},
         "excitation": {"window_s": window_s, "n_windows": len(windows),
                        "n_insufficient": len(weak),
                        "windows": [w.to_dict() for w in windows]},
