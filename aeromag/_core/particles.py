@@ -14,42 +14,45 @@ given (``(B, 1, p)`` in batch mode), and returns ``(K, n)``, ``(K,)`` or ``(K, m
 What the filter does at each step (:meth:`ParticleFilter.step`):
 
 1. proposal: ``"bootstrap"`` samples the transition; ``"unscented"`` makes one unscented
-   Kalman update per particle from the prior ``N(f(x_prev), Q)`` of that particle and
-   samples the Gaussian posterior, which moves particles toward the high-likelihood region
-   (the unscented version of Doucet's local approximation of the optimal proposal, exact for
-   a linear-Gaussian model; van der Merwe et al. 2000 carry a covariance per particle
-   instead, which makes the proposal broader than the transition and the weights degenerate
-   on models with small Q); the transform is :mod:`aeromag._core.unscented`;
-2. log-weights are updated (``loglik + log p(x|x_prev) - log q(x)``), always in logs with
-   log-sum-exp: with a measurement variance of 1e-5 plain weights underflow to zero;
-3. the per-step log-likelihood ``log L_k = log sum_i w_{k-1,i} p_i`` (``p_i`` the incremental
-   weight) is recorded; with uniform previous weights and the bootstrap proposal it is the
-   log of the mean particle likelihood of methods M5;
-4. when the effective sample size falls below ``ess_threshold * N`` the population is
-   renewed by ``"multinomial"`` or ``"systematic"`` resampling or by the ``"genetic"``
-   replacement: roulette selection (:func:`roulette_select`), neighbour crossover
-   (:func:`crossover`) and Gaussian mutation of the offspring of low-weight particles
-   (:func:`mutate`).
+   Kalman update per particle from its prior ``N(f(x_prev), Q)`` (:mod:`.unscented`) and
+   samples that posterior, moving particles toward the high-likelihood region (exact for a
+   linear-Gaussian model; a covariance carried per particle, as van der Merwe et al. 2000,
+   made the proposal broader than the transition and the weights degenerate);
+2. log-weights ``loglik + log p(x|x_prev) - log q(x)``, always with log-sum-exp;
+3. ``log L_k = log sum_i w_{k-1,i} p_i`` is recorded (with uniform previous weights and the
+   bootstrap proposal: the log of the mean particle likelihood of methods M5);
+4. when ``ESS < ess_threshold * N`` the population is renewed: ``"multinomial"``,
+   ``"systematic"`` or ``"genetic"`` (:mod:`.pf_operators`: roulette selection, neighbour
+   crossover, Gaussian mutation of the offspring of low-weight particles).
 
-The fault statistic is ``S_k = sum of -log L_j over the last M steps`` (:func:`window_sum`);
-a threshold comes from fault-free runs (:func:`threshold_from_runs`, a percentile of the runs'
-maxima, with the per-run false-alarm rate it implies) or from a calm stretch of one record
-(:func:`threshold_from_calm`).  :class:`FilterBank` runs one filter per fault hypothesis and
-reports the most likely one (smallest ``S_k``).
+``S_k`` (the sum of ``-log L_j`` over the last ``M`` steps) and its thresholds are in
+:mod:`.pf_stats`; :class:`FilterBank` runs one filter per hypothesis and reports the most
+likely (smallest ``S_k``).  Every name of both modules is re-exported here.
 
 Everything is reproducible from ``seed`` (an int or a :class:`numpy.random.Generator`).
 """
 
 from __future__ import annotations
 
-import logging
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from .pf_operators import (
+    _as_rng,
+    crossover,
+    effective_sample_size,
+    logsumexp,
+    multinomial_resample,
+    mutate,
+    normalize_log_weights,
+    roulette_select,
+    systematic_resample,
+)
+from .pf_stats import Threshold, threshold_from_calm, threshold_from_runs, window_sum
 from .unscented import (
     angle_mean_fn,
     angle_residual_fn,
@@ -57,8 +60,6 @@ from .unscented import (
     sigma_points,
     unscented_transform,
 )
-
-log = logging.getLogger(__name__)
 
 __all__ = [
     "BankResult",
@@ -82,401 +83,6 @@ __all__ = [
 ]
 
 _LOG2PI = float(np.log(2.0 * np.pi))
-
-
-# --------------------------------------------------------------------------- weights
-def logsumexp(a: np.ndarray, axis: int = -1) -> np.ndarray:
-    """``log(sum(exp(a)))`` along ``axis`` without overflow or underflow.
-
-    Parameters
-    ----------
-    a : ndarray
-        Log-values (``-inf`` allowed).
-    axis : int
-        Axis to reduce.
-
-    Returns
-    -------
-    ndarray
-        The reduced log-sum; ``-inf`` where every entry is ``-inf``.
-    """
-    a = np.asarray(a, dtype=np.float64)
-    m = np.max(a, axis=axis, keepdims=True)
-    m_safe = np.where(np.isfinite(m), m, 0.0)
-    with np.errstate(divide="ignore"):
-        out = np.log(np.sum(np.exp(a - m_safe), axis=axis, keepdims=True)) + m_safe
-    return np.squeeze(out, axis=axis)
-
-
-def normalize_log_weights(logw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Normalise log-weights over the last axis.
-
-    Parameters
-    ----------
-    logw : ndarray, shape (..., N)
-        Unnormalised log-weights.
-
-    Returns
-    -------
-    logw_norm : ndarray, shape (..., N)
-        Log-weights whose exponentials sum to one; uniform where every weight was ``-inf``
-        or NaN (a population that explains nothing is kept, not turned into NaN).
-    log_total : ndarray, shape (...)
-        Log of the sum of the unnormalised weights (``-inf`` in the degenerate case).
-    """
-    logw = np.asarray(logw, dtype=np.float64)
-    logw = np.where(np.isnan(logw), -np.inf, logw)
-    tot = logsumexp(logw, axis=-1)
-    bad = ~np.isfinite(tot)
-    norm = logw - np.where(bad, 0.0, tot)[..., None]
-    if np.any(bad):
-        n = logw.shape[-1]
-        norm = np.where(bad[..., None], -np.log(n), norm)
-    return norm, tot
-
-
-def effective_sample_size(logw: np.ndarray) -> np.ndarray:
-    """Effective sample size ``1 / sum(w_i^2)`` of normalised weights.
-
-    Parameters
-    ----------
-    logw : ndarray, shape (..., N)
-        Log-weights (normalised or not).
-
-    Returns
-    -------
-    ndarray, shape (...)
-        Between 1 and N.
-    """
-    norm, _ = normalize_log_weights(logw)
-    return np.exp(-logsumexp(2.0 * norm, axis=-1))
-
-
-# --------------------------------------------------------------------------- resampling
-def _as_rng(seed: int | np.random.Generator | None) -> np.random.Generator:
-    return seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-
-
-def _inverse_cdf(logw: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """Indices ``i`` with ``cdf[i-1] <= u < cdf[i]`` for sorted ``u`` in [0, 1), per batch."""
-    norm, _ = normalize_log_weights(logw)
-    cdf = np.cumsum(np.exp(norm), axis=-1)
-    cdf[..., -1] = 1.0
-    n = logw.shape[-1]
-    if cdf.ndim == 1:
-        return np.minimum(np.searchsorted(cdf, u, side="right"), n - 1)
-    flat_cdf = cdf.reshape(-1, n) + np.arange(cdf.size // n)[:, None]
-    flat_u = u.reshape(-1, u.shape[-1]) + np.arange(cdf.size // n)[:, None]
-    idx = np.searchsorted(flat_cdf.ravel(), flat_u.ravel(), side="right")
-    idx = idx.reshape(flat_u.shape) - n * np.arange(cdf.size // n)[:, None]
-    return np.clip(idx, 0, n - 1).reshape(u.shape)
-
-
-def multinomial_resample(logw: np.ndarray, rng: np.random.Generator,
-                         n: int | None = None) -> np.ndarray:
-    """Multinomial resampling: ``n`` independent draws of indices with probability ``w_i``.
-
-    Parameters
-    ----------
-    logw : ndarray, shape (..., N)
-        Log-weights.
-    rng : numpy.random.Generator
-        Random source.
-    n : int, optional
-        Number of draws (default ``N``).
-
-    Returns
-    -------
-    ndarray of int, shape (..., n)
-        Parent indices, sorted ascending along the last axis.
-    """
-    logw = np.asarray(logw, dtype=np.float64)
-    n = logw.shape[-1] if n is None else int(n)
-    u = np.sort(rng.random(logw.shape[:-1] + (n,)), axis=-1)
-    return _inverse_cdf(logw, u)
-
-
-#: Roulette-wheel selection of the genetic replacement is multinomial resampling.
-roulette_select = multinomial_resample
-
-
-def systematic_resample(logw: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Systematic resampling: one uniform offset, ``N`` evenly spaced pointers.
-
-    Parameters
-    ----------
-    logw : ndarray, shape (..., N)
-        Log-weights.
-    rng : numpy.random.Generator
-        Random source.
-
-    Returns
-    -------
-    ndarray of int, shape (..., N)
-        Parent indices, sorted ascending (particle ``i`` is copied ``floor(N w_i)`` or
-        ``ceil(N w_i)`` times).
-    """
-    logw = np.asarray(logw, dtype=np.float64)
-    n = logw.shape[-1]
-    u = (rng.random(logw.shape[:-1] + (1,)) + np.arange(n)) / n
-    return _inverse_cdf(logw, u)
-
-
-def crossover(x: np.ndarray, rng: np.random.Generator, p_c: float = 0.3,
-              blend: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Neighbour crossover: blend the pairs (0, 1), (2, 3), ... each with probability ``p_c``.
-
-    A crossed pair becomes ``a' = b_ * a + (1 - b_) * b`` and ``b' = b_ * b + (1 - b_) * a``
-    with blend ``b_`` (methods M5 uses ``b_ = p_c``), so each pair's sum is preserved.  An
-    odd last particle is left alone.
-
-    Parameters
-    ----------
-    x : ndarray, shape (..., N, n)
-        Particles.
-    rng : numpy.random.Generator
-        Random source.
-    p_c : float
-        Probability that a pair is crossed, in [0, 1].
-    blend : float, optional
-        Blend coefficient in [0, 1] (default ``p_c``).
-
-    Returns
-    -------
-    x_new : ndarray, shape (..., N, n)
-        Particles after crossover (a new array).
-    crossed : ndarray of bool, shape (..., N)
-        True for both members of every crossed pair.
-    """
-    if not 0.0 <= p_c <= 1.0:
-        raise ValueError("crossover probability p_c must be in [0, 1]")
-    b = p_c if blend is None else float(blend)
-    if not 0.0 <= b <= 1.0:
-        raise ValueError("crossover blend must be in [0, 1]")
-    x = np.asarray(x, dtype=np.float64)
-    out = x.copy()
-    npair = x.shape[-2] // 2
-    crossed = np.zeros(x.shape[:-1], dtype=bool)
-    if npair == 0:
-        return out, crossed
-    pick = rng.random(x.shape[:-2] + (npair,)) < p_c
-    a = x[..., 0:2 * npair:2, :]
-    c = x[..., 1:2 * npair:2, :]
-    m = pick[..., None]
-    out[..., 0:2 * npair:2, :] = np.where(m, b * a + (1.0 - b) * c, a)
-    out[..., 1:2 * npair:2, :] = np.where(m, b * c + (1.0 - b) * a, c)
-    crossed[..., 0:2 * npair:2] = pick
-    crossed[..., 1:2 * npair:2] = pick
-    return out, crossed
-
-
-def mutate(x: np.ndarray, logw: np.ndarray, rng: np.random.Generator, p_m: float = 0.1,
-           scale: np.ndarray | float = 1.0, low_weight: float = 1.0,
-           ) -> tuple[np.ndarray, np.ndarray]:
-    """Gaussian mutation of low-weight particles.
-
-    A particle is *low-weight* when its normalised weight is below ``low_weight / N`` (by
-    default below the uniform weight); each low-weight particle is mutated with probability
-    ``p_m`` by adding ``N(0, scale**2)`` noise per component.  Others are never touched.
-
-    Parameters
-    ----------
-    x : ndarray, shape (..., N, n)
-        Particles.
-    logw : ndarray, shape (..., N)
-        Their log-weights (fitness).
-    rng : numpy.random.Generator
-        Random source.
-    p_m : float
-        Mutation probability of a low-weight particle, in [0, 1].
-    scale : float or ndarray broadcastable to (..., 1, n)
-        Standard deviation of the mutation, in the state's units.
-    low_weight : float
-        Low-weight threshold as a multiple of the uniform weight ``1/N``.
-
-    Returns
-    -------
-    x_new : ndarray, shape (..., N, n)
-        Particles after mutation (a new array).
-    mutated : ndarray of bool, shape (..., N)
-        Which particles were mutated.
-    """
-    if not 0.0 <= p_m <= 1.0:
-        raise ValueError("mutation probability p_m must be in [0, 1]")
-    x = np.asarray(x, dtype=np.float64)
-    n = x.shape[-2]
-    norm, _ = normalize_log_weights(logw)
-    low = norm < np.log(low_weight / n)
-    mutated = low & (rng.random(low.shape) < p_m)
-    noise = rng.standard_normal(x.shape) * np.asarray(scale, dtype=np.float64)
-    return np.where(mutated[..., None], x + noise, x), mutated
-
-
-# --------------------------------------------------------------------------- statistics
-def window_sum(values: np.ndarray, window: int) -> np.ndarray:
-    """Sum of the last ``window`` finite values, at every position (``S_k`` of methods M5).
-
-    NaN entries (steps without a measurement) are skipped: at such a position the sum of the
-    last ``window`` finite values before it is repeated.  Until ``window`` finite values have
-    been seen the result is NaN.  An infinite value makes the sums that contain it infinite.
-
-    Parameters
-    ----------
-    values : ndarray, shape (..., T)
-        Per-step values (e.g. ``-log L_k``).
-    window : int
-        Number of values summed, ``M >= 1``.
-
-    Returns
-    -------
-    ndarray, shape (..., T)
-    """
-    if int(window) < 1:
-        raise ValueError("window must be at least 1")
-    m = int(window)
-    v = np.asarray(values, dtype=np.float64)
-    shape = v.shape
-    v2 = v.reshape(-1, shape[-1])
-    out = np.full(v2.shape, np.nan)
-    for r in range(v2.shape[0]):
-        row = v2[r]
-        ok = ~np.isnan(row)
-        vals = row[ok]
-        if vals.size < m:
-            continue
-        inf = np.isinf(vals)
-        fin = np.where(inf, 0.0, vals)
-        cs = np.concatenate([[0.0], np.cumsum(fin)])
-        ci = np.concatenate([[0], np.cumsum(inf)])
-        s = cs[m:] - cs[:-m]
-        s = np.where(ci[m:] - ci[:-m] > 0, np.inf, s)
-        count = np.cumsum(ok)            # finite values seen up to and including each step
-        have = count >= m
-        out[r, have] = s[count[have] - m]
-    return out.reshape(shape)
-
-
-@dataclass
-class Threshold:
-    """A detection threshold and what it implies.
-
-    Attributes
-    ----------
-    value : float
-        Threshold on ``S_k`` (alarm when ``S_k > value``).
-    percentile : float
-        Percentile it was taken at.
-    method : str
-        ``"runs"`` (percentile of fault-free runs' maxima) or ``"calm"``.
-    false_alarm_rate : float
-        ``"runs"``: fraction of the fault-free runs whose maximum exceeds ``value`` (the
-        per-run false-alarm rate); ``"calm"``: fraction of the calm stretch's samples above it.
-    n : int
-        Number of runs (or calm samples) it was estimated from.
-    info : dict
-        Extra figures (JSON-ready).
-    """
-
-    value: float
-    percentile: float
-    method: str
-    false_alarm_rate: float
-    n: int
-    info: dict[str, Any] = field(default_factory=dict)
-
-
-def threshold_from_runs(stats: np.ndarray, percentile: float = 99.0,
-                        fit: str = "empirical") -> Threshold:
-    """Threshold from fault-free runs: a percentile of the runs' maxima of ``S_k``.
-
-    A percentile over all samples would give far more false alarms per run, since a run
-    alarms as soon as any of its samples is above the threshold.
-
-    Parameters
-    ----------
-    stats : ndarray, shape (runs, T)
-        ``S_k`` of each fault-free run (NaN ignored).
-    percentile : float
-        Percentile of the maxima, in (0, 100] (below 100 for ``fit="gumbel"``).
-    fit : {"empirical", "gumbel"}
-        ``"empirical"``: the sample percentile of the maxima (at 99 with 200 runs, the
-        second largest); ``"gumbel"``: the percentile of a Gumbel distribution fitted to the
-        maxima (the extreme-value law of a maximum), which extrapolates the tail instead of
-        resting on its one or two largest values.
-
-    Returns
-    -------
-    Threshold
-        ``false_alarm_rate`` is the fraction of these runs that would alarm (about
-        ``1 - percentile/100``); an independent set of runs measures it without bias.
-        ``info["model_false_alarm_rate"]`` is the fitted law's exceedance probability.
-    """
-    s = np.asarray(stats, dtype=np.float64)
-    if s.ndim != 2 or s.shape[0] < 2:
-        raise ValueError("stats must have shape (runs, T) with at least 2 runs")
-    mx = np.nanmax(np.where(np.isnan(s), -np.inf, s), axis=1)
-    mx = mx[np.isfinite(mx) | (mx > 0)]
-    info: dict[str, Any] = {"max_median": float(np.median(mx)), "max_max": float(mx.max()),
-                            "fit": fit}
-    if fit == "empirical":
-        value = float(np.percentile(mx, percentile))
-    elif fit == "gumbel":
-        from scipy import stats as sps
-
-        if not 0.0 < percentile < 100.0:
-            raise ValueError("a Gumbel threshold needs a percentile below 100")
-        loc, scale = sps.gumbel_r.fit(mx)
-        value = float(sps.gumbel_r.ppf(percentile / 100.0, loc, scale))
-        info.update(gumbel_loc=float(loc), gumbel_scale=float(scale),
-                    model_false_alarm_rate=1.0 - percentile / 100.0)
-    else:
-        raise ValueError(f"fit must be 'empirical' or 'gumbel', not {fit!r}")
-    far = float(np.mean(mx > value))
-    return Threshold(value=value, percentile=float(percentile), method="runs",
-                     false_alarm_rate=far, n=int(mx.size), info=info)
-
-
-def threshold_from_calm(stat: np.ndarray, calm: np.ndarray | None = None,
-                        percentile: float = 100.0, factor: float = 1.0,
-                        margin: float = 0.0) -> Threshold:
-    """Threshold from a calm (fault-free) stretch of one record.
-
-    ``value = factor * percentile(S_k over the calm samples) + margin``.  With the default
-    ``percentile = 100`` (the calm maximum) the factor and margin are the safety that a
-    single stretch needs in place of many fault-free runs.
-
-    Parameters
-    ----------
-    stat : ndarray, shape (T,)
-        ``S_k`` of the record.
-    calm : ndarray of bool, shape (T,), optional
-        Calm samples (default all).
-    percentile : float
-        Percentile of the calm ``S_k`` values, in (0, 100].
-    factor, margin : float
-        Scale and offset applied to that percentile (``S_k`` units).
-
-    Returns
-    -------
-    Threshold
-        ``false_alarm_rate`` is the fraction of calm samples above the threshold.
-
-    Raises
-    ------
-    ValueError
-        The calm stretch holds no finite ``S_k``.
-    """
-    s = np.asarray(stat, dtype=np.float64)
-    sel = np.ones(s.shape, dtype=bool) if calm is None else np.asarray(calm, dtype=bool)
-    vals = s[sel & np.isfinite(s)]
-    if vals.size == 0:
-        raise ValueError("no finite S_k in the calm stretch (is it shorter than the window?)")
-    base = float(np.percentile(vals, percentile))
-    value = factor * base + margin
-    return Threshold(value=float(value), percentile=float(percentile), method="calm",
-                     false_alarm_rate=float(np.mean(vals > value)), n=int(vals.size),
-                     info={"calm_percentile_value": base, "factor": float(factor),
-                           "margin": float(margin), "calm_median": float(np.median(vals))})
 
 
 # --------------------------------------------------------------------------- model
@@ -702,11 +308,10 @@ class ParticleFilter:
         self.rng = _as_rng(seed)
         self.ut = (float(ut_alpha), float(ut_beta), float(ut_kappa))
         self._LQ = robust_sqrt(model.Q)
-        if model.R is not None:
-            m = model.R.shape[0]
-            self._y_mean = angle_mean_fn(model.angle_y) if len(model.angle_y) else None
-            self._y_res = angle_residual_fn(model.angle_y) if len(model.angle_y) else None
-            self._m = m
+        ang = tuple(model.angle_y)
+        self._y_mean = angle_mean_fn(ang) if ang else None
+        self._y_res = angle_residual_fn(ang) if ang else None
+        self._m = None if model.R is None else model.R.shape[0]
         self.reset()
 
     # ------------------------------------------------------------------ helpers
