@@ -439,17 +439,20 @@ def _block_means(df: pd.DataFrame, t: np.ndarray, step: int, max_gap_s: float
     cnt = np.diff(np.r_[first, n])
 
     def mean(x: np.ndarray) -> np.ndarray:
+        # Summed in float64 from the column's own dtype (no float64 copy of a float32 column).
         fin = np.isfinite(x)
         if fin.all():
-            return np.add.reduceat(x, first) / cnt
-        k = np.add.reduceat(fin.astype(np.float64), first)
+            return np.add.reduceat(x, first, dtype=np.float64) / cnt
+        k = np.add.reduceat(fin, first, dtype=np.float64)
         with np.errstate(invalid="ignore", divide="ignore"):
-            return np.where(k > 0, np.add.reduceat(np.where(fin, x, 0.0), first) / k, np.nan)
+            return np.where(k > 0, np.add.reduceat(np.where(fin, x, 0), first,
+                                                   dtype=np.float64) / k, np.nan)
 
     out = {"time": mean(t - t[0]) + t[0] + 1e6 * sid}
     for c in ("pitch", "roll", "flux_x", "flux_y", "flux_z"):
         if c in df.columns:
-            out[c] = mean(df[c].to_numpy(dtype=np.float64))
+            x = df[c].to_numpy()
+            out[c] = mean(x if x.dtype.kind == "f" else x.astype(np.float64))
     if "heading" in df.columns:
         h = df["heading"].to_numpy(dtype=np.float64)
         h0 = np.repeat(h[first], cnt)

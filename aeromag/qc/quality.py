@@ -167,11 +167,12 @@ def _compute(
     band = cfg.band_hz
     seg = segment_labels(data)
     has_tl = "mag_tl" in data.columns
-    raw_after = mag - data["mag_tl"].to_numpy(dtype=np.float64) if has_tl else comp
+    tl = data["mag_tl"].to_numpy(dtype=np.float64) if has_tl else mag - comp
+    raw_after = mag - tl if has_tl else comp
     metrics: dict[str, Any] = {"band_hz": list(band)}
     if not has_tl:
         notes.append("no mag_tl column: residuals are band-passed mag_comp (low-passed)")
-    pieces = piece_residuals(t, mag, mag - raw_after, seg, kept_mask(data), band, cfg.order,
+    pieces = piece_residuals(t, mag, tl, seg, kept_mask(data), band, cfg.order,
                              trim_s=cfg.trim_s, max_gap_s=cfg.max_gap_s)
     k, a = pieces.kept, pieces.all
     metrics.update(
