@@ -388,7 +388,7 @@ def plot_psd(
 
 
 def term_contributions(data: pd.DataFrame, terms: Any, coef: Any,
-                       block: int = 200_000) -> pd.DataFrame:
+                       block: int = 50_000) -> pd.DataFrame:
     """Permanent, induced and eddy parts of the modelled interference.
 
     Built block by block (a 16-column design matrix of the whole log never exists); each block
@@ -414,8 +414,9 @@ def term_contributions(data: pd.DataFrame, terms: Any, coef: Any,
     terms = tuple(terms)
     c = np.asarray(coef, dtype=np.float64)
     t = data["time"].to_numpy(dtype=np.float64)
-    flux = data[["flux_x", "flux_y", "flux_z"]].to_numpy(dtype=np.float64)
-    ok = np.all(np.isfinite(flux), axis=1)
+    # The fluxgate as stored (float32 in the report), converted block by block below.
+    fcols = [data[k].to_numpy() for k in ("flux_x", "flux_y", "flux_z")]
+    ok = np.isfinite(fcols[0]) & np.isfinite(fcols[1]) & np.isfinite(fcols[2])
     st = find_stretches(t, ok)
     groups = {"permanent": PERMANENT, "induced": INDUCED_6, "eddy": EDDY_9, "bias": BIAS}
     idx = {g: [j for j, x in enumerate(terms) if x in m] for g, m in groups.items()}
@@ -429,8 +430,9 @@ def term_contributions(data: pd.DataFrame, terms: Any, coef: Any,
         sel = ok[lo:hi]
         if not sel.any():
             continue
+        flux = np.column_stack([x[lo:hi] for x in fcols]).astype(np.float64, copy=False)
         A = np.full((hi - lo, len(terms)), np.nan)
-        A[sel] = design_matrix(flux[lo:hi][sel], t[lo:hi][sel], terms, stretch=st[lo:hi][sel])
+        A[sel] = design_matrix(flux[sel], t[lo:hi][sel], terms, stretch=st[lo:hi][sel])
         for g, j in idx.items():
             out[g][a:b] = (A[:, j] @ c[j])[a - lo:b - lo]
     return pd.DataFrame(out, index=data.index)
