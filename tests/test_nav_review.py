@@ -42,3 +42,20 @@ def test_accelerometer_bias_states_are_the_default():
     res = navigate(fl.log, gps="none", mag_reference_ned_nT=REF, source="sim")
     assert {"bax_ms2", "bay_ms2", "baz_ms2"} <= set(res.report["settings"]["states"])
 
+
+
+def test_gyro_in_deg_per_s_in_a_hover_warns_with_the_units_remedy():
+    """A hover's rates stay far below 34.9 rad/s even in deg/s, so the full-scale test is
+    silent while the bias alone (0.3 °/s read as rad/s) spins the attitude: the magnetometer
+    comparison warns."""
+    fl = simulate_quadrotor("hover", seed=0, duration_s=20.0)
+    log = fl.log.copy()
+    for c in ("gyro_x", "gyro_y", "gyro_z"):
+        log[c] = np.degrees(log[c])
+    assert np.nanmax(np.abs(log[["gyro_x", "gyro_y", "gyro_z"]].to_numpy())) < 34.9
+    res = navigate(log, gps="none", mag_reference_ned_nT=REF, source="sim")
+    assert any("--units gyro=deg/s" in w for w in res.report["warnings"])
+    for scenario in ("hover", "rectangle"):            # rad/s: no false warning
+        ok = navigate(simulate_quadrotor(scenario, seed=2, duration_s=20.0).log, gps="none",
+                      mag_reference_ned_nT=REF, source="sim")
+        assert not any("deg/s" in w for w in ok.report["warnings"]), ok.report["warnings"]

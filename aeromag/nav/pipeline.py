@@ -160,6 +160,62 @@ def _check_imu(t: np.ndarray, gyro: np.ndarray, acc: np.ndarray, source: str,
         log.warning("%s", msg)
 
 
+def _check_gyro_against_mag(t: np.ndarray, gyro: np.ndarray, flux: np.ndarray | None,
+                            source: str, warnings: list[str],
+                            windows_s: tuple[float, ...] = (0.05, 0.25, 1.0)) -> None:
+    """Warn when the gyro turns the body far more than the magnetometer sees (deg/s).
+
+    Over windows of each length in ``windows_s`` (s) the body-frame field measured at the
+    window's start is rotated by the gyro's integrated angle and the predicted change is
+    compared with the measured one (rms over the windows that turn by less than 1 rad; the
+    largest ratio of the lengths counts).  A gyro logged in deg/s turns about 57 times too
+    far, which the full-scale test misses on a gentle flight or a hover (where its bias alone
+    then spins the attitude at tens of degrees per second).  Noise, a motor-current
+    disturbance or a hard-iron offset make the measured change larger or the prediction off
+    by a small factor only, so a gyro in rad/s does not trigger the warning (threshold 5x).
+    """
+    if flux is None:
+        return
+    imu = np.flatnonzero(np.isfinite(gyro).all(axis=1))
+    mrow = np.flatnonzero(np.isfinite(flux).all(axis=1))
+    if mrow.size < 10 or imu.size < 10:
+        return
+    ti = t[imu]
+    dt = np.diff(ti, prepend=ti[0])
+    theta = np.cumsum(gyro[imu] * dt[:, None], axis=0)  # rows: interval mean ending there
+    tm = t[mrow]
+    tm_ok = (tm >= ti[0]) & (tm <= ti[-1])
+    tm, m = tm[tm_ok], flux[mrow][tm_ok]
+    th = np.column_stack([np.interp(tm, ti, theta[:, a]) for a in range(3)])
+    ratio, rp, ro = 0.0, 0.0, 1.0
+    for w in windows_s:
+        j = np.searchsorted(tm, tm + w)
+        i = np.flatnonzero(j < tm.size)
+        j = j[i]
+        phi = th[j] - th[i]                           # body rotation over the window, rad
+        ang = np.linalg.norm(phi, axis=1)
+        keep = ang < 1.0          # beyond, the change saturates at twice the field
+        if keep.sum() < 20:
+            continue
+        i, j, phi, ang = i[keep], j[keep], phi[keep], ang[keep]
+        k = phi / np.maximum(ang, 1e-12)[:, None]
+        m0 = m[i]
+        c, s_ = np.cos(ang)[:, None], np.sin(ang)[:, None]
+        # the field in the rotated body frame: m0 rotated by -phi (Rodrigues)
+        m_pred = (m0 * c - s_ * np.cross(k, m0)
+                  + (1 - c) * k * np.sum(k * m0, axis=1, keepdims=True))
+        p_ = float(np.sqrt(np.mean(np.sum((m_pred - m0) ** 2, axis=1))))
+        o_ = float(np.sqrt(np.mean(np.sum((m[j] - m0) ** 2, axis=1))))
+        if p_ / max(o_, 1e-12) > ratio:
+            ratio, rp, ro = p_ / max(o_, 1e-12), p_, o_
+    if rp > 5.0 * ro:
+        msg = (f"{source}: the gyro turns the body {rp / max(ro, 1e-12):.0f} times as far as"
+               " the magnetometer sees: the gyro is probably in deg/s; convert it with"
+               " --units gyro=deg/s")
+        warnings.append(msg)
+        log.warning("%s", msg)
+
+
 def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
              origin: tuple[float, float, float] | None = None,
              mag_reference_ned_nT: np.ndarray | None = None,
@@ -227,6 +283,8 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
         log.warning("%s", msg)
         use.remove("flow")
     flux = _group(df, FLUX, src)
+    if not any("deg/s" in w for w in warnings):
+        _check_gyro_against_mag(t, gyro, flux, src, warnings)
     llh = _group(df, GPS_POS, src)
     vel = _group(df, GPS_VEL, src)
     fix = (np.zeros(len(t), bool) if llh is None else np.isfinite(llh).all(axis=1))
