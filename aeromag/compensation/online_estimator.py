@@ -43,7 +43,7 @@ class OnlineTollesLawson(RegressorMixin, BaseEstimator):
         Prior covariance scale [nT^2].
     fs_hz : float or None
         Sampling rate [Hz]; from the first batch's times when None.
-    derivative : {"central", "backward"}
+    derivative : {"central", "midpoint", "backward"}
         See :class:`aeromag.compensation.online.OnlineTL`.
 
     Attributes

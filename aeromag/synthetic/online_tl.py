@@ -67,6 +67,11 @@ class OnlineTLScenario:
     coef_before, coef_after : ndarray, shape (16,)
         TL coefficients before and after the jump.
     seed : int
+    oversample : int
+        The flight is simulated at ``oversample`` times ``rate_hz`` and the log keeps every
+        ``oversample``-th sample, so the eddy interference comes from the attitude's true
+        rate of change (to a fraction of a per cent), not from a difference of the logged
+        samples (which would favour a fit that uses that same difference).
     """
 
     duration_s: float = 1200.0
@@ -84,6 +89,7 @@ class OnlineTLScenario:
     coef_before: np.ndarray = field(default_factory=default_aircraft_coef)
     coef_after: np.ndarray = field(default_factory=coef_after_jump)
     seed: int = 0
+    oversample: int = 10
 
 
 def simulate_online_tl(scenario: OnlineTLScenario | None = None, **overrides: object
@@ -110,8 +116,10 @@ def simulate_online_tl(scenario: OnlineTLScenario | None = None, **overrides: ob
     if overrides:
         sc = OnlineTLScenario(**{**sc.__dict__, **overrides})
     rng = np.random.default_rng(sc.seed)
-    n = int(round(sc.duration_s * sc.rate_hz))
-    t = np.arange(n) / sc.rate_hz
+    os_ = max(1, int(sc.oversample))
+    n_out = int(round(sc.duration_s * sc.rate_hz))
+    n = n_out * os_
+    t = np.arange(n) / (sc.rate_hz * os_)
     # Line headings cycle N, S, E, W; 20-s smooth turns between lines.
     seq = np.array([0.0, 180.0, 90.0, 270.0])
     k = np.floor(t / sc.line_s).astype(int)
@@ -123,7 +131,7 @@ def simulate_online_tl(scenario: OnlineTLScenario | None = None, **overrides: ob
     frac = 0.5 - 0.5 * np.cos(np.pi * frac)
     dpsi = ((nxt - base + 180.0) % 360.0) - 180.0
     heading = base + frac * dpsi
-    fs = sc.rate_hz
+    fs = sc.rate_hz * os_
     roll = band_noise(rng, n, fs, 0.05, 0.8, sc.roll_rms_deg) + 25.0 * np.sin(np.pi * frac)
     pitch = band_noise(rng, n, fs, 0.05, 0.8, sc.pitch_rms_deg)
     heading = heading + band_noise(rng, n, fs, 0.05, 0.8, sc.yaw_rms_deg)
@@ -135,6 +143,10 @@ def simulate_online_tl(scenario: OnlineTLScenario | None = None, **overrides: ob
     h = np.where(regime == 0, tl_interference(b, t, sc.coef_before),
                  tl_interference(b, t, sc.coef_after))
     anomaly = band_noise(rng, n, fs, 0.0005, 0.05, sc.anomaly_nT)
+    keep = slice(None, None, os_)  # the logged samples
+    t, heading, pitch, roll, b, h, anomaly, regime, k = (
+        x[keep] for x in (t, heading, pitch, roll, b, h, anomaly, regime, k))
+    n = n_out
     mag = np.linalg.norm(b_ned) + anomaly + h + sc.noise_nT * rng.standard_normal(n)
     flux = b + sc.flux_noise_nT * rng.standard_normal((n, 3))
     log = pd.DataFrame({
@@ -146,5 +158,6 @@ def simulate_online_tl(scenario: OnlineTLScenario | None = None, **overrides: ob
              "coef_after": np.asarray(sc.coef_after, dtype=float).tolist(),
              "jump_s": sc.jump_s, "earth": sc.earth.to_dict(), "rate_hz": sc.rate_hz,
              "duration_s": sc.duration_s, "noise_nT": sc.noise_nT,
-             "flux_noise_nT": sc.flux_noise_nT, "seed": sc.seed}
+             "flux_noise_nT": sc.flux_noise_nT, "seed": sc.seed,
+             "oversample": os_}
     return log, truth

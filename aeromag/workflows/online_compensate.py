@@ -22,7 +22,7 @@ from .._core.rls import check_forgetting
 from ..compensation.config import CompensationConfig
 from ..compensation.fit import check_interference
 from ..compensation.metrics import compensation_metrics
-from ..compensation.online import OnlineTL, OnlineTLResult
+from ..compensation.online import LATENCY_SAMPLES, OnlineTL, OnlineTLResult
 from ..compensation.prepare import prepare
 from ..errors import FitError, InputError
 from ..io import atomic_path, json_path_for, read_log, write_csv, write_json
@@ -53,7 +53,7 @@ def compensate_online_frame(df: pd.DataFrame, cfg: CompensationConfig | None = N
         Band, terms, order, final low-pass, gap handling (screening options are not used).
     forgetting : float
         lambda, 0 < lambda <= 1.
-    derivative : {"central", "backward"}
+    derivative : {"central", "midpoint", "backward"}
         See :class:`aeromag.compensation.online.OnlineTL`.
     source : str, optional
         File name for messages.
@@ -122,7 +122,7 @@ def compensate_online_frame(df: pd.DataFrame, cfg: CompensationConfig | None = N
         "coef": res.coef.tolist(),
         "forgetting": lam,
         "derivative": derivative,
-        "latency_samples": 1 if derivative == "central" else 0,
+        "latency_samples": LATENCY_SAMPLES[derivative],
         "coef_lowpass_hz": est.coef_lowpass_hz,
         "band_hz": list(cfg.band_hz),
         "segments": segments,
