@@ -2,9 +2,9 @@
 
 For each scenario (60 s hover at 2 m, 60 s rectangle at 1.5 m/s), over ``--seeds`` runs:
 mean horizontal position error (displacement since the start), mean horizontal velocity
-error, the IMU-only error at 60 s, for the 12-state default and the accelerometer-bias
-option; then the NEES (time-mean of the average over runs at 1 Hz epochs after 2 s) for
-position, velocity and attitude, against the two-sided chi-square 95 % band.
+error, the IMU-only error at 60 s, for the study's 12-state model and the default with
+accelerometer biases; then the NEES (time-mean of the average over runs at 1 Hz epochs
+after 2 s) for position, velocity and attitude, against the two-sided chi-square 95 % band.
 
 Usage: ``python benchmarks/study_navigate.py [--seeds 3]``.
 """
