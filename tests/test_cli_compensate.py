@@ -44,9 +44,46 @@ def test_calibrate_then_compensate_with_model(logs, tmp_path):
     assert r.exit_code == 0, r.output
     out = tmp_path / "s.csv"
     r = runner.invoke(app, ["compensate", str(logs / "flight.csv"), "--model", str(m), "-o",
-                            str(out), "--no-filter", "--no-screen"])
+                            str(out), "--no-filter"])
     assert r.exit_code == 0, r.output
     assert set(pd.read_csv(out)["segment_kept"]) == {True}
+    # The report's config says what the application used: no fit-only options.
+    cfg = json.loads(out.with_suffix(".json").read_text())["config"]
+    assert "terms" not in cfg and "ridge" not in cfg and cfg["filter_output"] is False
+
+
+@pytest.mark.parametrize("extra", [["--terms", "9"], ["--no-screen"], ["--ridge", "0.1"],
+                                   ["--terms", "16"], ["--no-decimate"]])
+def test_fit_options_with_model_are_refused(logs, tmp_path, extra):
+    """--model applies a saved model: a fit-only option given with it would be ignored
+    silently (the 16-term model applied while the config said terms 9)."""
+    m = tmp_path / "m.json"
+    assert runner.invoke(app, ["calibrate", str(logs / "flight.csv"), "-o", str(m)]).exit_code == 0
+    out = tmp_path / "s.csv"
+    r = runner.invoke(app, ["compensate", str(logs / "flight.csv"), "--model", str(m), "-o",
+                            str(out), *extra])
+    msg = r.output.strip()
+    assert r.exit_code == 1 and msg.startswith("error: ") and "\n" not in msg, msg
+    assert extra[0] in msg and not out.exists()
+    # Apply-relevant options stay accepted.
+    r = runner.invoke(app, ["compensate", str(logs / "flight.csv"), "--model", str(m), "-o",
+                            str(out), "--band", "0.1", "0.9", "--no-filter"])
+    assert r.exit_code == 0, r.output
+
+
+def test_calibrate_refuses_a_model_name_that_is_not_json(logs, tmp_path):
+    out = tmp_path / "model.csv"
+    r = runner.invoke(app, ["calibrate", str(logs / "flight.csv"), "-o", str(out)])
+    msg = r.output.strip()
+    assert r.exit_code == 1 and msg.startswith("error: ") and "\n" not in msg, msg
+    assert ".json" in msg and not out.exists()
+
+
+def test_simulate_onto_a_file_is_one_line(logs, tmp_path):
+    r = runner.invoke(app, ["simulate", "-o", str(logs / "flight.csv"), "--small"])
+    msg = r.output.strip()
+    assert r.exit_code == 1 and msg.startswith("error: ") and "\n" not in msg, msg
+    assert "flight.csv" in msg
 
 
 def test_column_map_and_units_options(logs, tmp_path):

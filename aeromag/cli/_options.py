@@ -246,9 +246,34 @@ class Options(dict):
         Parameter name -> value, as typer parsed them.
     """
 
-    def __init__(self, command: str, values: Mapping[str, Any]) -> None:
+    def __init__(self, command: str, values: Mapping[str, Any],
+                 given: frozenset[str] | None = None) -> None:
         super().__init__(values)
         self.command = command
+        #: Names of the options given on the command line (None: unknown, e.g. in tests).
+        self.given = given
+
+    def refuse_fit_options(self, why: str = "--model applies a saved model") -> None:
+        """Raise a one-line error naming a fit-only option given on the command line.
+
+        Options whose :class:`CompensationConfig` keyword is in
+        :data:`~aeromag.compensation.config.FIT_ONLY` (``--terms``, ``--ridge``, screening...)
+        steer a fit only; with ``--model`` nothing is fitted, so giving one is a mistake.
+
+        Raises
+        ------
+        InputError
+            Naming the first such option given.
+        """
+        from ..compensation.config import FIT_ONLY
+
+        for opt in OPTIONS:
+            if opt.config in FIT_ONLY and opt.flags and opt.name in self:
+                given = (opt.name in self.given if self.given is not None
+                         else self[opt.name] != opt.default)
+                if given:
+                    raise InputError(f"{opt.flags[-1]} steers a fit, and {why}: nothing is "
+                                     f"fitted; drop {opt.flags[-1]} (or drop --model to fit)")
 
     def __getattr__(self, name: str) -> Any:
         try:
@@ -318,12 +343,17 @@ def command(name: str, **typer_kw: Any) -> Callable[[Callable[[Options], None]],
     def deco(body: Callable[[Options], None]) -> Callable:
         rows = [o for o in OPTIONS if name in o.commands]
         params = [o.parameter(name) for o in rows]
+        params.insert(0, inspect.Parameter("_typer_ctx", inspect.Parameter.KEYWORD_ONLY,
+                                           annotation=typer.Context))
 
-        def run(**values: Any) -> None:
+        def run(_typer_ctx: typer.Context, **values: Any) -> None:
             from ..io.log import reading_options
 
+            # Which options were typed (not defaults): --model refuses fit-only ones.
+            given = frozenset(k for k in values if getattr(
+                _typer_ctx.get_parameter_source(k), "name", None) == "COMMANDLINE")
             with reading_options(allow_truncated=bool(values.get("allow_truncated"))):
-                body(Options(name, values))
+                body(Options(name, values, given))
 
         run.__name__ = name
         run.__doc__ = body.__doc__

@@ -55,6 +55,8 @@ def compensate(opts: Options) -> None:
         if json_path_for(output) == output:
             raise InputError(f"-o {output}: the report goes to OUT.json, so OUT must not end in"
                              " .json; give the output CSV another name, e.g. -o survey_comp.csv")
+        if model is not None:
+            opts.refuse_fit_options()
         columns, unit_map = column_options(opts.col, opts.map_file, opts.units)
         cfg = opts.config()
         if chunk_rows is not None:

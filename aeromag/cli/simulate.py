@@ -43,8 +43,7 @@ _HELP = (
 @app.command(help=_HELP)
 def simulate(
     output: Annotated[Path, typer.Option("-o", "--output", metavar="DIR", help="Output folder "
-                                         "(created when missing).", file_okay=False,
-                                         show_default=False)],
+                                         "(created when missing).", show_default=False)],
     seed: Annotated[int, typer.Option("--seed", help="Random seed; the same seed gives the "
                                       "same files.")] = 0,
     faults: Annotated[float, typer.Option(

@@ -330,6 +330,13 @@ class CompensationConfig:
         return cls(**kw)
 
 
+#: CompensationConfig keywords that only steer a fit: applying a saved model ignores them, so
+#: the command line refuses them with ``--model`` and an applied run's report leaves them out.
+FIT_ONLY = ("terms", "decimate", "screen", "shrink", "pca_variance", "screen_quantile",
+            "max_iter", "min_segments", "min_excess", "min_excess_nT", "gross_excess",
+            "inlier_excess", "inlier_own_excess", "ridge", "max_condition")
+
+
 def _config_dict(cfg: CompensationConfig) -> dict[str, Any]:
     d = dataclasses.asdict(cfg)
     d["band_hz"] = list(cfg.band_hz)

@@ -16,7 +16,7 @@ import numpy as np
 
 from .. import __version__
 from .._core.angles import circular_mean_rad
-from .config import CompensationConfig, _config_dict
+from .config import FIT_ONLY, CompensationConfig, _config_dict
 from .model import TLModel
 from .screening import RULE
 from .segments import segment_counts
@@ -97,7 +97,9 @@ def applied_report(run: AppliedRun) -> dict[str, Any]:
                      for i in sorted(run.segment_n)],
         "screening": {"enabled": False, "notes": ["a saved model was applied: nothing fitted"]},
         "metrics": run.metrics,
-        "config": _config_dict(cfg),
+        # What the application used: the fit-only options played no part (the model's terms
+        # are ``terms`` above).
+        "config": {k: v for k, v in _config_dict(cfg).items() if k not in FIT_ONLY},
     }
     if run.qc is not None:
         report["qc"] = run.qc

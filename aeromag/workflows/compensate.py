@@ -25,7 +25,14 @@ from ..compensation.model import TLModel
 from ..compensation.result import CompensationResult
 from ..conventions import FLUX_COLUMNS
 from ..errors import InputError
-from ..io import atomic_path, json_path_for, read_log, write_csv_passthrough, write_json
+from ..io import (
+    atomic_path,
+    check_outputs,
+    json_path_for,
+    read_log,
+    write_csv_passthrough,
+    write_json,
+)
 from ..io.formats import output_format, write_table
 
 log = logging.getLogger(__name__)
@@ -222,38 +229,6 @@ def _add_qc(res: CompensationResult) -> None:
 
 
 # --------------------------------------------------------------------------- files
-def check_outputs(source: str | os.PathLike[str], *outputs: str | os.PathLike[str],
-                  kind: str = "input log") -> None:
-    """Refuse outputs that would overwrite an input (the log, a plan, a model).
-
-    Parameters
-    ----------
-    source : path-like
-        The input file.
-    *outputs : path-like
-        Files about to be written (e.g. OUT.csv and OUT.json).
-    kind : str
-        What ``source`` is, for the message.
-
-    Raises
-    ------
-    InputError
-        When an output is the input file itself, or the first of several outputs (the data,
-        when its report is the second) ends in ``.json`` so that the report would replace it.
-    """
-    src = Path(source)
-    if outputs and json_path_for(Path(outputs[0])) == Path(outputs[0]) and len(outputs) > 1:
-        raise InputError(f"-o {outputs[0]}: the report goes to OUT.json, so OUT must not end in"
-                         " .json; give the output another name, e.g. -o survey_comp.csv")
-    for out in outputs:
-        o = Path(out)
-        same = o.resolve() == src.resolve()
-        if not same and o.exists() and src.exists():
-            same = os.path.samefile(o, src)
-        if same:
-            raise InputError(f"{src}: -o {o} would overwrite the {kind}; choose another -o")
-
-
 def compensate_file(
     path: str | os.PathLike[str], out_path: str | os.PathLike[str],
     cfg: CompensationConfig | None = None, *, model: TLModel | str | os.PathLike[str] | None = None,
@@ -355,6 +330,9 @@ def calibrate_file(
     """
     cfg = cfg or CompensationConfig()
     check_outputs(path, model_path)
+    if Path(model_path).suffix.lower() != ".json":
+        raise InputError(f"-o {model_path}: the model is written as JSON; give it a .json name,"
+                         f" e.g. -o {Path(model_path).with_suffix('.json').name}")
     if cfg.fom is None:
         cfg = dataclasses.replace(cfg, fom=True)
     df = read_log(path, columns=columns, units=units, required=("time", *FLUX_COLUMNS), fmt=fmt)
