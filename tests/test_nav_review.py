@@ -59,3 +59,14 @@ def test_gyro_in_deg_per_s_in_a_hover_warns_with_the_units_remedy():
         ok = navigate(simulate_quadrotor(scenario, seed=2, duration_s=20.0).log, gps="none",
                       mag_reference_ned_nT=REF, source="sim")
         assert not any("deg/s" in w for w in ok.report["warnings"]), ok.report["warnings"]
+
+
+def test_the_origin_fix_is_not_fused_twice():
+    """With --gps none the first fix defines the frame and the initial sigma (its accuracy);
+    fusing it again as a measurement shrank the horizontal sigma by sqrt(2) with no new
+    information (2.12 m -> 1.5 m per axis while the error is the fix's own)."""
+    fl = simulate_quadrotor("hover", seed=0, duration_s=5.0)
+    res = navigate(fl.log, gps="none", mag_reference_ned_nT=REF, source="sim")
+    assert res.report["gps"]["n_fixes_fused"] == 0
+    sd = res.data.nav_std_n_m.to_numpy()
+    assert abs(np.median(sd) - NavConfig().gps_cep_m / 1.1774) < 0.05, np.median(sd)

@@ -495,6 +495,13 @@ class NavFilter(FusionMixin):
                    else np.asarray(inputs.gps_use, bool))
         r_gpsp = rows_of(inputs.gps_ned, 3)
         r_gpsp = r_gpsp[gps_use[r_gpsp]]
+        if has_fix:
+            # The local frame's origin is a fix (position 0, its accuracy the initial sigma):
+            # fusing that fix again would count its information twice (sigma / sqrt 2).
+            gn = np.asarray(inputs.gps_ned, float)
+            first = np.flatnonzero(np.isfinite(gn).all(axis=1) & gps_use)
+            if first.size and np.all(np.abs(gn[first[0]]) < 1e-6):
+                r_gpsp = r_gpsp[r_gpsp != first[0]]
         r_gpsv = rows_of(inputs.gps_vel, 3)
         r_gpsv = r_gpsv[gps_use[r_gpsv]]
         r_range = rows_of(inputs.range_m, 1)
