@@ -207,3 +207,29 @@ def test_maneuver_spelling_with_old_aliases():
     old, _ = synthetic.simulate_calibration(seed=1, n_boxes=1, manoeuvre_s=8.0)
     assert new.equals(old) and len(new) < len(synthetic.simulate_calibration(seed=1,
                                                                               n_boxes=1)[0])
+
+
+def test_cli_maps_library_keywords_to_flags(tmp_path, flight):
+    """The library says segment_seconds=..., the command line --segment-seconds ..."""
+    from aeromag.cli._options import flag_message
+
+    assert flag_message("use a longer segment_seconds=... or regularise with ridge=1e-3,"
+                        " or mag_from_fluxgate=True, screen=False, band_hz, model=MODEL") == (
+        "use a longer --segment-seconds ... or regularise with --ridge 1e-3, or"
+        " --mag-from-fluxgate, --no-screen, --band, --model MODEL")
+    df, _ = flight
+    src = tmp_path / "short.csv"
+    df.iloc[:150].drop(columns=["line"], errors="ignore").to_csv(src, index=False)
+    r = runner.invoke(app, ["compensate", str(src), "-o", str(tmp_path / "o.csv")])
+    assert r.exit_code == 1 and r.output.startswith("error: "), r.output
+    assert "segment_seconds" not in r.output and "=" not in r.output.split("line column")[0], \
+        r.output
+
+
+def test_result_repr_is_short(flight):
+    df, _ = flight
+    res = am.calibrate(df)
+    text = repr(res)
+    assert len(text) < 300 and "improvement_ratio=" in text and "\n" not in text, text
+    html = res._repr_html_()
+    assert html.startswith("<table>") and len(html) < 3000

@@ -219,7 +219,7 @@ def test_straight_and_level_flight_is_an_ill_conditioned_fit():
     """No manoeuvres: the terms cannot be separated (interface.md: an ill-conditioned fit is a
     bad input), and the message says what to do."""
     df = _level_flight([90.0], jitter_deg=0.2)
-    with pytest.raises(FitError, match="ill-conditioned.*--ridge"):
+    with pytest.raises(FitError, match="ill-conditioned.*ridge=1e-3"):
         compensate(df)
     # A ridge is the user's explicit way through, and gives a physical interference.
     res = compensate(df, CompensationConfig(ridge=1e-3))
@@ -238,7 +238,7 @@ def test_fit_that_is_undetermined_at_low_frequency_is_refused(seed):
                            np.random.default_rng(100 + seed).normal(size=len(df)))
     df["mag"] += 40.0 * g / g.std()
     cfg = CompensationConfig(max_condition=1e9)  # past the conditioning check
-    with pytest.raises(FitError, match="no aircraft makes.*--model"):
+    with pytest.raises(FitError, match="no aircraft makes.*model=MODEL"):
         compensate(df, cfg)
     # The same flight with its aircraft calibrated elsewhere: the model applies (a warning at
     # most, never an error, for a saved model).

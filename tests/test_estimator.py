@@ -85,3 +85,14 @@ def test_transform_is_mag_minus_predict(cal):
     np.testing.assert_allclose(comp, cal["mag"].to_numpy() - est.predict(X))
     np.testing.assert_allclose(est.transform(cal[["time", "flux_x", "flux_y", "flux_z", "mag"]]),
                                comp)
+
+
+def test_library_errors_name_the_parameter_not_the_flag(cal):
+    """A notebook user has no --segment-seconds: the library names the keyword."""
+    from aeromag.errors import AeromagError
+
+    X = cal[["time", "flux_x", "flux_y", "flux_z"]].to_numpy()
+    with pytest.raises(AeromagError) as exc:
+        TollesLawson().fit(X[:150], cal["mag"].to_numpy()[:150])
+    msg = str(exc.value)
+    assert "--" not in msg and "segment_seconds=" in msg, msg

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import inspect
+import re
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,7 +31,8 @@ import typer
 from ..errors import InputError
 from ._app import app
 
-__all__ = ["OPTIONS", "Option", "Options", "add_option", "command", "config_errors"]
+__all__ = ["OPTIONS", "Option", "Options", "add_option", "command", "config_errors",
+           "flag_message"]
 
 _REQUIRED = inspect.Parameter.empty
 
@@ -311,10 +313,57 @@ def _flag_text(value: Any) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
+#: Library keywords that are no CompensationConfig field, and their flags.
+_KEYWORD_FLAGS = {"model": "--model", "chunk_rows": "--chunk-rows"}
+
+
+def _as_flag(name: str, value: str = "") -> str:
+    """``segment_seconds=120`` -> ``--segment-seconds 120``; ``screen=False`` -> ``--no-screen``."""
+    opt = next((o for o in OPTIONS if o.config == name and o.flags), None)
+    if opt is None:
+        return f"{_KEYWORD_FLAGS[name]} {value}" if value else _KEYWORD_FLAGS[name]
+    flag = opt.flags[-1]
+    if opt.type is bool and value in ("True", "False"):
+        on = opt.to_config(True) if opt.to_config else True
+        return flag if str(on) == value else f"no {flag}"
+    return f"{flag} {value}" if value else flag
+
+
+def flag_message(message: str) -> str:
+    """A library message with its keywords (``ridge=1e-3``) spelled as command-line flags.
+
+    Library errors name the parameter a caller sets (``segment_seconds=...``); the command
+    line says ``--segment-seconds ...``.  Keywords are rewritten in their ``name=value`` form
+    (and bare when the name has an underscore, which no English word has).
+
+    Parameters
+    ----------
+    message : str
+        The library's message.
+
+    Returns
+    -------
+    str
+    """
+    names = sorted({o.config for o in OPTIONS if o.config and o.flags} | set(_KEYWORD_FLAGS),
+                   key=len, reverse=True)
+    alt = "|".join(re.escape(n) for n in names)
+    message = re.sub(rf"(?<![\w-])({alt})=([^\s,;:)]*)", lambda m: _as_flag(*m.groups()),
+                     message)
+    bare = "|".join(re.escape(n) for n in names if "_" in n)
+    return re.sub(rf"(?<![\w-])({bare})(?![\w=-])", lambda m: _as_flag(m.group(1)), message)
+
+
 @contextlib.contextmanager
 def config_errors() -> Iterator[None]:
-    """Re-raise a :class:`ConfigError` naming the command-line flag instead of the keyword."""
+    """Re-raise library errors naming the command-line flags instead of the keywords.
+
+    A :class:`ConfigError` becomes ``FLAG VALUE: reason``; any other
+    :class:`~aeromag.errors.AeromagError` has its ``name=value`` keywords rewritten
+    (:func:`flag_message`).
+    """
     from ..compensation.config import ConfigError
+    from ..errors import AeromagError
 
     try:
         yield
@@ -322,6 +371,10 @@ def config_errors() -> Iterator[None]:
         flag = next((o.flags[-1] for o in OPTIONS if o.config == exc.parameter and o.flags),
                     exc.parameter)
         raise InputError(f"{flag} {_flag_text(exc.value)}: {exc.reason}") from None
+    except AeromagError as exc:
+        if len(exc.args) == 1 and isinstance(exc.args[0], str):
+            exc.args = (flag_message(exc.args[0]),)
+        raise
 
 
 def command(name: str, **typer_kw: Any) -> Callable[[Callable[[Options], None]], Callable]:

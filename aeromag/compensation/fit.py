@@ -69,7 +69,7 @@ def solve_fit(gram: np.ndarray, rhs: np.ndarray, *, ridge: float, max_condition:
             f"{source}: the fit is ill-conditioned (scaled condition number {cond_s:.3g}"
             f" > {max_condition:.3g}): the attitude varies too little to separate the TL"
             " terms (no maneuvers?); calibrate on a flight with pitch/roll/yaw maneuvers and"
-            " apply it with --model, or regularise with --ridge 1e-3, or fit fewer --terms"
+            " apply it with model=MODEL, or regularise with ridge=1e-3, or fit fewer terms (terms=9)"
         )
     return coef, cond, cond_s
 
@@ -109,7 +109,7 @@ def check_interference(mag_tl_nT: np.ndarray, field_nT: float, max_interference:
         raise FitError(
             msg + ": this flight does not determine the TL terms at low frequency (too few"
             " headings or maneuvers); calibrate on a box flight with maneuvers and apply"
-            " it with --model, or regularise with --ridge 1e-3 (limit: --max-interference)"
+            " it with model=MODEL, or regularise with ridge=1e-3 (limit: max_interference)"
         )
     log.warning("%s; check that the model belongs to this aircraft and sensor", msg)
 
@@ -179,15 +179,15 @@ def fit_outcome(prep: Prepared, cfg: CompensationConfig) -> FitOutcome:
     terms = parse_terms(cfg.terms)
     fit_terms = tuple(t for t in terms if t != "bias")
     if not fit_terms:
-        raise InputError("--terms: the bias alone cannot be fitted in a band; add terms")
+        raise InputError("terms=bias: the bias alone cannot be fitted in a band; add terms")
     # A high-rate log is fitted on its decimated copy (the band kept exact); the
     # coefficients are applied to every original sample (docs/compensation.md).
-    fit_prep, q = fit_arrays(prep, cfg)
-    stats = segment_normal_equations(fit_prep, fit_terms, cfg)
+    fit_prep, q, design = fit_arrays(prep, cfg, fit_terms)
+    stats = segment_normal_equations(fit_prep, fit_terms, cfg, design)
     if len(stats.ids) == 0:
         raise FitError(
             f"{prep.source}: every segment is too short to fit ({len(stats.too_short)} segment(s));"
-            " use a longer --segment-seconds or check the line column"
+            " use a longer segment_seconds=... or check the line column"
         )
     for sid, cnt in stats.too_short.items():
         log.warning("%s: segment %d too short to fit (%d usable samples): left out",

@@ -133,7 +133,7 @@ def require_samples(n_used: int, fs_hz: float, band_hz: tuple[float, float], sou
             f"{source}: too short to measure the compensation: {n_used} sample(s) remain in"
             f" continuous stretches band-passed {band_hz[0]:g}-{band_hz[1]:g} Hz with the filter"
             f" edges trimmed, and the metrics need at least {need} ({need / fs_hz:.3g} s); give"
-            " a longer log (or a higher --band LOW)")
+            " a longer log (or a higher low edge of band_hz)")
 
 
 def metrics_dict(n_samples: int, before: float, after: float,

@@ -31,7 +31,8 @@ class SegmentStats:
 
 
 def segment_normal_equations(
-    prep: Prepared, terms: tuple[str, ...], cfg: CompensationConfig
+    prep: Prepared, terms: tuple[str, ...], cfg: CompensationConfig,
+    design: np.ndarray | None = None,
 ) -> SegmentStats:
     """Band-pass the design matrix and target per segment piece; normal equations per segment.
 
@@ -43,6 +44,10 @@ def segment_normal_equations(
         Fitted terms (no ``bias``: it vanishes in the band).
     cfg : CompensationConfig
         Options (band, order, trimming, shortest segment).
+    design : ndarray, shape (len(terms) + 1, n_valid), optional
+        The terms and the centred target already built, one column per valid sample of
+        ``prep`` (the decimated fit: :func:`aeromag.compensation.decimation.fit_arrays`);
+        by default they are built here from ``prep.flux`` and ``prep.mag``.
 
     Returns
     -------
@@ -99,13 +104,14 @@ def segment_normal_equations(
     p_start, p_stop = p_start[has_seg], p_stop[has_seg]
     p_seg = seg[p_start]
     trim = (0.25 / cfg.band_hz[0]) if cfg.trim_s is None else cfg.trim_s
-    M, n_used = piece_normal_equations(rows, t, p_start, p_stop, sos, trim)
+    M, n_used = piece_normal_equations(rows if design is None else design, t, p_start, p_stop,
+                                       sos, trim)
     if not n_used.any():
         nmin = min_filter_length(sos) / prep.fs
         raise FitError(
             f"{prep.source}: no continuous stretch is long enough to band-pass and trim"
             f" (needs > {max(nmin, 2 * trim):.0f} s without gaps); use longer stretches,"
-            " a higher --band LOW, or a larger --max-gap"
+            " a higher low edge of band_hz, or a larger max_gap_s"
         )
     # Sum the pieces of each segment (a line flown twice, or cut by a gap, has several).
     ids, inv = np.unique(p_seg, return_inverse=True)

@@ -83,7 +83,7 @@ def total_field_from_fluxgate(df: pd.DataFrame, cfg: CompensationConfig, source:
         raise InputError(
             f"{source}: no 'mag' column, but column {c!r} looks like a scalar magnetometer"
             f" (median {float(np.nanmedian(df[c].to_numpy(dtype=np.float64))):.0f}); map it"
-            f" with --col mag={c}, or pass --mag-from-fluxgate to take the fluxgate magnitude"
+            f" with --col mag={c}, or pass mag_from_fluxgate=True to take the fluxgate magnitude"
             " as the total field")
     log.warning("%s: no 'mag' column: the fluxgate magnitude is the measured total field"
                 " (a model fitted on a scalar magnetometer is not applied to it)", source)
@@ -124,7 +124,7 @@ def check_total_field(model: Any, mag_from_flux: bool, source: str) -> None:
         return
     kinds = ("the scalar magnetometer ('mag')", "the fluxgate magnitude")
     hint = ("map the scalar with --col mag=SOURCE" if mag_from_flux else
-            "pass --mag-from-fluxgate, or calibrate on the scalar magnetometer")
+            "pass mag_from_fluxgate=True, or calibrate on the scalar magnetometer")
     raise InputError(f"{source}: the model was fitted on {kinds[bool(fitted_on_flux)]} but this"
                      f" log's total field is {kinds[mag_from_flux]}; applying it would be"
                      f" wrong: {hint}")

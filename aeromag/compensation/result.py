@@ -56,6 +56,42 @@ class CompensationResult:
     segment: np.ndarray | None = field(default=None, repr=False)
     fs_hz: float | None = None
 
+    def _summary(self) -> list[tuple[str, str]]:
+        """(label, value) pairs of the short description (``repr`` and notebooks)."""
+        rep = self.report or {}
+        segs = rep.get("segments") or []
+        kept = sum(1 for s in segs if s.get("kept"))
+        m = self.metrics
+        rows = [("source", str(rep.get("source", "?"))),
+                ("rows", "?" if self.data is None else str(len(self.data))),
+                ("model", "fitted on this log" if self.fit is not None
+                 else str(rep.get("model_source", "given"))),
+                ("terms", str(len(self.model.terms))),
+                ("kept", f"{kept}/{len(segs)} segments")]
+        for key in ("improvement_ratio", "residual_std_nT"):
+            if m.get(key) is not None:
+                rows.append((key, f"{m[key]:.4g}"))
+        for w in rep.get("warnings") or []:
+            rows.append(("warning", str(w.get("message", w)) if isinstance(w, dict) else str(w)))
+        return rows
+
+    def __repr__(self) -> str:
+        """One line: source, rows, model, segments kept and the headline metrics."""
+        rows = self._summary()
+        parts = [f"{k}={v}" for k, v in rows if k != "warning"]
+        if len(parts) < len(rows):
+            parts.append(f"{len(rows) - len(parts)} warning(s)")
+        return f"{type(self).__name__}({', '.join(parts)})"
+
+    def _repr_html_(self) -> str:
+        """A small HTML table of the same summary (Jupyter)."""
+        import html
+
+        cells = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th>"
+                        f"<td style='text-align:left'>{html.escape(v)}</td></tr>"
+                        for k, v in self._summary())
+        return f"<table><caption>{type(self).__name__}</caption>{cells}</table>"
+
     @property
     def metrics(self) -> dict[str, Any]:
         """The report's ``metrics`` block (empty for a fit without data)."""

@@ -68,7 +68,7 @@ def assign_segments(
         return seg
     if segment_seconds <= 0:
 
-        raise InputError(f"--segment-seconds {segment_seconds}: must be positive")
+        raise InputError(f"segment_seconds={segment_seconds}: must be positive")
     t = np.asarray(time_s, dtype=np.float64)
     seg = np.full(len(st), -1, dtype=np.int64)
     ok = st >= 0

@@ -133,7 +133,7 @@ def _segments_from_maneuvers(df: pd.DataFrame, cfg: CompensationConfig | None,
     return df.assign(line=line), seg
 
 
-@dataclass
+@dataclass(repr=False)  # CompensationResult's short repr, not every field
 class CompensationRun(CompensationResult):
     """A :class:`~aeromag.compensation.result.CompensationResult` with figures, QC and report.
 
