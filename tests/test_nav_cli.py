@@ -191,7 +191,7 @@ def test_a_diverging_filter_ends_with_one_line(flight, tmp_path):
     (["--gps", "sometimes"], ["--gps", "T0:T1"]),
     (["--gps", "9:3"], ["T1 > T0"]),
     (["--without", "sonar"], ["--without sonar", "range"]),
-    (["--range-limits", "5", "1"], ["range_max_m"]),
+    (["--range-limits", "5", "1"], ["--range-limits MIN MAX"]),
     (["--units", "gyro=furlongs"], ["--units gyro=furlongs", "deg/s"]),
 ])
 def test_bad_options_are_one_line_errors(log_csv, tmp_path, args, words):

@@ -70,3 +70,19 @@ def test_the_origin_fix_is_not_fused_twice():
     assert res.report["gps"]["n_fixes_fused"] == 0
     sd = res.data.nav_std_n_m.to_numpy()
     assert abs(np.median(sd) - NavConfig().gps_cep_m / 1.1774) < 0.05, np.median(sd)
+
+
+def test_bad_option_values_name_the_option(tmp_path):
+    from typer.testing import CliRunner
+
+    from aeromag.cli import app
+
+    log = simulate_quadrotor("hover", seed=0, duration_s=3.0).log
+    path = tmp_path / "log.csv"
+    log.to_csv(path, index=False)
+    runner = CliRunner()
+    for args, want in ((["--range-limits", "5", "1"], "--range-limits MIN MAX"),
+                       (["--gyro-noise", "-1"], "--gyro-noise")):
+        r = runner.invoke(app, ["navigate", str(path), "-o", str(tmp_path / "o.csv"), *args])
+        assert r.exit_code == 1 and want in r.output, r.output
+        assert "Traceback" not in r.output and not (tmp_path / "o.csv").exists()

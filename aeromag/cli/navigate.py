@@ -14,6 +14,17 @@ from .app import app, column_options, setup_logging, user_errors
 SENSORS = ("gps_pos", "gps_vel", "range", "flow", "baro", "gravity", "mag")
 
 
+#: NavConfig fields -> the options that set them (so an error names what the user typed).
+_OPTION_OF_FIELD = {
+    "gyro_noise_dps": "--gyro-noise", "accel_noise_g": "--accel-noise",
+    "flow_noise_ms": "--flow-noise", "flow_min_quality": "--flow-min-quality",
+    "range_noise_m": "--range-noise", "range_max_m must exceed range_min_m":
+    "--range-limits MIN MAX: MAX must exceed MIN", "range_min_m": "--range-limits MIN",
+    "range_max_m": "--range-limits MAX", "baro_noise_m": "--baro-noise",
+    "mag_heading_noise_deg": "--mag-noise", "gps_cep_m": "--gps-cep",
+    "gps_vel_noise_ms": "--gps-vel-noise", "max_tilt_deg": "--max-tilt",
+    "max_imu_step_s": "--imu-step"}
+
 @app.command()
 def navigate(
     log_file: Annotated[Path, typer.Argument(metavar="LOG", help="Multi-rate log with time, "
@@ -108,7 +119,10 @@ def navigate(
                             gps_cep_m=gps_cep, gps_vel_noise_ms=gps_vel_noise,
                             max_tilt_deg=max_tilt, max_imu_step_s=imu_step)
         except ValueError as exc:
-            raise InputError(f"navigate options: {exc}") from None
+            msg = str(exc)
+            for field, opt in _OPTION_OF_FIELD.items():
+                msg = msg.replace(field, opt)
+            raise InputError(f"navigate options: {msg}") from None
         columns, unit_map = column_options(col, map_file, units)
         sensors = [s for s in SENSORS if s not in set(without or [])]
         res = navigate_file(log_file, output, gps=gps, origin=origin, date=date,
