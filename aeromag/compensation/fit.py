@@ -69,7 +69,8 @@ def solve_fit(gram: np.ndarray, rhs: np.ndarray, *, ridge: float, max_condition:
             f"{source}: the fit is ill-conditioned (scaled condition number {cond_s:.3g}"
             f" > {max_condition:.3g}): the attitude varies too little to separate the TL"
             " terms (no maneuvers?); calibrate on a flight with pitch/roll/yaw maneuvers and"
-            " apply it with model=MODEL, or regularise with ridge=1e-3, or fit fewer terms (terms=9)"
+            " apply it with model=MODEL, or regularise with ridge=1e-3, or fit fewer terms"
+            " (terms=9)"
         )
     return coef, cond, cond_s
 
