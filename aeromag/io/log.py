@@ -23,7 +23,7 @@ from .columns import (
     to_numeric,
 )
 from .formats import read_table_rows
-from .messages import clean
+from .messages import check_input_file
 from .outputs import register_input
 from .rows import ROWS_ATTR, row_location
 
@@ -105,8 +105,7 @@ def read_log(
     """
     p = Path(path)
     source = str(p)
-    if not p.exists():
-        raise InputError(f"{clean(source)}: file not found; check the path")
+    check_input_file(p)
     register_input(p, "input log")
     df = read_table_rows(p, fmt, allow_truncated=allow_truncated_default(allow_truncated))
     rows = df.attrs.pop(ROWS_ATTR, None)

@@ -40,8 +40,8 @@ from .csv import (
     truncated_row_message,
 )
 from .formats import detect_format, read_table_rows
-from .formats.parquet import parquet_error
-from .messages import clean
+from .formats.parquet import check_flat_schema, parquet_error
+from .messages import check_input_file, clean
 from .outputs import recorded_warnings, register_input
 from .rows import ROWS_ATTR, row_location, rows_after_header, rows_numbered, shift_rows
 
@@ -69,8 +69,7 @@ def iter_batches(path: Path, fmt: str | None, columns: list[str] | None = None,
         Drop a last row cut short (with a warning) instead of refusing the file.
     """
     path = Path(path)
-    if not path.exists():
-        raise InputError(f"{clean(path)}: file not found; check the path")
+    check_input_file(path)
     register_input(path, "input log")
     f = detect_format(path, fmt)
     if f == "csv":
@@ -181,6 +180,7 @@ def _parquet_batches(path: Path, columns: list[str] | None, batch_rows: int
     done = 0
     try:
         pf = pq.ParquetFile(path, page_checksum_verification=True)
+        check_flat_schema(path, pf.schema_arrow)
         have = set(pf.schema_arrow.names)
         cols = None if columns is None else [c for c in columns if c in have]
         for rb in pf.iter_batches(batch_size=batch_rows, columns=cols):

@@ -55,6 +55,7 @@ from ..io import (
 )
 from ..io.formats import output_format
 from ..io.log import duplicates_warning
+from ..io.messages import check_input_file
 from ..io.stream import duplicate_rows, iter_log_batches, locate_row
 from ..qc.residuals import piece_labels
 from .compensate import check_outputs
@@ -166,8 +167,7 @@ def apply_model_chunked(
     cfg = cfg or CompensationConfig()
     src = Path(in_path)
     source = str(src)
-    if not src.exists():
-        raise InputError(f"{source}: file not found")
+    check_input_file(src)  # a FIFO, folder or link loop: one line, never a hang
     check_outputs(src, out_path, json_path_for(Path(out_path)))
     if output_format(out_path) != "csv":
         raise InputError(f"-o {out_path}: --chunk-rows writes CSV (streamed chunk by chunk);"

@@ -229,11 +229,10 @@ def read_table_rows(path: str | os.PathLike[str], fmt: str | None = None, *,
     Used by :func:`aeromag.io.read_log` to name the file line (or the sample) of a bad value.
     ``allow_truncated`` is passed to the text formats (see :func:`aeromag.io.read_log`).
     """
+    from ..messages import check_input_file
+
     p = Path(path)
-    if not p.exists():
-        raise InputError(f"{p}: file not found; check the path")
-    if p.is_dir():
-        raise InputError(f"{p}: is a folder, not a log file; give the log file itself")
+    check_input_file(p)
     f = detect_format(p, fmt)
     reader = REGISTRY[f].read
     if reader is None:

@@ -26,7 +26,16 @@ def read_parquet(path: Path) -> pd.DataFrame:
         raise InputError(
             f"{path}: reading Parquet needs pyarrow: pip install 'aeromag[parquet]'") from None
     try:
-        df = pq.read_table(path, page_checksum_verification=True).to_pandas()
+        schema = pq.read_schema(path)
+    except Exception as exc:  # noqa: BLE001 - any pyarrow failure is a bad file
+        raise InputError(parquet_error(path, exc)) from None
+    check_flat_schema(path, schema)  # before reading: a name used twice fails the read
+    try:
+        table = pq.read_table(path, page_checksum_verification=True)
+    except Exception as exc:  # noqa: BLE001 - any pyarrow failure is a bad file
+        raise InputError(parquet_error(path, exc)) from None
+    try:
+        df = table.to_pandas()
     except Exception as exc:  # noqa: BLE001 - any pyarrow failure is a bad file
         raise InputError(parquet_error(path, exc)) from None
     named = [n for n in df.index.names if n is not None]
@@ -39,6 +48,37 @@ def read_parquet(path: Path) -> pd.DataFrame:
         df = df.reset_index()
     df.attrs[ROWS_ATTR] = rows_numbered("row")
     return df
+
+
+def check_flat_schema(path: str | os.PathLike[str], schema: object) -> None:
+    """Refuse a Parquet schema with a nested column (list, struct, map) or a name used twice.
+
+    A log is a flat table: a nested cell has no CSV form that keeps its values (the in-memory
+    and the chunked paths would otherwise write it differently, or not at all).
+
+    Parameters
+    ----------
+    path : path-like
+        The file, for the message.
+    schema : pyarrow.Schema
+        Its Arrow schema.
+    """
+    import pyarrow as pa
+
+    seen: set[str] = set()
+    for field in schema:  # type: ignore[attr-defined]
+        if field.name in seen:
+            raise InputError(f"{clean(path)}: column {clean(field.name)!r} appears more than"
+                             " once; rename the copies so that each column has its own name")
+        seen.add(field.name)
+        t = field.type
+        if pa.types.is_dictionary(t):
+            t = t.value_type
+        if pa.types.is_nested(t):
+            raise InputError(
+                f"{clean(path)}: column {clean(field.name)!r} is nested ({clean(t)}), not one"
+                " value per row; flatten it into plain columns (or drop it) before aeromag"
+                " reads the log")
 
 
 def parquet_error(path: str | os.PathLike[str], exc: BaseException) -> str:
