@@ -259,3 +259,39 @@ def test_track_pf_adds_the_particle_filter_to_the_verdict(tmp_path):
             on = (df["truth_leg"].to_numpy() == g["leg"]) & (t >= g["onset_time"])
             first_pf = t[np.flatnonzero(pf_alarm & on)[0]]
             assert first_pf - g["onset_time"] < 10.0
+
+
+def _held_log(kind: str, seed: int = 4) -> pd.DataFrame:
+    """Hand-built 50 Hz log: a gyro with a 0.3 deg/s bias, a compass with 0.5 deg noise and
+    a disturbance from 40 s to 70 s: ``"step"`` a 10 deg offset switched on and held,
+    ``"ramp"`` 1.2 deg/s (0.0125 G/s in a 0.6 G field)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, 90.0, 0.02)
+    psi = np.deg2rad(20.0 + 2.0 * t)                      # slow yaw, 2 deg/s
+    gz = np.full(t.size, np.deg2rad(2.0 + 0.3)) + 0.002 * rng.standard_normal(t.size)
+    on = (t >= 40.0) & (t < 70.0)
+    dist = np.where(on, 10.0 if kind == "step" else 1.2 * (t - 40.0), 0.0)
+    mh = np.rad2deg(psi) + dist + 0.5 * rng.standard_normal(t.size)
+    return pd.DataFrame({"time": t, "gyro_z": gz, "mag_heading": (mh + 180) % 360 - 180})
+
+
+@pytest.mark.parametrize("kind", ["step", "ramp"])
+def test_held_disturbance_stays_alarmed_until_removed(kind):
+    # The filter re-locks on the disturbed compass (a restart after M far samples); the
+    # alarm must stay latched while the compass stays off the gyro's heading, not only mark
+    # the onset and the removal.
+    # A ramp the filter followed (no trustworthy gyro reference) must not latch after its
+    # removal.
+    df = _held_log(kind)
+    res = particle_detector(df, n_particles=200)
+    t = res.time_s
+    assert not res.alarm[t < 40.0].any()
+    assert not res.alarm[t > 75.0].any(), res.events
+    assert np.isfinite(res.stat[t > 1.0]).all()      # no hole after a restart
+    if kind == "step":
+        held = (t >= 40.0) & (t < 70.0)
+        assert res.alarm[held].all(), res.events
+        assert len(res.events) == 1 and res.events[0]["end_time"] < 71.0
+        assert res.info["n_latched"] == 1 and res.info["latched_s"] > 29.0
+    else:
+        assert res.alarm[(t >= 40.0) & (t < 70.0)].any()

@@ -252,6 +252,59 @@ def _robust_sigma(inp: PFDetectorInputs, mask: np.ndarray | None = None) -> floa
     return float(1.4826 * np.median(allv))
 
 
+def _gyro_reference(t: np.ndarray, ang: np.ndarray, mean: np.ndarray, j0: int,
+                    t_min: float = -np.inf, max_rms: float = np.inf, span_s: float = 60.0,
+                    guard_s: float = 2.0) -> tuple[float, float, float, int] | None:
+    """The filter's heading before a disturbance, carried on by the bias-corrected gyro.
+
+    Fits ``mean - ang = c + b t`` (``b``: the gyro bias the filter followed, rad/s) over the
+    compass samples from ``span_s`` to ``guard_s`` seconds before row ``j0`` (the first
+    sample far from the filter), so that ``c + b t + ang(t)`` is the heading the compass
+    should read without the disturbance.
+
+    Parameters
+    ----------
+    t, ang, mean : ndarray
+        Row times (s), gyro heading (rad) and filter heading (rad, NaN off compass rows) of
+        the stretch.
+    j0 : int
+        Row where the compass left the filter.
+    t_min : float
+        Only samples after this time are fitted (the end of the previous latch: the filter
+        followed the disturbed compass until then), s.
+    max_rms : float
+        Largest rms of the fit's residual, rad: a filter that was already following a slow
+        disturbance before ``j0`` bends the fitted track (a kink, not a line), so it gives
+        no trustworthy reference.
+    span_s, guard_s : float
+        Fit window before ``t[j0]``, s.
+
+    Returns
+    -------
+    (c, b, sd_b, j0) or None
+        Intercept (rad), bias (rad/s), its standard error (rad/s); None with fewer than 10
+        compass samples before ``j0`` or a residual rms above ``max_rms`` (no reference: no
+        latch).
+    """
+    ok = np.isfinite(mean) & (t > t_min)
+    sel = np.flatnonzero((t >= t[j0] - span_s) & (t <= t[j0] - guard_s) & ok)
+    if sel.size < 10:
+        sel = np.flatnonzero((t < t[j0]) & ok)
+        if sel.size < 10:
+            return None
+    x = t[sel] - t[j0]
+    d = np.unwrap(mean[sel] - ang[sel])
+    b, c0 = np.polyfit(x, d, 1)
+    res = d - (c0 + b * x)
+    if float(np.sqrt(np.mean(res**2))) > max_rms:
+        return None
+    sxx = float(np.sum((x - x.mean()) ** 2))
+    sd_b = float(np.sqrt(np.sum(res**2) / max(sel.size - 2, 1) / max(sxx, 1e-12)))
+    # floor: the filter's heading is correlated in time, so the formal error is optimistic
+    sd_b = max(sd_b, float(np.deg2rad(0.01)))
+    return float(c0 - b * t[j0]), float(b), sd_b, int(j0)
+
+
 def heading_model(sigma_y_rad: float, walk_rad: float, y0: float,
                   dt_s: float) -> StateSpaceModel:
     """The heading model as a :class:`~aeromag._core.particles.StateSpaceModel`.
@@ -376,6 +429,8 @@ def particle_detector(
     rng = np.random.default_rng(seed)
     n_steps = 0
     n_resets = 0
+    n_latched = 0
+    held = np.zeros(t.size, dtype=bool)
     reset_n = int(window) if reset_after is None else int(reset_after)
     lim = float(reset_sigmas) * sigma_y
     for s in np.unique(inp.segment):
@@ -389,25 +444,68 @@ def particle_detector(
         pf = ParticleFilter(md, int(n_particles), proposal=proposal, scheme=scheme,
                             window=int(window), seed=rng)
         out = np.full(rows.size, np.nan)
+        tt = t[rows]
+        ang = np.cumsum(du)                 # gyro heading of the stretch, rad
+        mean = np.full(rows.size, np.nan)   # filter heading at compass rows, rad
         far = 0
+        far_start = 0
         last = np.nan
+        ref: tuple[float, float, float, int] | None = None   # latch: (c, b, sd_b, j0)
+        inside = 0
+        restart: list[float] | None = None
+        t_unlatch = -np.inf
         for j in range(rows.size):
             yj = yy[j]
             if not np.isfinite(yj):
                 pf.step(None, du[j:j + 1])
                 out[j] = last
+                if ref is not None:
+                    held[rows[j]] = True
                 continue
             r = pf.step(yj, du[j:j + 1])
             last = r.stat
+            if restart is not None:
+                # After a restart, until the window is full again: the partial window's
+                # sum scaled to M samples (an estimate of S_k, so the column has no hole).
+                restart.append(-float(r.loglik))
+                if np.isnan(last):
+                    last = float(np.sum(restart)) * int(window) / len(restart)
+                else:
+                    restart = None
             out[j] = last
-            far = far + 1 if abs(wrap_rad(yj - r.mean[0])) > lim else 0
+            mean[j] = r.mean[0]
+            is_far = abs(wrap_rad(yj - r.mean[0])) > lim
+            if is_far and far == 0:
+                far_start = j
+            far = far + 1 if is_far else 0
+            if ref is not None:
+                # Latched: is the compass still off the gyro heading carried from before
+                # the disturbance (bias-corrected, gate widened by the bias's uncertainty)?
+                c, b, sd_b, j0 = ref
+                d = wrap_rad(yj - (c + b * tt[j] + ang[j]))
+                gate = lim + 3.0 * sd_b * (tt[j] - tt[j0])
+                inside = inside + 1 if abs(d) <= gate else 0
+                if inside >= reset_n:
+                    ref = None
+                    t_unlatch = tt[j]
+                    held[rows[j - reset_n + 1:j + 1]] = False
+                else:
+                    held[rows[j]] = True
             if far >= reset_n:
                 # The compass has left the filter for good (a disturbance that holds, or
-                # its removal): start again at the compass heading; S_k is NaN (no alarm)
-                # until the window is full again.
+                # its removal): start again at the compass heading; S_k is NaN until the
+                # window is full again, and the alarm stays latched (below) until the
+                # compass is back on the gyro's heading.
+                if ref is None:
+                    ref = _gyro_reference(tt, ang, mean, far_start, t_unlatch,
+                                          max_rms=0.5 * lim)
+                    if ref is not None:
+                        held[rows[far_start:j + 1]] = True
+                        inside = 0
+                        n_latched += 1
                 md.x0 = np.array([yj])
                 pf.reset()
-                far, last = 0, np.nan
+                far, restart = 0, []
                 n_resets += 1
         stat[rows] = out
         n_steps += rows.size
@@ -465,7 +563,9 @@ def particle_detector(
         thr = float(threshold)
         info["threshold_source"] = "given"
     with np.errstate(invalid="ignore"):
-        alarm = stat > thr
+        alarm = (stat > thr) | held
+    info["n_latched"] = int(n_latched)
+    info["latched_s"] = float(np.sum(np.diff(t, append=t[-1])[held]))
     # Carry S_k over rows without a compass sample (already done by window_sum within a
     # stretch); rows of a stretch too short for a window stay NaN and never alarm.
     info["elapsed_s"] = float(_time.perf_counter() - t_start)
