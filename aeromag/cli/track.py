@@ -109,9 +109,21 @@ def track(
         line += f" ({', '.join(map(str, flagged))})"
     if not rep.get("heading_detector", {}).get("available"):
         line += "; heading detector skipped (no heading columns)"
+    mismatch = (rep.get("plan_check") or {}).get("mismatch")
+    if mismatch in _MISMATCH_SUMMARY:
+        line += f"; {_MISMATCH_SUMMARY[mismatch]}"
     if rep.get("warnings"):
         line += f"; {len(rep['warnings'])} warning(s) in {json_path_for(output).name}"
     typer.echo(line)
+
+
+#: What the summary line says when the plan does not match the flight (see track.diagnose).
+_MISMATCH_SUMMARY = {
+    "reversed": "THE PLAN LOOKS REVERSED (the flight follows its legs backwards)",
+    "offset": "THE PLAN MAY BE OFFSET OR FOR ANOTHER FIELD (the flight runs beside its legs)",
+    "far": "the plan is not this flight's (no sample near its legs)",
+    "altitude": "the plan's altitude reference differs from the log's",
+}
 
 
 def _pf_detectors(pf: bool, calm_window: str, declination: float, survey: Path) -> tuple:

@@ -235,13 +235,15 @@ def check_track(
     if applied:
         ned[:, 2] += applied   # the log's height above the plan removed (down is positive)
 
+    plan_check: dict[str, Any] = {"mismatch": None}
     if "leg" in data.columns:
         labels = labels_from_column(data, n_legs, src)
         how = "log column"
     else:
         labels = decode_legs(leg_evidence(ned, vel, wps, model), t, model)
         how = "assigned"
-        warnings += diagnose.plan_warnings(ned, vel, t, wps, labels, model, plan_src)
+        warnings += diagnose.plan_warnings(ned, vel, t, wps, labels, model, plan_src,
+                                           info=plan_check)
     labels[~ok] = -1
 
     xt, xh, xv, al = (np.full(n, np.nan) for _ in range(4))
@@ -314,6 +316,7 @@ def check_track(
                       for name, a in dets.items()],
         "n_samples": n,
         "n_on_leg": int((labels >= 0).sum()),
+        "plan_check": plan_check,
         "warnings": warnings,
     }
     log.info("%s: %d/%d legs flagged", src, report["n_flagged"], n_legs)

@@ -6,15 +6,19 @@
   horizontally (:func:`~aeromag.track.legs.estimate_altitude_offset`); it is taken as a datum
   difference and removed when it exceeds :data:`DATUM_MIN_OFFSET_M` and three times its robust
   spread, and the report says so.
-* **Plans that do not match the flight.**  When (almost) no sample follows a leg, the log is
-  checked against the plan reversed (waypoint order), horizontally only (altitude reference),
-  and for distance (site): the warning says which.
+* **Plans that do not match the flight.**  The log is always decoded against the plan
+  reversed (waypoint order) and against the plan with a widened tolerance (a plan moved
+  sideways: a neighbouring field); when (almost) no sample follows a leg, also horizontally
+  only (altitude reference) and for distance (site): the warning says which.
 """
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
+from .geometry import cross_track
 from .legs import LegModel, decode_legs, estimate_altitude_offset, leg_evidence
 
 __all__ = ["DATUM_MIN_OFFSET_M", "altitude_offset", "plan_distance_m", "plan_warnings"]
@@ -96,10 +100,32 @@ def plan_distance_m(ned: np.ndarray, waypoints: np.ndarray) -> float:
     return best
 
 
+#: How many times more samples the reversed plan (or the plan moved sideways) must explain than
+#: the plan as given before the warning says so ("clearly more").
+MISMATCH_RATIO = 1.25
+
+#: Tolerance factor of the widened check for a plan moved sideways (a neighbouring field).
+OFFSET_TOLERANCE_FACTOR = 5.0
+
+
+def _decoded(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray, waypoints: np.ndarray,
+             model: LegModel) -> np.ndarray:
+    return decode_legs(leg_evidence(ned, vel, waypoints, model), time_s, model)
+
+
 def plan_warnings(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray, waypoints: np.ndarray,
-                  labels: np.ndarray, model: LegModel, plan_name: str = "the plan"
-                  ) -> list[str]:
+                  labels: np.ndarray, model: LegModel, plan_name: str = "the plan",
+                  info: dict | None = None) -> list[str]:
     """Say what to check when the log does not follow the plan.
+
+    The log is always decoded against the plan reversed (waypoint order) and against the plan
+    with a tolerance :data:`OFFSET_TOLERANCE_FACTOR` times wider.  When the reversed plan
+    explains clearly more samples (:data:`MISMATCH_RATIO`) than the plan, the plan is diagnosed
+    as reversed, unless the widened plan explains clearly more still with most of its samples
+    beside the legs: then (and whenever most of the flight along the legs is beside them) the
+    plan is diagnosed as offset (another field).  When
+    (almost) no sample follows a leg, the distance to the plan and the altitude reference are
+    checked too.
 
     Parameters
     ----------
@@ -115,43 +141,86 @@ def plan_warnings(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray, waypoint
         Leg model.
     plan_name : str
         How to name the plan in the messages.
+    info : dict, optional
+        Filled with ``mismatch`` (``None``, ``"reversed"``, ``"offset"``, ``"far"``,
+        ``"altitude"`` or ``"few"``), ``n_on_leg``, ``n_reversed``, ``n_widened`` and, for an
+        offset, ``offset_m`` (median horizontal distance of the widened samples to their leg).
 
     Returns
     -------
     list of str
         Warnings (empty when the log follows the plan).
     """
+    info = {} if info is None else info
+    info.update(mismatch=None)
     ok = np.isfinite(ned).all(axis=1)
     n_ok = int(ok.sum())
     n_on = int((labels >= 0).sum())
+    info["n_on_leg"] = n_on
     warns: list[str] = []
-    if n_ok == 0:
+    if n_ok == 0 or len(waypoints) < 2:
         return warns
-    if n_on <= MIN_ON_LEG_FRACTION * n_ok:
+    few = n_on <= MIN_ON_LEG_FRACTION * n_ok
+    if few:
         dist = plan_distance_m(ned, waypoints)
-        if dist > model.tolerance_m:
+        if dist > model.tolerance_m * OFFSET_TOLERANCE_FACTOR:
+            info["mismatch"] = "far"
             warns.append(
                 f"no sample of the log comes within {model.tolerance_m:g} m of any leg of"
                 f" {plan_name} (closest {dist:.0f} m): check that the plan is this flight's"
                 " (site, lat/lon order) and its altitude reference")
             return warns
-        rev = decode_legs(leg_evidence(ned, vel, waypoints[::-1], model), time_s, model)
-        n_rev = int((rev >= 0).sum())
-        if n_rev > max(10, 5 * n_on):
+    margin = max(10, int(0.01 * n_ok))
+    n_rev = int((_decoded(ned, vel, time_s, waypoints[::-1], model) >= 0).sum())
+    wide_model = dataclasses.replace(
+        model, tolerance_m=model.tolerance_m * OFFSET_TOLERANCE_FACTOR)
+    wide = _decoded(ned, vel, time_s, waypoints, wide_model)
+    n_wide = int((wide >= 0).sum())
+    info.update(n_reversed=n_rev, n_widened=n_wide)
+    # offset: most of the flight along the legs' directions is beside them, not on them
+    offset_like = n_on < 0.5 * n_wide and n_wide - n_on > margin
+    reversed_like = n_rev > MISMATCH_RATIO * n_on and n_rev - n_on > margin
+    if reversed_like and not (offset_like and n_wide > MISMATCH_RATIO * n_rev):
+        info["mismatch"] = "reversed"
+        warns.append(
+            f"{n_on} sample(s) follow a leg of {plan_name} but {n_rev} follow its legs"
+            " backwards: the plan looks reversed (check the waypoint order); the alarms are of"
+            " the flight against the plan as given")
+        return warns
+    if offset_like:
+        sel = (wide >= 0) & (labels < 0)
+        side = np.full(int(sel.sum()), np.nan)
+        for k in np.unique(wide[sel]):
+            m = wide[sel] == k
+            _, h, _, _ = cross_track(ned[sel][m], waypoints[k], waypoints[k + 1])
+            side[m] = np.abs(h)
+        off = float(np.median(side)) if side.size else float("nan")
+        info.update(mismatch="offset", offset_m=off)
+        warns.append(
+            f"most straight flight follows no leg of {plan_name}: {n_wide - n_on} sample(s) fly"
+            f" along its legs a median {off:.1f} m beside them ({n_on} on a leg): the plan may be"
+            " offset or for another field (check the site and the plan's coordinates)")
+        return warns
+    if few:
+        if dist > model.tolerance_m:
+            info["mismatch"] = "far"
             warns.append(
-                f"{n_on} sample(s) follow a leg of {plan_name} but {n_rev} follow its legs"
-                " backwards: check the waypoint order (is the plan reversed?)")
+                f"no sample of the log comes within {model.tolerance_m:g} m of any leg of"
+                f" {plan_name} (closest {dist:.0f} m): check that the plan is this flight's"
+                " (site, lat/lon order) and its altitude reference")
             return warns
         if not model.horizontal_only:
             hor = decode_legs(leg_evidence(ned, vel, waypoints, model, horizontal_only=True),
                               time_s, model)
             n_hor = int((hor >= 0).sum())
             if n_hor > max(10, 5 * n_on):
+                info["mismatch"] = "altitude"
                 warns.append(
                     f"{n_hor} sample(s) follow the legs of {plan_name} horizontally but not at"
                     " the planned altitude: check the altitude reference (relative to home,"
                     " mean sea level or ellipsoid), or use --horizontal")
                 return warns
+        info["mismatch"] = "few"
         warns.append(
             f"only {n_on} of {n_ok} positioned samples follow a leg of {plan_name}: check the"
             " plan (waypoint order, site, altitude reference)")
