@@ -270,8 +270,17 @@ def leg_evidence(ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray,
         u = (bb - a) / length
         _, h, vv, along = cross_track(p, a, bb)
         out = np.maximum(-along, 0.0) + np.maximum(along - length, 0.0)
-        va = v @ u
-        vp = np.linalg.norm(v - va[:, None] * u, axis=1)
+        if horiz:
+            # horizontal motion only: a noisy or drifting altitude must not decide the leg
+            uh = np.r_[u[:2], 0.0]
+            nh = float(np.linalg.norm(uh))
+            uh = uh / nh if nh > 0 else u
+            vh = np.c_[v[:, :2], np.zeros(len(v))]
+            va = vh @ uh
+            vp = np.linalg.norm(vh - va[:, None] * uh, axis=1)
+        else:
+            va = v @ u
+            vp = np.linalg.norm(v - va[:, None] * u, axis=1)
         m = (_sigmoid((va - model.min_speed_m_s) / model.speed_softness_m_s)
              * _sigmoid((va - model.direction_ratio * vp) / model.direction_softness_m_s))
         e = b * (2.0 * m - 1.0) - kh * h * h - ks * out * out
