@@ -295,3 +295,31 @@ def test_held_disturbance_stays_alarmed_until_removed(kind):
         assert res.info["n_latched"] == 1 and res.info["latched_s"] > 29.0
     else:
         assert res.alarm[(t >= 40.0) & (t < 70.0)].any()
+
+
+def test_gyro_in_deg_per_s_warns_and_units_converts(tmp_path, caplog):
+    # A gyro logged in deg/s (the interface wants rad/s) gives a warning naming the remedy;
+    # --units gyro=deg/s converts it, and the result equals the rad/s log's.
+    df = _held_log("step").iloc[:1500]                     # 30 s, clean
+    src = tmp_path / "degs.csv"
+    d = df.copy()
+    d["gyro_z"] = np.rad2deg(d["gyro_z"])
+    d.to_csv(src, index=False)
+    with caplog.at_level("WARNING"):
+        prepare_pf_inputs(d, source="degs.csv")
+    assert "--units gyro=deg/s" in caplog.text
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        prepare_pf_inputs(df, source="rads.csv")
+    assert "deg/s" not in caplog.text
+    r = CliRunner().invoke(app, ["detect", str(src), "-o", str(tmp_path / "o.csv"),
+                                 "--particles", "50", "--units", "gyro=deg/s",
+                                 "--calm-window", "20"])
+    assert r.exit_code == 0, r.output
+    ref = particle_detector(df, n_particles=50, calm_window="20")
+    rep = json.loads((tmp_path / "o.json").read_text())
+    assert rep["threshold"] == pytest.approx(ref.threshold, rel=1e-9)
+    r = CliRunner().invoke(app, ["detect", str(src), "-o", str(tmp_path / "p.csv"),
+                                 "--units", "gyro=furlong"])
+    assert r.exit_code == 1 and "unknown gyro unit" in r.output
+    assert "Traceback" not in r.output and not (tmp_path / "p.csv").exists()

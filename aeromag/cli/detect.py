@@ -43,7 +43,8 @@ def detect(
                         help="TOML column map: [columns] NAME = \"SOURCE\", optional "
                         "[units] NAME = \"UNIT\".")] = None,
     units: Annotated[list[str] | None, typer.Option("--units", metavar="NAME=UNIT",
-                     help="Convert a field column or group (flux) to nT.")] = None,
+                     help="Convert a field column or group (flux) to nT; gyro=deg/s "
+                     "for a gyro logged in deg/s.")] = None,
     verbose: Annotated[bool, typer.Option("-v", "--verbose", help="Log progress details.")]
     = False,
 ) -> None:

@@ -205,6 +205,8 @@ def prepare_pf_inputs(df: pd.DataFrame, *, declination_deg: float = 0.0,
             raise InputError(f"{source}: column 'heading' has fewer than 2 values")
         ang = np.interp(t, t[ok], np.unwrap(hd[ok]))
     dpsi = np.diff(ang, prepend=ang[0])
+    if rate_src != "heading":
+        _check_gyro_unit(t, ang, col.get("mag_heading"), source)
     if comp_src == "mag_heading":
         y = np.deg2rad(col["mag_heading"])
     else:
@@ -221,6 +223,32 @@ def prepare_pf_inputs(df: pd.DataFrame, *, declination_deg: float = 0.0,
     dpsi[np.concatenate([[True], dt > gap])] = 0.0
     return PFDetectorInputs(time_s=t, dpsi_rad=dpsi, y_rad=y, segment=seg,
                             rate_source=rate_src, compass_source=comp_src)
+
+
+def _check_gyro_unit(t: np.ndarray, ang: np.ndarray, mh_deg: np.ndarray | None,
+                     source: str) -> None:
+    """Warn when the gyro's heading changes some 57 times more than the compass's (deg/s).
+
+    Compares, over 1 s blocks, the median absolute change of the integrated gyro angle with
+    that of the unwrapped compass heading (rad both); a ratio above 10 means the gyro is
+    most likely logged in deg/s.
+    """
+    if mh_deg is None:
+        return
+    ok = np.isfinite(mh_deg)
+    if ok.sum() < 10 or t[-1] - t[0] < 2.0:
+        return
+    tc = t[ok]
+    yc = np.unwrap(np.deg2rad(mh_deg[ok]))
+    grid = np.arange(tc[0], tc[-1], 1.0)
+    dc = np.abs(np.diff(np.interp(grid, tc, yc)))
+    dg = np.abs(np.diff(np.interp(grid, t, ang)))
+    mc, mg = float(np.median(dc)), float(np.median(dg))
+    if mg > 10.0 * max(mc, np.deg2rad(0.05)):
+        log.warning("%s: the gyro turns the heading %.0f times more than the compass does "
+                    "(median per second %.3g rad against %.3g rad): is the gyro in deg/s? "
+                    "The interface wants rad/s; convert with --units gyro=deg/s",
+                    source, mg / max(mc, 1e-12), mg, mc)
 
 
 def _fill_interp(t: np.ndarray, a: np.ndarray) -> np.ndarray:

@@ -13,6 +13,7 @@ import pandas as pd
 from ..detection.alarms import Alarms
 from ..detection.heading import CalmWindow
 from ..detection.particle import DEFAULT_PARTICLES, DEFAULT_WINDOW, particle_detector
+from ..errors import InputError
 from ..io import atomic_path, json_path_for, read_log, write_csv, write_json
 from .compensate import check_outputs
 
@@ -101,7 +102,12 @@ def detect_file(
     out = Path(out_path)
     out_json = json_path_for(out)
     check_outputs(log_path, out, out_json)
+    units, gyro_scale = _gyro_units(units, str(log_path))
     df = read_log(log_path, columns=columns, units=units, required=("time",), fmt=fmt)
+    if gyro_scale != 1.0:
+        for c in ("gyro_x", "gyro_y", "gyro_z"):
+            if c in df:
+                df[c] = df[c].to_numpy(dtype=np.float64) * gyro_scale
     res = particle_detector(df, n_particles=n_particles, window=window, threshold=threshold,
                             calm_window=calm_window, declination_deg=declination_deg,
                             seed=seed, source=str(log_path), **kwargs)
@@ -113,6 +119,41 @@ def detect_file(
         write_csv(data, tmp_csv)
         write_json(report, tmp_json)
     return report
+
+
+_GYRO_UNITS = {"rad/s": 1.0, "deg/s": float(np.pi / 180.0), "dps": float(np.pi / 180.0)}
+
+
+def _gyro_units(units: dict[str, str] | None,
+                source: str) -> tuple[dict[str, str] | None, float]:
+    """Take ``gyro=deg/s`` (or ``gyro_x/y/z=...``) out of ``--units``.
+
+    Parameters
+    ----------
+    units : dict or None
+        ``--units`` map (column or group -> unit).
+    source : str
+        File name quoted in errors.
+
+    Returns
+    -------
+    (dict or None, float)
+        The map without the gyro entries (field units only, for ``read_log``) and the factor
+        that converts the gyro columns to rad/s.
+    """
+    if not units:
+        return units, 1.0
+    rest, scale = {}, 1.0
+    for k, v in units.items():
+        if k in ("gyro", "gyro_x", "gyro_y", "gyro_z"):
+            key = v.strip().lower().replace("°", "deg")
+            if key not in _GYRO_UNITS:
+                raise InputError(f"{source}: --units {k}={v}: unknown gyro unit; use rad/s "
+                                 "or deg/s")
+            scale = _GYRO_UNITS[key]
+        else:
+            rest[k] = v
+    return (rest or None), scale
 
 
 def pf_track_detector(*, calm_window: CalmWindow = None, declination_deg: float = 0.0,
