@@ -319,6 +319,7 @@ def test_gyro_in_deg_per_s_warns_and_units_converts(tmp_path, caplog):
     ref = particle_detector(df, n_particles=50, calm_window="20")
     rep = json.loads((tmp_path / "o.json").read_text())
     assert rep["threshold"] == pytest.approx(ref.threshold, rel=1e-9)
+    assert "latch" in rep["events_note"] and "onset and removal" in rep["events_note"]
     r = CliRunner().invoke(app, ["detect", str(src), "-o", str(tmp_path / "p.csv"),
                                  "--units", "gyro=furlong"])
     assert r.exit_code == 1 and "unknown gyro unit" in r.output

@@ -34,8 +34,8 @@ def detect_report(res: Alarms, source: str) -> dict[str, Any]:
     -------
     dict
         ``threshold``, ``window``, ``particles``, ``events`` (``start_time``, ``end_time``,
-        ``n``), ``n_alarms``, ``settings`` (everything else the detector measured) and
-        ``input``.
+        ``n``), ``events_note`` (what an event means), ``n_alarms``, ``settings``
+        (everything else the detector measured) and ``input``.
     """
     info = dict(res.info)
     finite = np.isfinite(res.stat)
@@ -45,6 +45,12 @@ def detect_report(res: Alarms, source: str) -> dict[str, Any]:
         "window": int(info.pop("window")),
         "particles": int(info.pop("particles")),
         "events": res.events,
+        "events_note": (
+            "one event per run of pf_alarm: S_k above the threshold (a change of the compass "
+            "against the gyro: onset or removal of a disturbance) or a latch (the compass held "
+            "more than 5 sigma_y off the bias-corrected gyro heading carried from before the "
+            "filter restarted). A slow disturbance the filter followed without a restart "
+            "(about 1 deg/s or slower) alarms only near its onset and removal."),
         "n_alarms": int(res.alarm.sum()),
         "n_samples": int(res.stat.size),
         "n_stat": int(finite.sum()),
