@@ -92,11 +92,37 @@ def _compare(path: Path, rec: Path) -> None:
         if UPDATE:
             rec.write_text(json.dumps(got, indent=1, sort_keys=True) + "\n")
         want = json.loads(rec.read_text())
-        assert got == want, f"{path.name} differs from {rec.name}"
+        if got != want:  # a short message: pytest's own diff of large documents takes minutes
+            pytest.fail(f"{path.name} differs from {rec.name}: {_first_json_difference(got, want)}")
     else:
         if UPDATE:
             shutil.copyfile(path, rec)
-        assert path.read_bytes() == rec.read_bytes(), f"{path.name} differs from {rec.name}"
+        got_b, want_b = path.read_bytes(), rec.read_bytes()
+        if got_b != want_b:
+            first = _first_line_difference(got_b, want_b)
+            pytest.fail(f"{path.name} differs from {rec.name}: {first}")
+
+
+def _first_line_difference(got: bytes, want: bytes) -> str:
+    g, w = got.splitlines(), want.splitlines()
+    for i, (a, b) in enumerate(zip(g, w, strict=False)):
+        if a != b:
+            return f"line {i + 1}: got {a[:200]!r}, recorded {b[:200]!r}"
+    return f"{len(g)} lines against {len(w)} recorded"
+
+
+def _first_json_difference(got, want, where: str = "$") -> str:
+    if isinstance(got, dict) and isinstance(want, dict):
+        for k in sorted(set(got) | set(want)):
+            if k not in got or k not in want:
+                return f"{where}.{k}: only in {'output' if k in got else 'record'}"
+            if got[k] != want[k]:
+                return _first_json_difference(got[k], want[k], f"{where}.{k}")
+    if isinstance(got, list) and isinstance(want, list) and len(got) == len(want):
+        for i, (a, b) in enumerate(zip(got, want, strict=True)):
+            if a != b:
+                return _first_json_difference(a, b, f"{where}[{i}]")
+    return f"{where}: got {str(got)[:200]}, recorded {str(want)[:200]}"
 
 
 @pytest.mark.parametrize(("name", "argv", "outputs"), COMMANDS, ids=[c[0] for c in COMMANDS])
