@@ -41,13 +41,14 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from .runs import run_bounds
 
-__all__ = ["BAND_FACTOR", "MIN_RATE_HZ", "decimate_stretches", "decimation_factor"]
+__all__ = ["BAND_FACTOR", "MIN_RATE_HZ", "decimate_built", "decimate_stretches",
+           "decimation_factor"]
 
 log = logging.getLogger(__name__)
 
@@ -140,4 +141,79 @@ def decimate_stretches(
         out.append(y)
     log.debug("decimated %d series by %d: %d -> %d samples in %d stretch(es)",
               len(out), q, int((stops - starts).sum()), len(idx), len(starts))
+    return out, idx
+
+
+#: Full-rate samples built and filtered per block by :func:`decimate_built` (with 18 rows,
+#: 9.4 MB of float64 a block, whatever the log's length).
+BUILD_BLOCK = 65_536
+
+
+def decimate_built(
+    build: Callable[[int, int, int, int], np.ndarray], n_rows: int, stretch: np.ndarray,
+    q: int, *, block: int = BUILD_BLOCK,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`decimate_stretches` of rows that are built block by block at the full rate.
+
+    The same filter, padding and indices as :func:`decimate_stretches` (identical to rounding),
+    but the full-rate rows never exist for more than one block of a stretch at a time: each
+    block of ``block`` output-aligned samples is built with ``10 q + q`` samples of context on
+    either side (more than the FIR's half-length ``10 q``), filtered, and only the decimated
+    samples whose FIR lies wholly inside the built samples (or reaches a real stretch end,
+    where the padding is the whole stretch's) are kept.
+
+    Parameters
+    ----------
+    build : callable
+        ``build(lo, hi, a, b)`` returns the rows for the original samples ``[lo, hi)`` of the
+        stretch ``[a, b)`` (``a <= lo < hi <= b``), shape ``(n_rows, hi - lo)``; anything that
+        needs neighbours (derivatives) takes them from inside ``[a, b)`` only.
+    n_rows : int
+        Number of rows ``build`` returns.
+    stretch : ndarray of int, shape (n,)
+        Stretch labels; negative = not in a stretch (dropped).
+    q : int
+        Decimation factor (>= 1; 1 returns the built rows at every sample of the stretches).
+    block : int
+        Full-rate samples built per block (rounded down to a multiple of ``q``).
+
+    Returns
+    -------
+    decimated : ndarray, shape (n_rows, m)
+        The decimated rows, stretch after stretch.
+    index : ndarray of int64, shape (m,)
+        Original index of each decimated sample.
+    """
+    q = int(q)
+    if q < 1:
+        raise ValueError(f"decimation factor {q}: must be >= 1")
+    starts, stops, _ = run_bounds(np.asarray(stretch))
+    idx = np.concatenate([np.arange(a, b, q, dtype=np.int64)
+                          for a, b in zip(starts.tolist(), stops.tolist(), strict=True)]
+                         or [np.zeros(0, dtype=np.int64)])
+    out = np.empty((int(n_rows), len(idx)))
+    if q > 1:
+        from scipy.signal import resample_poly
+    ov = 11 * q  # > the FIR's half-length (10 q taps), a multiple of q
+    step = max(4 * ov, int(block) // q * q)  # the end padding sees as much as the stretch's
+    k = 0
+    for a, b in zip(starts.tolist(), stops.tolist(), strict=True):
+        m = -(-(b - a) // q)
+        if q == 1 or b - a < 2:  # nothing to filter: the samples themselves
+            for lo in range(a, b, step):
+                hi = min(b, lo + step)
+                out[:, k + (lo - a):k + (hi - a)] = build(lo, hi, a, b)[:, ::q] if q > 1 \
+                    else build(lo, hi, a, b)
+            k += m
+            continue
+        for lo in range(a, b, step):  # lo - a is a multiple of q
+            hi = min(b, lo + step)
+            wlo, whi = max(a, lo - ov), min(b, hi + ov)
+            y = resample_poly(build(wlo, whi, a, b), 1, q, axis=1, padtype="antireflect")
+            j0 = (lo - wlo) // q
+            nj = -(-(hi - lo) // q)
+            out[:, k + (lo - a) // q:k + (lo - a) // q + nj] = y[:, j0:j0 + nj]
+        k += m
+    log.debug("decimated %d built rows by %d: %d -> %d samples in %d stretch(es)",
+              n_rows, q, int((stops - starts).sum()), len(idx), len(starts))
     return out, idx
