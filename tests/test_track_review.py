@@ -77,3 +77,26 @@ def test_horizontal_ignores_a_noisy_altitude_in_the_leg_assignment():
     assert (lab[on] == truth[on]).mean() >= 0.85
     given_ = lab >= 0
     assert (lab[given_] == truth[given_]).mean() >= 0.995
+
+
+def test_passes_are_numbered_per_leg(lawnmower):
+    df, plan, _ = lawnmower
+    res = check_track(df, plan)
+    row = res.legs[2]
+    assert row["n_passes"] == 2
+    assert [p["pass"] for p in row["passes"]] == [1, 2]
+    sess = [p["session_pass"] for p in row["passes"]]
+    assert sess[0] > 0 and sess[1] > sess[0]
+    assert [p["pass"] for p in res.legs[0]["passes"]] == [1]
+
+
+def test_an_empty_plan_cell_is_called_empty(tmp_path):
+    import pandas as pd
+
+    from aeromag.errors import InputError
+    from aeromag.track.plan import validate_plan
+
+    plan = pd.DataFrame({"lat": [47.3, None], "lon": [8.5, 8.501], "alt": [540.0, 540.0]})
+    with pytest.raises(InputError, match="column 'lat', line 3: is empty") as e:
+        validate_plan(plan, "p.csv")
+    assert "nan" not in str(e.value)

@@ -171,7 +171,10 @@ def leg_summary(
         if pass_id is not None:
             ids = np.unique(pass_id[m & (pass_id >= 0)])
             row["n_passes"] = int(ids.size)
-            row["passes"] = [{"pass": int(p), **_summary(t, dt, pass_id == p, cols, det,
-                                                         threshold_m)} for p in ids]
+            # "pass": this leg's pass number (1, 2, ...); "session_pass": the session-wide
+            # index of the pass (0-based, time order over all legs)
+            row["passes"] = [{"pass": j + 1, "session_pass": int(p),
+                              **_summary(t, dt, pass_id == p, cols, det, threshold_m)}
+                             for j, p in enumerate(ids)]
         out.append(row)
     return out

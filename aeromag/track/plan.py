@@ -60,10 +60,10 @@ def validate_plan(plan: pd.DataFrame, source: str = "<plan>") -> pd.DataFrame:
         bad = ~np.isfinite(conv.to_numpy(dtype=np.float64))
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
-            raise InputError(
-                f"{source}: column {c!r}, line {line(i)}: value {str(out[c].iloc[i])!r} is not a"
-                " finite number; fix the waypoint"
-            )
+            raw = out[c].iloc[i]
+            what = ("is empty" if pd.isna(raw) or not str(raw).strip()
+                    else f"value {str(raw)!r} is not a finite number")
+            raise InputError(f"{source}: column {c!r}, line {line(i)}: {what}; fix the waypoint")
         out[c] = conv.astype(np.float64)
     if len(out) < 2:
         raise InputError(
