@@ -171,8 +171,16 @@ def test_warnings_are_recorded_and_strict_makes_them_errors(samples, tmp_path):
         assert r.exit_code == 1 and not o.exists(), r.output
         err = [ln for ln in r.output.splitlines() if ln.startswith("error: ")]
         assert len(err) == 1 and "--units flux=uT" in err[0] and "--strict" in err[0]
+    # The survey fitted on itself warns (no calibration box): --strict refuses it ...
     r = runner.invoke(app, ["compensate", str(samples / "survey.csv"), "-o", str(strict),
                             "--strict"])
+    assert r.exit_code == 1 and "calibration box" in r.output and not strict.exists()
+    # ... and passes with the model calibrated on the box.
+    model = tmp_path / "box.json"
+    assert runner.invoke(app, ["calibrate", str(samples / "calibration.csv"), "-o",
+                               str(model), "--strict"]).exit_code == 0
+    r = runner.invoke(app, ["compensate", str(samples / "survey.csv"), "--model", str(model),
+                            "-o", str(strict), "--strict"])
     assert r.exit_code == 0 and strict.exists(), r.output
 
 

@@ -75,7 +75,7 @@ def compensate(opts: Options) -> None:
             _summary(report, output, json_path_for(output))
             return
         res = compensate_file(opts.survey, output, cfg, model=model, columns=columns,
-                              units=unit_map, fmt=opts.fmt)
+                              units=unit_map, fmt=opts.fmt, self_check=True)
         page = _plot(res, opts.plot, cfg)
     _summary(res.report, output, json_path_for(output))
     if page is not None:
@@ -132,4 +132,6 @@ def _summary(report: dict, out: Path, out_json: Path | None) -> None:
         if dropped_summary(report) and air is not None:
             line += (f" on kept segments ({air:.2f} and {m['all_residual_std_nT']:.4f} nT over"
                      " all)")
+        if report.get("self_calibration"):
+            line += "; in-sample (fitted on this log)"
     typer.echo(line)

@@ -69,6 +69,44 @@ def compensate(
     return res
 
 
+#: Heading legs and maneuver kinds that make a calibration box (docs/compensation.md).
+_BOX_HEADINGS, _BOX_MANEUVERS = 4, frozenset({"pitch", "roll", "yaw"})
+
+
+def _self_calibration(df: pd.DataFrame, cfg: CompensationConfig | None,
+                      source: str) -> dict[str, Any]:
+    """Whether a log fitted on itself holds a calibration box; warn when it does not.
+
+    A survey's few headings and gusts separate the TL terms only in the band: the
+    heading-dependent level of ``mag_tl`` is not determined (the fit is blind to what does
+    not vary in the band), yet its in-sample metrics look excellent.  A box is at least
+    ``_BOX_HEADINGS`` heading legs with pitch, roll and yaw maneuvers
+    (:func:`aeromag.qc.detect_maneuvers`).
+    """
+    from ..errors import AeromagError
+    from ..qc import detect_maneuvers
+
+    out: dict[str, Any] = {"metrics": "in-sample: fitted and measured on the same log, in the"
+                           " band; they say nothing about the level outside it"}
+    try:
+        man = detect_maneuvers(df, max_gap_s=cfg.max_gap_s if cfg else None, source=source)
+    except AeromagError as exc:
+        headings, kinds, why = [], [], f"no maneuvers could be detected ({exc})"
+    else:
+        headings = sorted(set(man.legs["heading"].astype(str))) if len(man.legs) else []
+        kinds = sorted(set(man.table["maneuver"].astype(str))) if len(man.table) else []
+        why = (f"{len(headings)} heading(s) ({', '.join(headings) or 'none'}) and maneuvers"
+               f" {', '.join(kinds) or 'none'}")
+    box = len(headings) >= _BOX_HEADINGS and _BOX_MANEUVERS <= set(kinds)
+    out.update(calibration_box=bool(box), headings=headings, maneuvers=kinds)
+    if not box:
+        log.warning("%s: fitted on itself without a calibration box (%s): the heading-dependent"
+                    " level of mag_tl is not determined, and the improvement ratio is in-sample"
+                    " and flattering; fly a box, run 'aeromag calibrate' on it and apply it with"
+                    " --model", source, why)
+    return out
+
+
 def calibrate(
     df: pd.DataFrame, cfg: CompensationConfig | None = None, *, source: str | None = None,
 ) -> CompensationRun:
@@ -233,7 +271,7 @@ def compensate_file(
     path: str | os.PathLike[str], out_path: str | os.PathLike[str],
     cfg: CompensationConfig | None = None, *, model: TLModel | str | os.PathLike[str] | None = None,
     columns: dict[str, str] | None = None, units: dict[str, str] | None = None,
-    fmt: str | None = None,
+    fmt: str | None = None, self_check: bool = False,
 ) -> CompensationResult:
     """Read a log, compensate it and write ``OUT.csv`` and ``OUT.json`` atomically.
 
@@ -251,6 +289,9 @@ def compensate_file(
         Column map and unit conversions.
     fmt : str, optional
         Input format (default from the extension).
+    self_check : bool
+        When fitting on the log itself, check it for a calibration box and warn without one
+        (``aeromag compensate``; the report's ``self_calibration``).
 
     Returns
     -------
@@ -268,6 +309,8 @@ def compensate_file(
     t1 = time.perf_counter()
     log.info("%s: read %d rows in %.2f s", path, len(df), t1 - t0)
     res = compensate(df, cfg, model=model, source=str(path))
+    if model is None and self_check:
+        res.report["self_calibration"] = _self_calibration(df, cfg, str(path))
     t2 = time.perf_counter()
     log.info("%s: %s in %.2f s", path, "model applied" if model is not None else
              "fitted, screened and applied", t2 - t1)
