@@ -103,3 +103,31 @@ def test_huge_cell_is_not_echoed_whole(tmp_path):
     assert len(msg) < 3 * MAX_ECHO_CHARS, len(msg)
     assert "characters]..." in msg
     assert clean("x" * MAX_ECHO_CHARS) == "x" * MAX_ECHO_CHARS  # short text unchanged
+
+
+@pytest.mark.parametrize("key,value,match", [
+    ("band_hz", [0.9, 0.1], "pass band it records is"),
+    ("band_hz", "NaN", "pass band it records is"),
+    ("sampling_rate_hz", -1, "sampling_rate_hz is -1"),
+    ("filter_order", 1e9, "filter_order is"),
+    ("mag_from_fluxgate", "yes", "mag_from_fluxgate is"),
+])
+def test_model_fit_settings_are_validated(tmp_path, key, value, match):
+    """A model whose recorded fit settings are nonsense was accepted (IO review)."""
+    import json
+
+    from aeromag.io.model_file import read_model_document
+
+    terms = ["cx", "cy", "cz"]
+    doc = {"terms": terms, "coef": [1.0, 2.0, 3.0], "scale_nT": 50000.0, "band_hz": [0.1, 0.9],
+           "sampling_rate_hz": 10.0, "filter_order": 4, "mag_from_fluxgate": False}
+    p = tmp_path / "m.json"
+    p.write_text(json.dumps(doc))
+    assert read_model_document(p)["band_hz"] == [0.1, 0.9]
+    doc[key] = value
+    p.write_text(json.dumps(doc))
+    with pytest.raises(InputError, match=match):
+        read_model_document(p)
+    doc[key] = None  # not recorded: accepted
+    p.write_text(json.dumps(doc))
+    read_model_document(p)

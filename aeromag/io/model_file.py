@@ -126,7 +126,8 @@ def validate_model_document(d: Any, source: str = "<model>") -> dict[str, Any]:
     InputError
         Not an object; ``terms`` not a list of known, distinct term names (1 to 19);
         ``coef`` not one finite number per term; ``scale_nT`` not a positive finite number;
-        nesting deeper than :data:`MAX_DEPTH`.
+        nesting deeper than :data:`MAX_DEPTH`; a recorded fit setting out of range
+        (``band_hz``, ``sampling_rate_hz``, ``filter_order``, ``mag_from_fluxgate``).
     """
     src = clean(source)
     if not isinstance(d, dict):
@@ -161,7 +162,38 @@ def validate_model_document(d: Any, source: str = "<model>") -> dict[str, Any]:
         raise InputError(f"{src}: scale_nT is {clean(repr(scale))[:40]}; it must be a positive"
                          f" number of nT (50000 by the contract); {_REMEDY}")
     d["scale_nT"] = float(scale)
+    _check_fit_settings(d, src)
     return d
+
+
+def _number(x: Any) -> bool:
+    return not isinstance(x, bool) and isinstance(x, int | float) and _finite(x)
+
+
+def _check_fit_settings(d: dict[str, Any], src: str) -> None:
+    """Check the fit settings a model records (each optional, null allowed).
+
+    ``band_hz`` two increasing positive numbers [Hz], ``sampling_rate_hz`` a positive number
+    [Hz], ``filter_order`` a whole number 1 to 20, ``mag_from_fluxgate`` true or false.
+    """
+    band = d.get("band_hz")
+    if band is not None and not (isinstance(band, list) and len(band) == 2
+                                 and all(_number(b) for b in band) and 0 < band[0] < band[1]):
+        raise InputError(f"{src}: the pass band it records is {clean(repr(band))[:60]}; it"
+                         f" must be [LOW, HIGH] in Hz with 0 < LOW < HIGH; {_REMEDY}")
+    fs = d.get("sampling_rate_hz")
+    if fs is not None and not (_number(fs) and fs > 0):
+        raise InputError(f"{src}: sampling_rate_hz is {clean(repr(fs))[:40]}; it must be a"
+                         f" positive number of Hz; {_REMEDY}")
+    order = d.get("filter_order")
+    if order is not None and not (_number(order) and float(order).is_integer()
+                                  and 1 <= order <= 20):
+        raise InputError(f"{src}: filter_order is {clean(repr(order))[:40]}; it must be a"
+                         f" whole number from 1 to 20; {_REMEDY}")
+    mff = d.get("mag_from_fluxgate")
+    if mff is not None and not isinstance(mff, bool):
+        raise InputError(f"{src}: mag_from_fluxgate is {clean(repr(mff))[:40]}; it must be"
+                         f" true or false; {_REMEDY}")
 
 
 def read_model_document(path: str | os.PathLike[str]) -> dict[str, Any]:
