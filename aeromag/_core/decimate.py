@@ -2,9 +2,12 @@
 
 UAV magnetometers log at 200 Hz - 1 kHz while the Tolles-Lawson fit only looks at the
 compensation band (default 0.1-0.9 Hz).  Band-passing every term at the full rate costs
-34 IIR passes per sample; the fit needs only the band, so the fluxgate and the scalar are
-first reduced to a rate that keeps the band (and the terms' time derivatives) exact to well
-below the noise, and the fitted coefficients are then applied to every original sample.
+34 IIR passes per sample; the fit needs only the band, so the design matrix (built at the full
+rate) and the scalar are reduced to a rate that keeps the band exact to well below the noise,
+the band-pass and normal equations run at that rate, and the fitted coefficients are applied to
+every original sample.  What is decimated must be *linear* in the recorded samples' model: the
+terms and the target, never the fluxgate they are built from (see
+:mod:`aeromag.compensation.decimation`).
 
 The target rate
 ---------------
@@ -12,25 +15,21 @@ The decimated rate is the highest integer fraction ``fs / q`` of the log's rate 
 least :data:`BAND_FACTOR` (80) times the band's upper edge and at least :data:`MIN_RATE_HZ`
 (2 Hz); a log below twice that is left alone (``q = 1``).  With the default band (0.1-0.9 Hz)
 the fitting rate is at least 72 Hz: 1 kHz is fitted at 76.9 Hz (``q = 13``), 200 Hz at 100 Hz,
-and logs below 144 Hz (10 Hz, 100 Hz) are never decimated.  Why 80x:
+and logs below 144 Hz (10 Hz, 100 Hz) are never decimated.
 
-* The fit takes the eddy-current terms' time derivatives by central differences on the
-  decimated series (against its real sample times, per stretch).  Their gain at a frequency
-  ``f`` is ``sin(x) / x`` with ``x = 2 pi f / rate``, an error of ``x**2 / 6``: at 80x the
-  band's upper edge this is 0.10 % at the edge and 0.013 % at a third of it, where
-  calibration manoeuvres put their energy (periods of 2.5-8 s); at 40x it is 0.41 %, at 10x
-  6.4 %.  Measured on a 1 kHz, 1.2e6-row benchmark log with almost no noise (0.02 nT), the
-  largest coefficient error against the truth fell with the rate: 0.025 nT at 37 Hz, 0.007
-  at 77 Hz, 0.002 at 167 Hz (0.002 at the full rate), along the nearly collinear ``cz``,
-  ``cx*cx``, ``cy*cy`` direction; the compensated residual differed by under 1e-4 nT.
+* The 80x was chosen when the eddy terms' derivatives were central differences on the
+  decimated series (a gain error ``x**2 / 6``, ``x = 2 pi f / rate``).  The derivatives are now
+  taken at the full rate, so that reason is gone; on 1 kHz flights with heading steps and
+  97 Hz vibration a fit at 20x (18 Hz, ``q = 55``) was as accurate (coefficient rms error
+  0.009-0.011 against 0.011-0.013 at 80x) and 10x (9 Hz) a little worse (0.012-0.014).  The
+  rule is kept at 80x until that is checked on more flights (docs/compensation.md).
 * The anti-aliasing filter (:func:`scipy.signal.resample_poly`: a zero-phase, linear-phase
   Kaiser-windowed FIR of ``20 q + 1`` taps, cut-off at the new Nyquist frequency) has a gain of
-  1 +- 0.001 inside the band and attenuates by more than 80 dB what would fold into it (the
-  frequencies ``k * rate +- band_hz[1]``).
+  1 +- 0.001 inside the band and attenuates what would fold into it (the frequencies
+  ``k * rate +- band_hz[1]``) by at least 72 dB: measured for ``q = 13``, 72.2 dB at
+  ``fs / q + 0.9 Hz`` (the worst), 83 dB at ``fs / q - 0.9 Hz``, 87-90 dB at ``2 fs / q``.
 * The FIR reaches 10 decimated samples (0.13 s at the 77 Hz of a 1 kHz log) to each side,
   far less than the filter edges the fit trims from every segment piece (2.5 s by default).
-* The fit of a 1.2e6-row 1 kHz calibration (normal equations, screening, diagnostics) then
-  takes 0.4 s of CPU instead of 4.0 s; the decimation itself 0.05 s.
 
 Decimated sample ``i`` of a stretch that starts at original sample ``a`` *is* original sample
 ``a + i * q`` (the FIR is zero-phase), so its time, segment and stretch labels are those of
