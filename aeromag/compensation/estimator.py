@@ -32,6 +32,28 @@ __all__ = ["TollesLawson"]
 _WHOLE_STRETCH_S = 1e12
 
 
+def split_X(X: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Time [s] and fluxgate [nT] of an estimator's ``X``.
+
+    Parameters
+    ----------
+    X : DataFrame or array-like, shape (n, 4)
+        Columns ``time, flux_x, flux_y, flux_z`` (a DataFrame may hold more; those are used).
+
+    Returns
+    -------
+    t : ndarray, shape (n,)
+    flux : ndarray, shape (n, 3)
+    """
+    if hasattr(X, "columns") and {"time", *FLUX_COLUMNS} <= set(X.columns):
+        X = X[["time", *FLUX_COLUMNS]]
+    arr = np.asarray(X, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 4:
+        raise InputError("X must have 4 columns: time [s], flux_x, flux_y, flux_z [nT]; got"
+                         f" shape {arr.shape}")
+    return arr[:, 0], arr[:, 1:4]
+
+
 class TollesLawson(RegressorMixin, BaseEstimator):
     """Tolles-Lawson compensator with the scikit-learn estimator API.
 
@@ -90,15 +112,7 @@ class TollesLawson(RegressorMixin, BaseEstimator):
         self.max_condition = max_condition
         self.max_interference = max_interference
 
-    @staticmethod
-    def _split_X(X: Any) -> tuple[np.ndarray, np.ndarray]:
-        if hasattr(X, "columns") and {"time", *FLUX_COLUMNS} <= set(X.columns):
-            arr = X[["time", *FLUX_COLUMNS]].to_numpy(dtype=np.float64)
-        else:
-            arr = np.asarray(X, dtype=np.float64)
-        if arr.ndim != 2 or arr.shape[1] != 4:
-            raise InputError("X must have 4 columns: time [s], flux_x, flux_y, flux_z [nT]")
-        return arr[:, 0], arr[:, 1:4]
+    _split_X = staticmethod(split_X)
 
     def _config(self) -> CompensationConfig:
         terms = self.terms if isinstance(self.terms, str) else ",".join(self.terms)

@@ -14,6 +14,7 @@ from sklearn.base import BaseEstimator, RegressorMixin
 
 from .._core.filters import sampling_rate
 from ..errors import InputError
+from .estimator import split_X
 from .online import OnlineTL
 from .terms import design_matrix
 
@@ -67,15 +68,7 @@ class OnlineTollesLawson(RegressorMixin, BaseEstimator):
         self.fs_hz = fs_hz
         self.derivative = derivative
 
-    @staticmethod
-    def _split_X(X: Any) -> tuple[np.ndarray, np.ndarray]:
-        if hasattr(X, "columns") and {"time", "flux_x", "flux_y", "flux_z"} <= set(X.columns):
-            X = X[["time", "flux_x", "flux_y", "flux_z"]]
-        a = np.asarray(X, dtype=np.float64)
-        if a.ndim != 2 or a.shape[1] != 4:
-            raise InputError(f"X must have 4 columns (time, flux_x, flux_y, flux_z), got "
-                             f"shape {a.shape}")
-        return a[:, 0], a[:, 1:]
+    _split_X = staticmethod(split_X)
 
     def partial_fit(self, X: Any, y: Any) -> OnlineTollesLawson:
         """Continue the estimate with more samples (in time order).
