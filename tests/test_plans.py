@@ -121,7 +121,7 @@ def test_waypoints_round_trip(tmp_path):
     (lambda r: r[:3] + [(5, 0, 3, 16, 0, 0, 0, 0, 47.4, 8.5, 50, 1)], "line 5: item index 5"),
     (lambda r: r[:3] + [(3, 0, 10, 16, 0, 0, 0, 0, 47.4, 8.5, 50, 1)], "above terrain"),
     (lambda r: r[:3] + [(3, 0, 1, 16, 0, 0, 0, 0, 47.4, 8.5, 50, 1)], "not a global frame"),
-    (lambda r: r[:3] + [(3, 0, 3, 16, 0, 0, 0, 0, 147.4, 8.5, 50, 1)], "line 5: latitude 147"),
+    (lambda r: r[:3] + [(3, 0, 3, 16, 0, 0, 0, 0, 147.4, 8.5, 50, 1)], "line 5.: latitude 147"),
     (lambda r: r[:3] + [r[2][:0] + (3,) + r[2][1:]], "lines 4 and 5: repeated waypoint"),
 ])
 def test_bad_waypoints_files(tmp_path, rows_edit, match):

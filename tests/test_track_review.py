@@ -100,3 +100,26 @@ def test_an_empty_plan_cell_is_called_empty(tmp_path):
     with pytest.raises(InputError, match="column 'lat', line 3: is empty") as e:
         validate_plan(plan, "p.csv")
     assert "nan" not in str(e.value)
+
+
+def test_an_empty_mission_file_gets_the_mission_message(tmp_path):
+    from aeromag.errors import InputError
+    from aeromag.io.plans import read_plan
+
+    p = tmp_path / "m.plan"
+    p.write_text("  \n")
+    with pytest.raises(InputError, match="QGroundControl .plan is a JSON") as e:
+        read_plan(p)
+    assert "CSV" not in str(e.value)
+
+
+def test_a_bad_latitude_in_a_mission_file_names_the_mission_item():
+    import pandas as pd
+
+    from aeromag.errors import InputError
+    from aeromag.track.plan import validate_plan
+
+    plan = pd.DataFrame({"lat": [47.3, 95.0], "lon": [8.5, 8.501], "alt": [540.0, 540.0]})
+    plan.attrs["lines"] = [40, 78]
+    with pytest.raises(InputError, match="navigation waypoint 2 of the mission .* line 78"):
+        validate_plan(plan, "m.plan")

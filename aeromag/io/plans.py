@@ -283,9 +283,16 @@ def read_plan(path: str | os.PathLike[str]) -> pd.DataFrame:
     if not p.is_file():
         raise InputError(f"{p}: plan file not found (or not a file); check the --plan path")
     register_input(p, "plan")  # no output of the command may overwrite it (issue 16)
-    if _blank_file(p):
-        raise InputError(f"{p}: the plan is empty; {PLAN_NEEDS}")
     fmt = PLAN_SUFFIXES.get(p.suffix.lower())
+    if _blank_file(p):
+        if fmt == "qgc-plan":
+            raise InputError(f"{p}: the plan is empty; a QGroundControl .plan is a JSON file with"
+                             " \"fileType\": \"Plan\" and mission.items (save it again from"
+                             " QGroundControl)")
+        if fmt == "qgc-wpl":
+            raise InputError(f"{p}: the plan is empty; a .waypoints file starts with the header"
+                             " 'QGC WPL 110' (save it again from Mission Planner)")
+        raise InputError(f"{p}: the plan is empty; {PLAN_NEEDS}")
     if fmt is None:
         head = _peek(p)
         fmt = "qgc-wpl" if head.startswith("QGC WPL") else (

@@ -73,8 +73,11 @@ def validate_plan(plan: pd.DataFrame, source: str = "<plan>") -> pd.DataFrame:
     bad = np.abs(lat) > 90
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise InputError(f"{source}: column 'lat', line {line(i)}: latitude {lat[i]:g} outside"
-                         " [-90, 90] degrees; check the column order")
+        where = (f"column 'lat', line {line(i)}" if lines is None
+                 else f"navigation waypoint {i + 1} of the mission (the item at line {line(i)})")
+        fix = "check the column order" if lines is None else "fix the mission item"
+        raise InputError(f"{source}: {where}: latitude {lat[i]:g} outside [-90, 90] degrees;"
+                         f" {fix}")
     alt = out["alt"].to_numpy()
     bad = np.abs(alt) > MAX_ABS_ALT_M
     if bad.any():
