@@ -84,6 +84,22 @@ def decimation_factor(fs_hz: float, band_hz: tuple[float, float], *,
     return max(1, int(math.floor(fs_hz / target * (1 + 1e-12))))
 
 
+def _stretch_index(stretch: np.ndarray, q: int) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+    """The checked factor, the stretches' bounds and the kept indices (every ``q``-th sample).
+
+    Shared by :func:`decimate_stretches` and :func:`decimate_built`, so both keep the same
+    samples. Returns ``(q, starts, stops, index)``; raises ValueError for ``q < 1``.
+    """
+    q = int(q)
+    if q < 1:
+        raise ValueError(f"decimation factor {q}: must be >= 1")
+    starts, stops, _ = run_bounds(np.asarray(stretch))
+    idx = np.concatenate([np.arange(a, b, q, dtype=np.int64)
+                          for a, b in zip(starts.tolist(), stops.tolist(), strict=True)]
+                         or [np.zeros(0, dtype=np.int64)])
+    return q, starts, stops, idx
+
+
 def decimate_stretches(
     series: Sequence[np.ndarray], stretch: np.ndarray, q: int,
 ) -> tuple[list[np.ndarray], np.ndarray]:
@@ -114,13 +130,7 @@ def decimate_stretches(
     index : ndarray of int64, shape (m,)
         Original index of each decimated sample (take times and labels with it).
     """
-    q = int(q)
-    if q < 1:
-        raise ValueError(f"decimation factor {q}: must be >= 1")
-    starts, stops, _ = run_bounds(np.asarray(stretch))
-    idx = np.concatenate([np.arange(a, b, q, dtype=np.int64)
-                          for a, b in zip(starts.tolist(), stops.tolist(), strict=True)]
-                         or [np.zeros(0, dtype=np.int64)])
+    q, starts, stops, idx = _stretch_index(stretch, q)
     if q == 1:
         return [np.asarray(x, dtype=np.float64)[idx] for x in series], idx
     from scipy.signal import resample_poly
@@ -183,13 +193,7 @@ def decimate_built(
     index : ndarray of int64, shape (m,)
         Original index of each decimated sample.
     """
-    q = int(q)
-    if q < 1:
-        raise ValueError(f"decimation factor {q}: must be >= 1")
-    starts, stops, _ = run_bounds(np.asarray(stretch))
-    idx = np.concatenate([np.arange(a, b, q, dtype=np.int64)
-                          for a, b in zip(starts.tolist(), stops.tolist(), strict=True)]
-                         or [np.zeros(0, dtype=np.int64)])
+    q, starts, stops, idx = _stretch_index(stretch, q)
     out = np.empty((int(n_rows), len(idx)))
     if q > 1:
         from scipy.signal import resample_poly
