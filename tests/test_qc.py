@@ -169,7 +169,10 @@ def test_out_json_qc_block_is_compute_qc_of_mag_minus_mag_tl():
     got = res.report["qc"]
     want = compute_qc(res, fit=False, fom=False).metrics
     assert got == want
-    assert got["definition"].startswith("rms of mag and of mag - mag_tl band-passed")
+    assert got["definition"] == res.report["metrics"]["definition"]
+    for k in ("improvement_ratio", "residual_std_nT", "std_before_nT", "n_samples"):
+        assert got[k] == res.report["metrics"][k], k
+    assert got["per_piece_rms"]["definition"].startswith("rms of mag and of mag - mag_tl")
     for e in res.report["segments"]:
         assert e["residual_std"] == got["residual_std_by_segment_nT"][str(e["id"])]
     with pytest.raises(TypeError):
@@ -192,7 +195,11 @@ def test_fom_after_is_band_passed_mag_minus_mag_tl_not_mag_comp(cal_result):
     assert tab.attrs["fields"] == {"before": "mag", "after": "mag - mag_tl",
                                    "truth": "truth_mag_tl"}
     r = (data["mag"] - data["mag_tl"]).to_numpy(float)
-    rf = band_passed(r, t, (0.1, 0.9), 4, None)
+    from aeromag.qc.labels import kept_mask, segment_labels
+
+    seg = segment_labels(data)
+    dropped = np.where((seg >= 0) & ~kept_mask(data), seg, -1)  # each filtered on its own
+    rf = band_passed(r, t, (0.1, 0.9), 4, None, split=dropped)
     a, b, ids = run_bounds(man.labels["maneuver_id"].to_numpy())
     for _, row in tab.iterrows():
         j = int(np.flatnonzero(ids == row["id"])[0])

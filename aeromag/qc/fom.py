@@ -16,6 +16,7 @@ import pandas as pd
 
 from .._core.runs import run_bounds
 from ..errors import InputError
+from .labels import kept_mask, segment_labels
 from .maneuvers import CARDINALS, MANEUVERS, ManeuverResult, detect_maneuvers
 from .noise import band_passed
 
@@ -65,7 +66,9 @@ def fom_table(
         One row per manoeuvre: ``id``, ``box``, ``heading_leg``, ``heading``, ``maneuver``,
         ``t_start``, ``t_end`` [s], ``ptp_before_nT``, ``ptp_after_nT`` (and ``ptp_truth_nT``):
         peak-to-peak [nT] within the manoeuvre of the field band-passed once (zero-phase,
-        per continuous stretch).  ``attrs["fields"]`` names the field of each.
+        per continuous stretch, each dropped segment on its own); ``kept`` (every sample of
+        the manoeuvre lies in a kept segment; True when the log has no ``segment_kept``).
+        ``attrs["fields"]`` names the field of each.
     """
     if maneuvers is None:
         maneuvers = detect_maneuvers(data, max_gap_s=max_gap_s, **detect_kw)
@@ -98,15 +101,25 @@ def fom_table(
     pos = np.searchsorted(ids, tab["id"].to_numpy())
     found = (pos < len(ids)) & (ids[np.minimum(pos, max(len(ids) - 1, 0))] ==
                                 tab["id"].to_numpy()) if len(ids) else np.zeros(len(tab), bool)
+    ab = np.column_stack([a, b]).ravel()  # [a, b) of each run: reduceat, even entries
+    keep = kept_mask(data)
+    seg = segment_labels(data)
+    dropped = np.where((seg >= 0) & ~keep, seg, -1)  # each dropped segment filtered alone
     for name, x in cols.items():
-        xf = band_passed(x, t, band_hz, order, max_gap_s)
+        xf = band_passed(x, t, band_hz, order, max_gap_s, split=dropped)
         ptp = np.full(len(tab), np.nan)
         if len(ids):
+            # [a, b) of each run only (reduceat over a alone ran on to the next start)
+            xe = np.r_[xf, np.nan]
             with np.errstate(invalid="ignore"):
-                hi = np.fmax.reduceat(xf, a)  # NaN (filter edges) ignored, as pandas does
-                lo = np.fmin.reduceat(xf, a)
+                hi = np.fmax.reduceat(xe, ab)[::2]  # NaN (filter edges) ignored, as pandas
+                lo = np.fmin.reduceat(xe, ab)[::2]
             ptp[found] = (hi - lo)[pos[found]]
         tab[f"ptp_{name}_nT"] = ptp
+    allk = np.ones(len(tab), dtype=bool)
+    if len(ids):
+        allk[found] = np.logical_and.reduceat(np.r_[keep, True], ab)[::2][pos[found]]
+    tab["kept"] = allk  # every sample of the manoeuvre in a kept segment
     tab = tab.reset_index(drop=True)
     tab.attrs["fields"] = fields
     return tab
@@ -131,7 +144,9 @@ def fom_summary(table: pd.DataFrame) -> dict[str, Any]:
         (per box: ``box``, ``n_maneuvers``, ``complete``, ``missing`` (``"W pitch"``...),
         ``fom_before_nT``, ``fom_after_nT``... for complete boxes), ``complete_boxes``,
         ``fom_before_nT``/``fom_after_nT`` (mean over complete boxes, None when none),
-        ``fom_reduction`` (before / after), ``n_maneuvers`` and ``per_maneuver`` (heading,
+        ``fom_reduction`` (before / after), ``fom_kept_before_nT``/``fom_kept_after_nT``
+        (the same over only the manoeuvres in kept segments, ``kept_definition``;
+        ``n_maneuvers_kept``), ``n_maneuvers`` and ``per_maneuver`` (heading,
         manoeuvre -> mean peak-to-peak over the complete boxes), ``fields`` (the field each
         ``ptp_*_nT`` is of) and ``definition`` (the words for it).
     """
@@ -145,6 +160,15 @@ def fom_summary(table: pd.DataFrame) -> dict[str, Any]:
                              "missing": missing}
         for c in cols:
             e[f"fom_{c}_nT"] = float(np.nansum(g[f"ptp_{c}_nT"])) if not missing else None
+        if "kept" in g.columns:
+            gk = g[g["kept"].to_numpy(dtype=bool)]
+            e["n_maneuvers_kept"] = len(gk)
+            e["dropped"] = [f"{CARDINALS[int(h)]} {m}" for h, m in
+                            zip(g["heading_leg"][~g["kept"].to_numpy(dtype=bool)],
+                                g["maneuver"][~g["kept"].to_numpy(dtype=bool)], strict=True)]
+            for c in cols:
+                e[f"fom_kept_{c}_nT"] = (float(np.nansum(gk[f"ptp_{c}_nT"]))
+                                         if not missing else None)
         boxes.append(e)
     complete = [e["box"] for e in boxes if e["complete"]]
     out: dict[str, Any] = {"applicable": bool(complete), "reason": None, "boxes": boxes,
@@ -154,12 +178,22 @@ def fom_summary(table: pd.DataFrame) -> dict[str, Any]:
         out["fields"] = {f"ptp_{k}_nT": v for k, v in fields.items()}
         out["definition"] = (
             "ptp_X_nT: peak-to-peak [nT] within one manoeuvre of field X band-passed once in"
-            " band_hz (zero-phase Butterworth per continuous stretch), X as in 'fields'"
+            " band_hz (zero-phase Butterworth per continuous stretch, each dropped segment on"
+            " its own; windows clipped at line boundaries), X as in 'fields'"
             " (after = mag - mag_tl: the residual without the final low-pass); fom_X_nT: their"
             " sum over the 12 manoeuvres of a complete box, averaged over complete boxes")
     for c in cols:
         vals = [e[f"fom_{c}_nT"] for e in boxes if e["complete"]]
         out[f"fom_{c}_nT"] = float(np.mean(vals)) if vals else None
+    if "kept" in table.columns:
+        for c in cols:
+            vals = [e[f"fom_kept_{c}_nT"] for e in boxes if e["complete"]]
+            out[f"fom_kept_{c}_nT"] = float(np.mean(vals)) if vals else None
+        out["n_maneuvers_kept"] = int(table["kept"].sum())
+        out["kept_definition"] = (
+            "fom_kept_X_nT: the same sum over only the manoeuvres of a complete box lying wholly"
+            " in kept segments (boxes[].n_maneuvers_kept of 12; boxes[].dropped names the"
+            " others), averaged over complete boxes: the FOM without the dropped faults")
     fa = out.get("fom_after_nT")
     fb = out.get("fom_before_nT")
     out["fom_reduction"] = float(fb / fa) if fa and fb is not None else None

@@ -45,6 +45,7 @@ from .._core.runs import run_bounds
 from .._core.stretches import find_stretches
 from ..errors import InputError
 from ._heading import _heading_source, _heading_unit  # noqa: F401 - _heading_source: tests
+from ._lines import clip_to_lines
 from ._windows import _run_index, _run_sums, moving_mean
 
 __all__ = ["CARDINALS", "MANEUVERS", "ManeuverResult", "detect_heading_legs",
@@ -207,8 +208,11 @@ def detect_heading_legs(
         box_of_leg[sel] = np.arange(int(sel.sum()))
     leg_id = _run_index(n, ks, ke)
     inleg = leg_id >= 0
-    heading_leg = np.where(inleg, card_of_leg[leg_id], -1)
-    box = np.where(inleg, box_of_leg[leg_id], -1)
+    if len(kv):
+        heading_leg = np.where(inleg, card_of_leg[np.maximum(leg_id, 0)], -1)
+        box = np.where(inleg, box_of_leg[np.maximum(leg_id, 0)], -1)
+    else:  # no heading leg at all (a short or hovering log): nothing to index
+        heading_leg = box = np.full(n, -1, dtype=np.int64)
     if sc is not None and len(ks):  # circular mean of the smoothed heading over each leg
         sums = _run_sums(np.where(np.isfinite(sc), sc, 0.0), ks, ke)
         mean_h = np.rad2deg(np.arctan2(sums[:, 1], sums[:, 0])) % 360.0
@@ -356,11 +360,13 @@ def detect_maneuvers(
     fs = sampling_rate(t)
     step = int(fs // rate_hz) if rate_hz else 1
     if step < 2 or maneuver_column is not None or leg_column is not None:
-        return _detect_full(df, max_gap_s=max_gap_s, **kw)
-    small, cnt = _block_means(df, t, step, 5.0 / fs if max_gap_s is None else max_gap_s)
-    if len(small) < 10:
-        return _detect_full(df, max_gap_s=max_gap_s, **kw)
-    return _expand(_detect_full(small, max_gap_s=None, **kw), df, t, fs, cnt)
+        res = _detect_full(df, max_gap_s=max_gap_s, **kw)
+    else:
+        small, cnt = _block_means(df, t, step, 5.0 / fs if max_gap_s is None else max_gap_s)
+        res = (_detect_full(df, max_gap_s=max_gap_s, **kw) if len(small) < 10 else
+               _expand(_detect_full(small, max_gap_s=None, **kw), df, t, fs, cnt))
+    # a manoeuvre never spans two lines (its tail would sample a neighbour, maybe a fault)
+    return clip_to_lines(res, df["line"], t, fs) if "line" in df.columns else res
 
 
 def _block_means(df: pd.DataFrame, t: np.ndarray, step: int, max_gap_s: float

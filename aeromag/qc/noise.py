@@ -21,6 +21,7 @@ FOURTH_DIFF_NORM = float(np.sqrt(70.0))
 def band_passed(
     x: np.ndarray, time_s: np.ndarray, band_hz: tuple[float, float], order: int = 4,
     max_gap_s: float | None = None, trim_s: float = 0.0, fs_hz: float | None = None,
+    split: np.ndarray | None = None,
 ) -> np.ndarray:
     """Zero-phase band-pass of a series, per continuous finite stretch.
 
@@ -40,6 +41,9 @@ def band_passed(
         Samples closer than this to a stretch end become NaN [s].
     fs_hz : float, optional
         Sampling rate [Hz] when known (default: from ``time_s``).
+    split : ndarray of int, shape (n,), optional
+        A stretch also ends wherever this label changes (e.g. each dropped segment's id, -1
+        elsewhere: a fault then never rings through the filter into its neighbours).
 
     Returns
     -------
@@ -49,6 +53,10 @@ def band_passed(
     xv = np.asarray(x, dtype=np.float64)
     t = np.asarray(time_s, dtype=np.float64)
     st = find_stretches(t, np.isfinite(xv), max_gap_s)
+    if split is not None and len(st) > 1:
+        sp = np.asarray(split)
+        lab = np.cumsum(np.r_[True, (st[1:] != st[:-1]) | (sp[1:] != sp[:-1])]) - 1
+        st = np.where(st >= 0, lab, -1)
     fs = sampling_rate(t) if fs_hz is None else fs_hz
     sos = butter_sos("bandpass", band_hz, fs, order)
     out = filter_stretches(xv[None, :], st, sos, axis=1)[0]

@@ -24,7 +24,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from .._core.stretches import find_stretches
+from ..compensation.apply import isolate_dropped
 from ..compensation.config import CompensationConfig
+from ..compensation.metrics import compensation_metrics
 from ..compensation.terms import TERMS_16
 from ..errors import AeromagError, InputError
 from .diagnostics import fit_diagnostics
@@ -34,7 +37,7 @@ from .maneuvers import CARDINALS, ManeuverResult, detect_maneuvers
 from .noise import fourth_difference_noise, grouped_std
 from .residuals import PieceResiduals, piece_residuals
 
-__all__ = ["QCResult", "compute_qc", "quality_metrics"]
+__all__ = ["QCResult", "compute_qc", "headline_metrics", "quality_metrics"]
 
 log = logging.getLogger(__name__)
 
@@ -44,7 +47,7 @@ QC_SKIPPED_FOM = ("not computed for this run (FOM is for calibration flights: `a
 
 
 def residual_definition(trim_s: float) -> str:
-    """What the headline residual metrics are (the ``qc.definition`` text).
+    """What the per-piece rms figures are (the ``qc.per_piece_rms.definition`` text).
 
     Parameters
     ----------
@@ -57,8 +60,83 @@ def residual_definition(trim_s: float) -> str:
     """
     return ("rms of mag and of mag - mag_tl band-passed in band_hz (zero-phase Butterworth),"
             " each segment piece (one segment within one continuous stretch) filtered on its"
-            f" own, {trim_s:g} s trimmed at its ends; headline over the kept segments, all_data"
-            " over every piece")
+            f" own, {trim_s:g} s trimmed at its ends; 'kept' over the kept segments, 'all' over"
+            " every piece. A diagnostic beside the headline, not the improvement ratio")
+
+
+def _per_piece(d: dict[str, Any]) -> dict[str, Any]:
+    return {"per_piece_rms_ratio": d["improvement_ratio"],
+            "per_piece_rms_after_nT": d["residual_std_nT"],
+            "per_piece_rms_before_nT": d["std_before_nT"], "n_samples": d["n_samples"]}
+
+
+def headline_metrics(comp_metrics: dict[str, Any], per_piece_kept: dict[str, Any],
+                     per_piece_all: dict[str, Any], trim_s: float) -> dict[str, Any]:
+    """The QC headline: the contract's metrics, with the per-piece rms figures beside them.
+
+    Parameters
+    ----------
+    comp_metrics : dict
+        :func:`aeromag.compensation.metrics.compensation_metrics` of the log (the same block
+        as OUT.json ``metrics``).
+    per_piece_kept, per_piece_all : dict
+        Per-piece rms figures (:class:`aeromag.qc.residuals.PieceResiduals` ``kept``/``all``:
+        ``improvement_ratio``, ``residual_std_nT``, ``std_before_nT``, ``n_samples``).
+    trim_s : float
+        Edge trimmed at each end of every segment piece for those [s].
+
+    Returns
+    -------
+    dict
+        ``definition``, ``improvement_ratio``, ``residual_std_nT``, ``std_before_nT`` [nT],
+        ``n_samples`` (over the kept segments, exactly the ``metrics`` block's), ``all_data``
+        (the same over all segments) and ``per_piece_rms`` (``definition``, ``kept``, ``all``
+        with ``per_piece_rms_ratio``, ``per_piece_rms_after_nT``, ``per_piece_rms_before_nT``
+        [nT], ``n_samples``).
+    """
+    cm = comp_metrics
+    return {
+        "definition": cm["definition"],
+        "improvement_ratio": cm["improvement_ratio"], "residual_std_nT": cm["residual_std_nT"],
+        "std_before_nT": cm["std_before_nT"], "n_samples": cm["n_samples"],
+        "all_data": {"improvement_ratio": cm["all_improvement_ratio"],
+                     "residual_std_nT": cm["all_residual_std_nT"],
+                     "std_before_nT": cm["all_std_before_nT"],
+                     "n_samples": cm["all_n_samples"]},
+        "per_piece_rms": {"definition": residual_definition(trim_s),
+                          "kept": _per_piece(per_piece_kept), "all": _per_piece(per_piece_all)},
+    }
+
+
+def contract_metrics(t: np.ndarray, mag: np.ndarray, tl: np.ndarray, seg: np.ndarray,
+                     kept: np.ndarray, cfg: CompensationConfig) -> dict[str, Any]:
+    """OUT.json's ``metrics`` recomputed from a compensated log (compensation.metrics).
+
+    Band-passes ``mag`` and ``mag - mag_tl`` once per continuous stretch of finite samples,
+    each dropped segment on its own, as :func:`aeromag.compensation.apply_model` does.
+
+    Parameters
+    ----------
+    t : ndarray
+        Times [s].
+    mag, tl : ndarray
+        Total field and the model's interference ``mag_tl`` [nT].
+    seg : ndarray of int
+        Segment per sample (-1: none).
+    kept : ndarray of bool
+        Samples of kept segments.
+    cfg : CompensationConfig
+        Band, order, trim and gap.
+
+    Returns
+    -------
+    dict
+        :func:`aeromag.compensation.metrics.compensation_metrics`.
+    """
+    after = mag - tl
+    st = find_stretches(t, np.isfinite(after), cfg.max_gap_s)
+    st = isolate_dropped(st, seg, kept)
+    return compensation_metrics(mag, after, t, st, cfg, kept=kept)
 
 
 @dataclass
@@ -174,18 +252,15 @@ def _compute(
         notes.append("no mag_tl column: residuals are band-passed mag_comp (low-passed)")
     pieces = piece_residuals(t, mag, tl, seg, kept_mask(data), band, cfg.order,
                              trim_s=cfg.trim_s, max_gap_s=cfg.max_gap_s)
-    k, a = pieces.kept, pieces.all
-    metrics.update(
-        definition=residual_definition(pieces.trim_s),
-        improvement_ratio=k["improvement_ratio"], residual_std_nT=k["residual_std_nT"],
-        std_before_nT=k["std_before_nT"], n_samples=k["n_samples"],
-        all_data=a)
+    kept = kept_mask(data)
+    cm = contract_metrics(t, mag, tl, seg, kept, cfg)
+    metrics.update(headline_metrics(cm, pieces.kept, pieces.all, pieces.trim_s))
     if base_metrics:
         metrics["compensation_metrics"] = base_metrics
     seg_std = pieces.by_segment
     resid_bp = pieces.after_bp
-    band_before = a["std_before_nT"]
-    band_after = a["residual_std_nT"]
+    band_before = cm["all_std_before_nT"]
+    band_after = cm["all_residual_std_nT"]
     metrics["residual_std_by_segment_nT"] = {str(k): v for k, v in seg_std.items()}
     metrics["noise"] = {
         "band_hz": list(band),

@@ -440,7 +440,7 @@ def _qc_block(metrics: dict[str, Any], residual: dict[int, float],
     """The report's ``qc`` block, as :func:`aeromag.qc.compute_qc` gives it for a saved model."""
     from ..qc import FOURTH_DIFF_NORM
     from ..qc.fom import fom_not_applicable
-    from ..qc.quality import QC_SKIPPED_FOM, QC_SKIPPED_NOTE, residual_definition
+    from ..qc.quality import QC_SKIPPED_FOM, QC_SKIPPED_NOTE, headline_metrics
     from ..qc.residuals import rms_summary
 
     def noise(m: StreamingMoments) -> float:
@@ -449,18 +449,13 @@ def _qc_block(metrics: dict[str, Any], residual: dict[int, float],
     every, kept = rms_summary(*sums["all"]), rms_summary(*sums["seg"])
     return {
         "band_hz": list(cfg.band_hz),
-        "definition": residual_definition(trim_s),
-        "improvement_ratio": kept["improvement_ratio"],
-        "residual_std_nT": kept["residual_std_nT"],
-        "std_before_nT": kept["std_before_nT"],
-        "n_samples": kept["n_samples"],
-        "all_data": every,
+        **headline_metrics(metrics, kept, every, trim_s),  # the headline is OUT.json metrics
         "compensation_metrics": metrics,
         "residual_std_by_segment_nT": {str(k): v for k, v in sorted(residual.items())},
         "noise": {
             "band_hz": list(cfg.band_hz),
-            "band_std_before_nT": every["std_before_nT"],
-            "band_std_after_nT": every["residual_std_nT"],
+            "band_std_before_nT": metrics["all_std_before_nT"],
+            "band_std_after_nT": metrics["all_residual_std_nT"],
             "fourth_difference_before_nT": noise(d4_before),
             "fourth_difference_after_nT": noise(d4_after),
         },

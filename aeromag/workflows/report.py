@@ -533,6 +533,7 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
         frows = [["FOM before (nT)", fom.get("fom_before_nT")],
                  ["FOM after (nT)", fom.get("fom_after_nT")],
                  ["FOM reduction (before / after)", fom.get("fom_reduction")],
+                 ["FOM after, manoeuvres in kept segments only (nT)", fom.get("fom_kept_after_nT")],
                  ["complete boxes", f"{len(fom.get('complete_boxes', []))} (box "
                   + ", ".join(map(str, fom.get("complete_boxes", []))) + ")"]]
         if fom.get("fom_truth_nT") is not None:

@@ -1,0 +1,77 @@
+"""Manoeuvre windows clipped at survey-line boundaries (a manoeuvre never spans two lines)."""
+
+from __future__ import annotations
+
+import logging
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pandas as pd
+
+from .._core.runs import run_bounds
+
+if TYPE_CHECKING:
+    from .maneuvers import ManeuverResult
+
+log = logging.getLogger(__name__)
+
+
+def clip_to_lines(res: ManeuverResult, line: pd.Series | np.ndarray,
+                  t: np.ndarray, fs: float) -> ManeuverResult:
+    """Clip every manoeuvre to the longest part of it that lies on one line.
+
+    A detected window can run a second or two into the neighbouring line (the energy windows
+    and the block-rate detection blur its edges); that line may be a dropped segment (a
+    fault), whose samples would then enter the manoeuvre's peak-to-peak.  The samples of a
+    manoeuvre outside its longest single-line part lose their manoeuvre label.
+
+    Parameters
+    ----------
+    res : ManeuverResult
+        Detected manoeuvres (modified copy returned; ``res`` itself is not changed).
+    line : Series or ndarray, shape (n,)
+        Line of each sample (any values; missing values form no line of their own).
+    t : ndarray, shape (n,)
+        Times [s].
+    fs : float
+        Sampling rate [Hz].
+
+    Returns
+    -------
+    ManeuverResult
+        With ``labels`` ``maneuver``/``maneuver_id`` and ``table`` ``t_start``, ``t_end``,
+        ``n``, ``duration_s`` clipped.
+    """
+    codes = pd.factorize(pd.Series(np.asarray(line)), use_na_sentinel=True)[0]
+    mid = res.labels["maneuver_id"].to_numpy()
+    a, b, ids = run_bounds(mid)
+    spans = [(s, e, i) for s, e, i in zip(a, b, ids, strict=True)
+             if i >= 0 and (codes[s:e] != codes[s]).any()]
+    if not spans:
+        return res
+    labels = res.labels.copy()
+    table = res.table.copy()
+    new_mid = mid.copy()
+    man = np.asarray(labels["maneuver"].cat.codes).copy()
+    row = {int(v): k for k, v in zip(table.index, table["id"], strict=True)}
+    for s, e, i in spans:
+        c = codes[s:e]
+        cut = np.flatnonzero(np.r_[True, c[1:] != c[:-1], True])
+        k = int(np.argmax(np.diff(cut)))
+        ks, ke = s + cut[k], s + cut[k + 1]
+        drop = np.r_[s:ks, ke:e]
+        new_mid[drop] = -1
+        man[drop] = 0
+        r = row[int(i)]
+        table.loc[r, ["t_start", "t_end"]] = [t[ks], t[ke - 1]]
+        if "n" in table.columns:
+            table.loc[r, "n"] = ke - ks
+        if "duration_s" in table.columns:
+            table.loc[r, "duration_s"] = t[ke - 1] - t[ks] + 1.0 / fs
+        log.info("manoeuvre %d clipped to one line: %.3f-%.3f s (%d samples on another line)",
+                 int(i), t[ks], t[ke - 1], len(drop))
+    labels["maneuver_id"] = new_mid
+    labels["maneuver"] = pd.Categorical.from_codes(man, categories=labels["maneuver"].cat
+                                                   .categories)
+    return type(res)(labels, table, res.legs, res.method, res.heading_offset_deg,
+                     list(res.notes))
