@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -77,7 +78,9 @@ def total_field_from_fluxgate(df: pd.DataFrame, cfg: CompensationConfig, source:
         return True
     if has_mag:
         return False
-    scalar_like = [c for c in df.columns if c not in CANONICAL_COLUMNS and _field_like(df[c])]
+    names = {str(c).lower() for c in df.columns}
+    scalar_like = [c for c in df.columns if c not in CANONICAL_COLUMNS
+                   and not _vector_component(str(c), names) and _field_like(df[c])]
     if scalar_like:
         c = scalar_like[0]
         raise InputError(
@@ -90,13 +93,29 @@ def total_field_from_fluxgate(df: pd.DataFrame, cfg: CompensationConfig, source:
     return True
 
 
+def _vector_component(name: str, names_lower: set[str]) -> bool:
+    """Whether ``name`` is one axis of a 3-axis sensor whose other two axes are columns too.
+
+    A second fluxgate (the MagDrone R3 logs ``B1x..B1z`` and ``B2x..B2z``, no scalar) has
+    components of total-field size; they are no misnamed scalar magnetometer.
+    """
+    m = re.fullmatch(r"(.*?)([_\-. ]?)([xyz])", name, flags=re.IGNORECASE)
+    if m is None or not m.group(1):
+        return False
+    stem, sep, axis = m.group(1).lower(), m.group(2), m.group(3).lower()
+    return all(f"{stem}{sep}{a}" in names_lower for a in "xyz" if a != axis)
+
+
 def _field_like(col: pd.Series) -> bool:
-    """A numeric column whose median looks like a total field in nT (10,000-100,000)."""
+    """A numeric column whose median looks like a total field in nT (10,000-100,000 nT).
+
+    A scalar magnetometer reads a positive total field, so the median must be positive.
+    """
     if not pd.api.types.is_numeric_dtype(col) or pd.api.types.is_bool_dtype(col):
         return False
     v = col.to_numpy(dtype=np.float64)
     v = v[np.isfinite(v)]
-    return bool(v.size) and 10_000.0 <= abs(float(np.median(v))) <= 100_000.0
+    return bool(v.size) and 10_000.0 <= float(np.median(v)) <= 100_000.0
 
 
 def check_total_field(model: Any, mag_from_flux: bool, source: str) -> None:
