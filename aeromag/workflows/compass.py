@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import logging
 import os
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -14,8 +13,7 @@ from .._core.rls import check_forgetting
 from ..compass.calibration import CompassResult, attitude_at_samples, calibrate_compass
 from ..compass.reference import ReferenceField, explicit_field, igrf_field
 from ..errors import InputError
-from ..io import atomic_path, json_path_for, read_log, write_csv, write_json
-from .compensate import check_outputs
+from ._frame_files import frame_to_files
 
 log = logging.getLogger(__name__)
 
@@ -194,15 +192,8 @@ def compass_file(log_path: str | os.PathLike[str], out_path: str | os.PathLike[s
     dict
         The report.
     """
-    out = Path(out_path)
-    out_json = json_path_for(out)
-    check_outputs(log_path, out, out_json)
-    check_forgetting(forgetting)
-    df = read_log(log_path, columns=columns, units=units, required=("time",), fmt=fmt)
-    data, report, _ = compass_frame(df, forgetting=forgetting, date=date,
-                                    earth_field=earth_field, alpha=alpha, window_s=window_s,
-                                    source=str(log_path))
-    with atomic_path(out) as tmp_csv, atomic_path(out_json) as tmp_json:
-        write_csv(data, tmp_csv)
-        write_json(report, tmp_json)
-    return report
+    return frame_to_files(
+        log_path, out_path, forgetting,
+        lambda df: compass_frame(df, forgetting=forgetting, date=date, earth_field=earth_field,
+                                 alpha=alpha, window_s=window_s, source=str(log_path)),
+        columns=columns, units=units, fmt=fmt)

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import logging
 import os
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -25,8 +24,7 @@ from ..compensation.metrics import compensation_metrics
 from ..compensation.online import LATENCY_SAMPLES, OnlineTL, OnlineTLResult
 from ..compensation.prepare import prepare
 from ..errors import FitError, InputError
-from ..io import atomic_path, json_path_for, read_log, write_csv, write_json
-from .compensate import check_outputs
+from ._frame_files import frame_to_files
 
 log = logging.getLogger(__name__)
 
@@ -158,14 +156,8 @@ def compensate_online_file(log_path: str | os.PathLike[str], out_path: str | os.
     dict
         The report.
     """
-    out = Path(out_path)
-    out_json = json_path_for(out)
-    check_outputs(log_path, out, out_json)
-    check_forgetting(forgetting)
-    df = read_log(log_path, columns=columns, units=units, required=("time",), fmt=fmt)
-    data, report, _ = compensate_online_frame(df, cfg, forgetting=forgetting,
-                                              derivative=derivative, source=str(log_path))
-    with atomic_path(out) as tmp_csv, atomic_path(out_json) as tmp_json:
-        write_csv(data, tmp_csv)
-        write_json(report, tmp_json)
-    return report
+    return frame_to_files(
+        log_path, out_path, forgetting,
+        lambda df: compensate_online_frame(df, cfg, forgetting=forgetting,
+                                           derivative=derivative, source=str(log_path)),
+        columns=columns, units=units, fmt=fmt)
