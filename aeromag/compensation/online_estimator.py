@@ -102,14 +102,7 @@ class OnlineTollesLawson(RegressorMixin, BaseEstimator):
         return self
 
     def fit(self, X: Any, y: Any) -> OnlineTollesLawson:
-        """Start afresh and run over the whole log.
-
-        Parameters
-        ----------
-        X : array_like, shape (n, 4)
-            time [s], flux_x, flux_y, flux_z [nT].
-        y : array_like, shape (n,)
-            Scalar magnetometer [nT].
+        """Start afresh and run over the whole log (``X`` and ``y`` as in :meth:`partial_fit`).
 
         Returns
         -------
