@@ -7,8 +7,8 @@ import os
 from pathlib import Path
 from typing import Any
 
-from ..io import write_csv, write_json
 from ..synthetic.mission import simulate_mission
+from ._sim_files import sim_folder, write_sim_set
 
 __all__ = ["write_mission_files"]
 
@@ -44,17 +44,13 @@ def write_mission_files(out_dir: str | os.PathLike[str], *, seed: int = 0, small
     dict
         ``{"mission": Path, "plan": Path, "truth": Path}``.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = sim_folder(out_dir)
     if small:
         kwargs.setdefault("line_m", 250.0)
     df, plan, truth = simulate_mission(seed=seed, **kwargs)
     df = df.round({c: d for c, d in _DECIMALS.items() if c in df.columns})
     plan = plan.round({"lat": 9, "lon": 9, "alt": 4})
-    paths = {"mission": out / "mission.csv", "plan": out / "mission_plan.csv",
-             "truth": out / "mission_truth.json"}
-    write_csv(df, paths["mission"])
-    write_csv(plan, paths["plan"])
-    write_json(truth, paths["truth"])
+    paths = write_sim_set(out, {"mission": ("mission.csv", df), "plan": ("mission_plan.csv", plan),
+                                "truth": ("mission_truth.json", truth)})
     log.info("wrote %s", ", ".join(str(p) for p in paths.values()))
     return paths

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 from ..errors import InputError
-from ..io import atomic_path, write_csv, write_json
 from ..synthetic.quadrotor import SCENARIOS, simulate_quadrotor
+from ._sim_files import sim_folder, write_sim_set
 
 __all__ = ["write_quadrotor_files"]
 
@@ -33,24 +34,14 @@ def write_quadrotor_files(out_dir: str | os.PathLike[str], *, seed: int = 0,
         attitude in degrees, geodetic position) and ``quadrotor_truth`` (JSON: site, date,
         Earth field, true sensor biases and error figures of each flight), written as a set.
     """
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{out}: exists and is not a folder; give -o a folder")
+    out = sim_folder(out_dir)
     if not duration_s > 1.0:
         raise InputError(f"quadrotor flight duration must exceed 1 s, got {duration_s}")
     flights = {s: simulate_quadrotor(s, duration_s=duration_s, seed=seed) for s in SCENARIOS}
-    out.mkdir(parents=True, exist_ok=True)
-    paths: dict[str, Path] = {}
-    for s in flights:
-        paths[f"quadrotor_{s}"] = out / f"quadrotor_{s}.csv"
-        paths[f"quadrotor_{s}_truth"] = out / f"quadrotor_{s}_truth.csv"
-    paths["quadrotor_truth"] = out / "quadrotor_truth.json"
-    with (atomic_path(paths["quadrotor_hover"]) as h, atomic_path(paths["quadrotor_rectangle"])
-          as r, atomic_path(paths["quadrotor_hover_truth"]) as ht,
-          atomic_path(paths["quadrotor_rectangle_truth"]) as rt,
-          atomic_path(paths["quadrotor_truth"]) as tj):
-        for (log_p, truth_p), fl in zip(((h, ht), (r, rt)), flights.values(), strict=True):
-            write_csv(fl.log, log_p)
-            write_csv(fl.truth, truth_p)
-        write_json({s: fl.info for s, fl in flights.items()}, tj)
+    files: dict[str, tuple[str, Any]] = {}
+    for s, fl in flights.items():
+        files[f"quadrotor_{s}"] = (f"quadrotor_{s}.csv", fl.log)
+        files[f"quadrotor_{s}_truth"] = (f"quadrotor_{s}_truth.csv", fl.truth)
+    files["quadrotor_truth"] = ("quadrotor_truth.json", {s: fl.info for s, fl in flights.items()})
+    paths = write_sim_set(out, files)
     return paths

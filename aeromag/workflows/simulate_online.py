@@ -12,10 +12,9 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from ..errors import InputError
-from ..io import atomic_path, write_csv, write_json
 from ..synthetic.compass import simulate_compass
 from ..synthetic.online_tl import simulate_online_tl
+from ._sim_files import sim_folder, write_sim_set
 
 __all__ = ["write_online_simulation", "TAIYUAN"]
 
@@ -41,22 +40,14 @@ def write_online_simulation(out_dir: str | os.PathLike[str], *, seed: int = 0,
     dict of str to Path
         ``compass``, ``compass_truth``, ``online_tl``, ``online_tl_truth``.
     """
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{out}: exists and is not a folder; give -o a folder")
+    out = sim_folder(out_dir)
     comp, comp_truth = simulate_compass(seed=seed)
     comp["lat"], comp["lon"], comp["alt"] = TAIYUAN
     comp_truth["site"] = {"lat": TAIYUAN[0], "lon": TAIYUAN[1], "alt_m": TAIYUAN[2],
                           "date": "2017-07-01"}
     kw = {"duration_s": 600.0, "jump_s": 300.0} if small else {"duration_s": 2400.0}
     tl, tl_truth = simulate_online_tl(seed=seed, **kw)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = {"compass": out / "compass.csv", "compass_truth": out / "compass_truth.json",
-             "online_tl": out / "online_tl.csv", "online_tl_truth": out / "online_tl_truth.json"}
-    with atomic_path(paths["compass"]) as a, atomic_path(paths["compass_truth"]) as b, \
-            atomic_path(paths["online_tl"]) as c, atomic_path(paths["online_tl_truth"]) as d:
-        write_csv(comp, a)
-        write_json(comp_truth, b)
-        write_csv(tl, c)
-        write_json(tl_truth, d)
-    return paths
+    return write_sim_set(out, {"compass": ("compass.csv", comp),
+                               "compass_truth": ("compass_truth.json", comp_truth),
+                               "online_tl": ("online_tl.csv", tl),
+                               "online_tl_truth": ("online_tl_truth.json", tl_truth)})
