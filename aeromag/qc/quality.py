@@ -253,7 +253,10 @@ def _compute(
     pieces = piece_residuals(t, mag, tl, seg, kept_mask(data), band, cfg.order,
                              trim_s=cfg.trim_s, max_gap_s=cfg.max_gap_s)
     kept = kept_mask(data)
-    cm = contract_metrics(t, mag, tl, seg, kept, cfg)
+    # The headline is the compensation's own metrics of this log (OUT.json metrics, computed on
+    # its prepared arrays: gaps interpolated, stretches as fitted); recomputed only without them.
+    cm = (base_metrics if base_metrics and "all_improvement_ratio" in base_metrics
+          else contract_metrics(t, mag, tl, seg, kept, cfg))
     metrics.update(headline_metrics(cm, pieces.kept, pieces.all, pieces.trim_s))
     if base_metrics:
         metrics["compensation_metrics"] = base_metrics
