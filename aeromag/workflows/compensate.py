@@ -50,19 +50,14 @@ def compensate(
 
     Parameters
     ----------
-    df : DataFrame
-        Log with canonical columns.
-    cfg : CompensationConfig, optional
-        Options.
-    model : TLModel, optional
-        A saved model to apply instead of fitting.
-    source : str, optional
-        File name for messages and the report.
+    df, cfg, model, source
+        As in :func:`aeromag.compensation.pipeline.compensate` (log, options, saved model to
+        apply instead of fitting, file name for messages).
 
     Returns
     -------
-    CompensationResult
-        See :func:`aeromag.compensation.pipeline.compensate`.
+    CompensationRun
+        The pipeline's result with the report's ``qc`` block added.
     """
     res = _run(_pipeline.compensate(df, cfg, model=model, source=source))
     _add_qc(res)
