@@ -16,12 +16,10 @@ from .physics import (
     MANEUVER_AMPLITUDE_DEG,
     MANEUVERS,
     EarthField,
-    _check_coef,
     _diurnal,
-    _streams,
+    _flight_setup,
     _taper,
     band_noise,
-    default_aircraft_coef,
 )
 
 log = logging.getLogger(__name__)
@@ -118,9 +116,7 @@ def simulate_calibration(
                   turbulence_deg=turbulence_deg, pos_noise_m=pos_noise_m)
     if int(n_boxes) < 1:
         raise InputError(f"n_boxes: must be at least 1, got {n_boxes!r}")
-    earth = earth or EarthField()
-    k = default_aircraft_coef() if coef is None else _check_coef(coef)
-    rng, rng_noise, rng_fault = _streams(seed, 1)
+    earth, k, rng, rng_noise, rng_fault = _flight_setup(seed, 1, earth, coef)
     m = int(round(maneuver_s * rate_hz))
     if m < 20:
         raise InputError(f"maneuver_s: {maneuver_s} s at {rate_hz} Hz gives under 20 samples")

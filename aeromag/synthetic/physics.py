@@ -395,6 +395,19 @@ def _streams(seed: int, flight: int) -> tuple[np.random.Generator, ...]:
     return tuple(np.random.default_rng(s) for s in ss.spawn(3))
 
 
+def _flight_setup(seed: int, flight: int, earth: EarthField | None, coef: Any | None,
+                  ) -> tuple[EarthField, np.ndarray, np.random.Generator, np.random.Generator,
+                             np.random.Generator]:
+    """The main field, checked TL coefficients and the three streams of one flight.
+
+    Shared by the calibration and survey simulators: ``EarthField()`` when ``earth`` is None,
+    :func:`default_aircraft_coef` when ``coef`` is None, then :func:`_streams`.
+    """
+    k = default_aircraft_coef() if coef is None else _check_coef(coef)
+    rng, rng_noise, rng_fault = _streams(seed, flight)
+    return earth or EarthField(), k, rng, rng_noise, rng_fault
+
+
 def band_noise(
     rng: np.random.Generator, n: int, rate_hz: float, f_lo: float, f_hi: float, rms: float
 ) -> np.ndarray:

@@ -14,12 +14,10 @@ from .physics import (
     _MU0_4PI_NT,
     DEFAULT_ORIGIN,
     EarthField,
-    _check_coef,
     _diurnal,
-    _streams,
+    _flight_setup,
     _taper,
     band_noise,
-    default_aircraft_coef,
     dipole_field_ned,
     local_to_geodetic,
 )
@@ -124,9 +122,7 @@ def simulate_survey(
                   turn_s=turn_s)
     if int(n_lines) < 1:
         raise InputError(f"n_lines: must be at least 1, got {n_lines!r}")
-    earth = earth or EarthField()
-    k = default_aircraft_coef() if coef is None else _check_coef(coef)
-    rng, rng_noise, rng_fault = _streams(seed, 2)
+    earth, k, rng, rng_noise, rng_fault = _flight_setup(seed, 2, earth, coef)
     n = int(round(line_length_m / speed_mps * rate_hz)) + 1
     if n < 20:
         raise InputError(f"line_length_m: {line_length_m} m at {speed_mps} m/s is too short")
