@@ -252,6 +252,11 @@ def unscented_transform(f: ArrayFn, x: np.ndarray, P: np.ndarray, alpha: float =
     return y, symmetrize(cov), cross
 
 
+def _angle_index(angle_idx: Sequence[int]) -> np.ndarray:
+    """The angle components' indices as an integer array (for fancy indexing)."""
+    return np.asarray(list(angle_idx), dtype=np.intp)
+
+
 def angle_residual_fn(angle_idx: Sequence[int]) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
     """Residual ``a - b`` with the components ``angle_idx`` (radians) wrapped to [-pi, pi).
 
@@ -265,7 +270,7 @@ def angle_residual_fn(angle_idx: Sequence[int]) -> Callable[[np.ndarray, np.ndar
     callable
         ``fn(a, b)`` broadcasting like ``a - b``.
     """
-    idx = np.asarray(list(angle_idx), dtype=np.intp)
+    idx = _angle_index(angle_idx)
 
     def residual(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         d = np.asarray(a, dtype=np.float64) - b
@@ -285,14 +290,14 @@ def angle_mean_fn(angle_idx: Sequence[int]) -> Callable[[np.ndarray, np.ndarray]
     Parameters
     ----------
     angle_idx : sequence of int
-        Indices (last axis) of the components that are angles in radians.
+        As in :func:`angle_residual_fn`.
 
     Returns
     -------
     callable
         ``fn(Y, Wm)`` with ``Y`` of shape ``(..., k, m)`` returning ``(..., m)``.
     """
-    idx = np.asarray(list(angle_idx), dtype=np.intp)
+    idx = _angle_index(angle_idx)
 
     def mean(Y: np.ndarray, Wm: np.ndarray) -> np.ndarray:
         y = _weighted_mean(Y, Wm)
