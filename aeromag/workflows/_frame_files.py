@@ -29,10 +29,8 @@ def frame_to_files(log_path: str | os.PathLike, out_path: str | os.PathLike, for
         Forgetting factor lambda (checked before the log is read).
     frame : callable
         ``frame(df) -> (data, report, extra)``; ``extra`` is ignored.
-    columns, units : dict, optional
-        Column map and unit conversions.
-    fmt : str, optional
-        Log format (default from the extension).
+    columns, units, fmt
+        Passed to :func:`aeromag.io.read_log` (``time`` is required).
 
     Returns
     -------
