@@ -19,10 +19,9 @@ def write_quadrotor_files(out_dir: str | os.PathLike[str], *, seed: int = 0,
 
     Parameters
     ----------
-    out_dir : path-like
-        Output folder (created when missing).
-    seed : int
-        Random seed.
+    out_dir, seed
+        Output folder and random seed, as in
+        :func:`aeromag.workflows.mission.write_mission_files`.
     duration_s : float
         Length of each flight, s.
 

@@ -28,10 +28,9 @@ def write_online_simulation(out_dir: str | os.PathLike[str], *, seed: int = 0,
 
     Parameters
     ----------
-    out_dir : path-like
-        Output folder (created when missing).
-    seed : int
-        Random seed.
+    out_dir, seed
+        Output folder and random seed, as in
+        :func:`aeromag.workflows.mission.write_mission_files`.
     small : bool
         A 10-minute survey instead of 40 minutes.
 
