@@ -4,6 +4,7 @@ flight, noisy positions, veering vehicles, --horizontal), each on a small simula
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from aeromag.synthetic.mission import simulate_mission
@@ -123,3 +124,44 @@ def test_a_bad_latitude_in_a_mission_file_names_the_mission_item():
     plan.attrs["lines"] = [40, 78]
     with pytest.raises(InputError, match="navigation waypoint 2 of the mission .* line 78"):
         validate_plan(plan, "m.plan")
+
+
+def _veer_flight(ramp_m: float, dev_m: float = 5.0, seed: int = 3):
+    """Hand-made flight of one 200 m leg north at 5 m/s, 10 Hz, with 5 s hovers at both
+    waypoints; from 80 m along, the vehicle veers east by ``dev_m`` over ``ramp_m`` (up to
+    atan(dev / ramp) off the leg direction), holds the offset to 150 m and comes back over
+    ``ramp_m``.  Returns the log, the plan and the true cross-track distance, m."""
+    from aeromag._core.geodesy import ned_to_geodetic
+
+    origin = (47.3, 8.5, 500.0)
+    fs, v, length = 10.0, 5.0, 200.0
+    hover = np.zeros(int(5 * fs))
+    x = np.r_[hover, np.arange(0.0, length, v / fs), hover + length]
+    y = dev_m * (np.clip((x - 80.0) / ramp_m, 0, 1) - np.clip((x - 150.0) / ramp_m, 0, 1))
+    truth = np.abs(y)
+    rng = np.random.default_rng(seed)
+    ned = np.c_[x, y, np.zeros_like(x)] + rng.normal(0.0, 0.02, (len(x), 3))
+    geo = ned_to_geodetic(ned, origin)
+    df = pd.DataFrame({"time": np.arange(len(x)) / fs, "lat": geo[:, 0], "lon": geo[:, 1],
+                       "alt": geo[:, 2]})
+    pg = ned_to_geodetic(np.array([[0.0, 0.0, 0.0], [length, 0.0, 0.0]]), origin)
+    plan = pd.DataFrame({"lat": pg[:, 0], "lon": pg[:, 1], "alt": pg[:, 2]})
+    return df, plan, truth
+
+
+@pytest.mark.parametrize("ramp_m", [10.0, 50.0])
+def test_a_vehicle_veering_off_the_leg_direction_keeps_its_leg_and_alarms_at_once(ramp_m):
+    # 5 m over 10 m is 27 deg off the leg: the direction term alone dropped it from the leg
+    # (alarm 12 samples late); 5 m over 50 m (6 deg) is the control
+    df, plan, truth = _veer_flight(ramp_m)
+    res = check_track(df, plan)
+    alarm = res.data["track_alarm"].to_numpy(dtype=bool)
+    beyond = truth > 1.0
+    first_true = int(np.flatnonzero(beyond)[0])
+    first_alarm = int(np.flatnonzero(alarm)[0])
+    assert first_alarm - first_true <= 1
+    lab = res.data["leg"].fillna(-1).to_numpy()
+    assert (lab[beyond] == 0).all()
+    assert res.legs[0]["n_passes"] == 1
+    # no alarm while hovering at either waypoint
+    assert not alarm[:50].any() and not alarm[-50:].any()

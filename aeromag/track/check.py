@@ -62,6 +62,7 @@ from .deviation import leg_summary, track_alarm
 from .geometry import cross_track
 from .legs import (
     LegModel,
+    continue_legs,
     decode_legs,
     labels_from_column,
     leg_evidence,
@@ -240,7 +241,8 @@ def check_track(
         labels = labels_from_column(data, n_legs, src)
         how = "log column"
     else:
-        labels = decode_legs(leg_evidence(ned, vel, wps, model), t, model)
+        labels = continue_legs(decode_legs(leg_evidence(ned, vel, wps, model), t, model),
+                               ned, vel, wps, model)
         how = "assigned"
         warnings += diagnose.plan_warnings(ned, vel, t, wps, labels, model, plan_src,
                                            info=plan_check)

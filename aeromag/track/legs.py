@@ -40,11 +40,13 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
+from .continuation import continue_legs
 from .geometry import cross_track
 
 __all__ = ["DEFAULT_WAYPOINT_RADIUS_M", "LegModel", "assign_legs", "decode_legs",
            "estimate_altitude_offset", "position_jitter_m", "velocity_for_legs",
-           "leg_evidence", "labels_from_column", "leg_passes", "motion_velocity", "viterbi"]
+           "leg_evidence", "labels_from_column", "leg_passes", "motion_velocity", "viterbi",
+           "continue_legs"]
 
 log = logging.getLogger(__name__)
 
@@ -442,7 +444,8 @@ def assign_legs(
     t = np.arange(len(p)) / 10.0 if time_s is None else np.asarray(time_s, dtype=np.float64)
     vel, _ = velocity_for_legs(t, p, model)
     ev = leg_evidence(p, vel, np.asarray(waypoints, dtype=np.float64), model)
-    lab = decode_legs(ev, t, model)
+    lab = continue_legs(decode_legs(ev, t, model), p, vel, np.asarray(waypoints, dtype=np.float64),
+                        model)
     lab[~np.isfinite(p).all(axis=1)] = -1
     return lab
 
