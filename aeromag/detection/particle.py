@@ -1,9 +1,11 @@
 """Particle-filter detector of magnetic interference: heading from the gyro vs the compass.
 
-Model (one state, the magnetic heading ``psi`` in rad, kept unwrapped):
+Model (two states: the magnetic heading ``psi`` in rad, kept unwrapped, and the gyro bias
+``b`` in rad/s):
 
-    psi_k = psi_{k-1} + dpsi_k + w_k,     w_k ~ N(0, sigma_w^2 dt)        (gyro propagation)
-    y_k   = wrap(psi_k + v_k),            v_k ~ N(0, sigma_y^2)           (compass heading)
+    psi_k = psi_{k-1} + dpsi_k - b_{k-1} dt_k + w_k,  w_k ~ N(0, sigma_w^2 dt)  (gyro)
+    b_k   = b_{k-1} + e_k,                            e_k ~ N(0, sigma_b^2 dt)  (bias walk)
+    y_k   = wrap(psi_k + v_k),                        v_k ~ N(0, sigma_y^2)     (compass)
 
 ``dpsi_k`` is the heading increment measured by the gyro over the interval ending at row
 ``k``: the Euler yaw rate ``(q sin(phi) + r cos(phi)) / cos(theta)`` from ``gyro_x/y/z`` and
@@ -13,10 +15,14 @@ slower).  Multi-rate logs: the gyro's integrated angle is interpolated to every 
 without a compass sample are prediction-only.  The compass heading is ``mag_heading`` or the
 tilt-compensated fluxgate heading (:func:`aeromag.detection.heading.mag_heading_from_flux`).
 
-The random walk ``sigma_w`` (default 0.15 deg/sqrt(s)) lets the filter follow a gyro bias and
-slow changes of the compass offset; a magnetic disturbance moves the compass heading faster
-than that, the innovations grow and the statistic ``S_k`` (sum over the last ``window``
-compass samples of ``-ln`` of the mean particle likelihood) crosses the threshold.
+The bias prior is the calm window's ``-d(compass - gyro heading)/dt`` (least squares; prior
+standard deviation three times its standard error, at least 0.05 deg/s; 2 deg/s without a calm
+estimate).  With the bias a state of its own the heading noise ``sigma_w`` (default
+0.1 deg/sqrt(s)) and the bias walk ``sigma_b`` (default 0.003 deg/s/sqrt(s)) are small: a
+disturbance turning the compass at ~1 deg/s cannot be followed as "bias", the innovations
+grow and the statistic ``S_k`` (sum over the last ``window`` compass samples of ``-ln`` of
+the mean particle likelihood) crosses the threshold.  A restart keeps the bias learnt before
+the compass left the filter.
 
 Noise and threshold come from the log:
 
@@ -73,8 +79,12 @@ __all__ = [
 DEFAULT_PARTICLES = 500
 #: Default window ``M`` of ``S_k``, compass samples.
 DEFAULT_WINDOW = 20
-#: Default heading random walk, deg / sqrt(s).
-DEFAULT_WALK_DEG = 0.15
+#: Default heading process noise, deg / sqrt(s) (the gyro bias is a state of its own).
+DEFAULT_WALK_DEG = 0.1
+#: Default random walk of the gyro bias, deg/s / sqrt(s).
+DEFAULT_BIAS_WALK_DEG = 0.003
+#: Prior standard deviation of the gyro bias without a calm-window estimate, deg/s.
+DEFAULT_BIAS_PRIOR_DEG = 2.0
 #: Default floor of the compass noise, deg.
 DEFAULT_SIGMA_FLOOR_DEG = 0.2
 #: Fewest compass samples with a full window in the calm window.
@@ -257,41 +267,77 @@ def _robust_sigma(inp: PFDetectorInputs, mask: np.ndarray | None = None) -> floa
 
 
 def heading_model(sigma_y_rad: float, walk_rad: float, y0: float,
-                  dt_s: float) -> StateSpaceModel:
-    """The heading model as a :class:`~aeromag._core.particles.StateSpaceModel`.
+                  dt_s: float, *, bias_walk_rad: float = 0.0, b0: float = 0.0,
+                  sd_b0: float = 0.0) -> StateSpaceModel:
+    """The heading-and-gyro-bias model as a :class:`~aeromag._core.particles.StateSpaceModel`.
+
+    State ``x = [psi, b]``: heading (rad, unwrapped) and gyro bias (rad/s).
 
     Parameters
     ----------
     sigma_y_rad : float
         Compass noise, rad.
     walk_rad : float
-        Heading random walk, rad / sqrt(s).
+        Heading process noise (what the gyro's own noise adds), rad / sqrt(s).
     y0 : float
-        First compass heading (the prior mean), rad.
+        First compass heading (the prior mean of ``psi``), rad.
     dt_s : float
-        Typical step, s (the random walk's variance per step is ``walk^2 dt``).
+        Typical step, s (the random walks' variances per step are ``walk^2 dt``).
+    bias_walk_rad : float
+        Random walk of the gyro bias, rad/s / sqrt(s).
+    b0, sd_b0 : float
+        Prior mean and standard deviation of the gyro bias, rad/s.
 
     Returns
     -------
     StateSpaceModel
-        Control ``u = [dpsi]`` (rad); measurement ``y = [heading]`` (rad, an angle).
+        Control ``u = [dpsi, dt]`` (rad, s): ``psi_k = psi_{k-1} + dpsi - b dt``;
+        measurement ``y = [heading]`` (rad, an angle).
     """
     r = float(sigma_y_rad) ** 2
     c = -0.5 * (np.log(r) + _LOG2PI)
 
     def f(x, k, u):
-        return x + u[..., :1]
+        psi = x[..., :1] + u[..., :1] - x[..., 1:2] * u[..., 1:2]
+        return np.concatenate([psi, x[..., 1:2]], axis=-1)
 
     def h(x, k):
-        return x
+        return x[..., :1]
 
     def loglik(y, x, k):
         d = wrap_rad(y[..., 0] - x[..., 0])
         return c - 0.5 * d * d / r
 
     q = max(float(walk_rad) ** 2 * float(dt_s), 1e-14)
-    return StateSpaceModel(f=f, Q=[[q]], loglik=loglik, x0=[y0], P0=[[4.0 * r]], h=h, R=[[r]],
-                           angle_y=(0,))
+    qb = max(float(bias_walk_rad) ** 2 * float(dt_s), 1e-16)
+    pb = max(float(sd_b0) ** 2, 1e-14)
+    return StateSpaceModel(f=f, Q=[[q, 0.0], [0.0, qb]], loglik=loglik, x0=[y0, b0],
+                           P0=[[4.0 * r, 0.0], [0.0, pb]], h=h, R=[[r]], angle_y=(0,))
+
+
+def _calm_bias(inp: PFDetectorInputs, calm: np.ndarray) -> tuple[float, float] | None:
+    """Gyro bias from the calm window: minus the slope of compass minus gyro heading.
+
+    Returns ``(b, sd_b)`` in rad/s (None with fewer than 10 compass samples in one stretch
+    of the calm window).
+    """
+    best = None
+    for s in np.unique(inp.segment):
+        rows = inp.segment == s
+        ang = np.cumsum(inp.dpsi_rad[rows])
+        m = (calm & np.isfinite(inp.y_rad))[rows]
+        if m.sum() < 10:
+            continue
+        tt = inp.time_s[rows][m]
+        d = np.unwrap(inp.y_rad[rows][m] - ang[m])
+        x = tt - tt.mean()
+        slope, c0 = np.polyfit(x, d, 1)
+        res = d - (c0 + slope * x)
+        sxx = float(np.sum(x * x))
+        sd = float(np.sqrt(np.sum(res**2) / max(m.sum() - 2, 1) / max(sxx, 1e-12)))
+        if best is None or m.sum() > best[2]:
+            best = (-float(slope), sd, int(m.sum()))
+    return None if best is None else (best[0], best[1])
 
 
 def particle_detector(
@@ -303,6 +349,7 @@ def particle_detector(
     calm_window: CalmWindow = None,
     margin: float | None = None,
     walk_deg: float = DEFAULT_WALK_DEG,
+    bias_walk_deg: float = DEFAULT_BIAS_WALK_DEG,
     sigma_floor_deg: float = DEFAULT_SIGMA_FLOOR_DEG,
     proposal: str = "unscented",
     scheme: str = "genetic",
@@ -332,7 +379,9 @@ def particle_detector(
         Added to the calm window's largest ``S_k`` (default ``(chi2_M(1 - 1e-6) - M) / 2``
         times the calm spread ratio, see the module text).
     walk_deg : float
-        Heading random walk, deg / sqrt(s).
+        Heading process noise, deg / sqrt(s).
+    bias_walk_deg : float
+        Random walk of the gyro bias, deg/s / sqrt(s).
     sigma_floor_deg : float
         Floor of the compass noise, deg.
     proposal, scheme : str
@@ -368,6 +417,8 @@ def particle_detector(
         raise InputError(f"--threshold {threshold!r}: must be a finite number")
     if not (np.isfinite(walk_deg) and walk_deg > 0):
         raise InputError(f"--walk {walk_deg!r}: the heading random walk must be positive")
+    if not (np.isfinite(bias_walk_deg) and bias_walk_deg >= 0):
+        raise InputError(f"bias_walk_deg {bias_walk_deg!r}: must be zero or positive")
     inp = prepare_pf_inputs(df, declination_deg=declination_deg, gap_s=gap_s, source=source)
     t = inp.time_s
     calm = calm_mask(t, calm_window)
@@ -375,6 +426,13 @@ def particle_detector(
     sig_calm = _robust_sigma(inp, calm)
     sigma_y = max(sig_all, sig_calm, np.deg2rad(sigma_floor_deg))
     walk = np.deg2rad(walk_deg)
+    bwalk = np.deg2rad(bias_walk_deg)
+    cb = _calm_bias(inp, calm)
+    if cb is None:
+        b0, sd_b0 = 0.0, float(np.deg2rad(DEFAULT_BIAS_PRIOR_DEG))
+    else:
+        # the fit's formal error is optimistic (correlated compass noise): floor 0.05 deg/s
+        b0, sd_b0 = cb[0], max(3.0 * cb[1], float(np.deg2rad(0.05)))
     dt = float(np.median(np.diff(t)))
     stat = np.full(t.size, np.nan)
     rng = np.random.default_rng(seed)
@@ -391,15 +449,18 @@ def particle_detector(
         fin = np.isfinite(yy)
         if fin.sum() < int(window):
             continue
-        md = heading_model(sigma_y, walk, float(yy[fin][0]), dt)
+        md = heading_model(sigma_y, walk, float(yy[fin][0]), dt, bias_walk_rad=bwalk,
+                           b0=b0, sd_b0=sd_b0)
         pf = ParticleFilter(md, int(n_particles), proposal=proposal, scheme=scheme,
                             window=int(window), seed=rng)
         out = np.full(rows.size, np.nan)
         tt = t[rows]
+        uu = np.column_stack([du, np.diff(tt, prepend=tt[0])])   # [dpsi, dt] per row
         ang = np.cumsum(du)                 # gyro heading of the stretch, rad
         mean = np.full(rows.size, np.nan)   # filter heading at compass rows, rad
         far = 0
         far_start = 0
+        b_last = b0
         last = np.nan
         ref: tuple[float, float, float, int] | None = None   # latch: (c, b, sd_b, j0)
         inside = 0
@@ -408,12 +469,12 @@ def particle_detector(
         for j in range(rows.size):
             yj = yy[j]
             if not np.isfinite(yj):
-                pf.step(None, du[j:j + 1])
+                pf.step(None, uu[j])
                 out[j] = last
                 if ref is not None:
                     held[rows[j]] = True
                 continue
-            r = pf.step(yj, du[j:j + 1])
+            r = pf.step(yj, uu[j])
             last = r.stat
             if restart is not None:
                 # After a restart, until the window is full again: the partial window's
@@ -425,6 +486,8 @@ def particle_detector(
                     restart = None
             out[j] = last
             mean[j] = r.mean[0]
+            if ref is None and far == 0:
+                b_last = float(r.mean[1])
             is_far = abs(wrap_rad(yj - r.mean[0])) > lim
             if is_far and far == 0:
                 far_start = j
@@ -454,7 +517,8 @@ def particle_detector(
                         held[rows[far_start:j + 1]] = True
                         inside = 0
                         n_latched += 1
-                md.x0 = np.array([yj])
+                # keep the bias learnt so far (a disturbance does not change the gyro)
+                md.x0 = np.array([yj, b_last])
                 pf.reset()
                 far, restart = 0, []
                 n_resets += 1
@@ -467,6 +531,9 @@ def particle_detector(
         "sigma_y_deg": float(np.rad2deg(sigma_y)),
         "sigma_y_log_deg": float(np.rad2deg(sig_all)),
         "sigma_y_calm_deg": float(np.rad2deg(sig_calm)), "walk_deg_sqrt_s": float(walk_deg),
+        "bias_walk_deg_s_sqrt_s": float(bias_walk_deg),
+        "gyro_bias_prior_deg_s": float(np.rad2deg(b0)),
+        "gyro_bias_prior_sd_deg_s": float(np.rad2deg(sd_b0)),
         "n_stretches": int(np.unique(inp.segment).size), "n_resets": int(n_resets),
         "seed": int(seed),
     }
