@@ -17,10 +17,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..conventions import CANONICAL_COLUMNS, FLUX_COLUMNS
+from ..conventions import CANONICAL_COLUMNS, FLUX_COLUMNS  # noqa: F401 - FLUX_COLUMNS re-exported
 from ..errors import InputError
 from .messages import clean
+from .model_file import read_map_document
 from .rows import row_location
+from .units import FIELD_UNITS_TO_NT, UNIT_GROUPS, unit_factor  # noqa: F401 - re-exported
 
 log = logging.getLogger(__name__)
 
@@ -31,27 +33,6 @@ NUMERIC_COLUMNS: tuple[str, ...] = tuple(CANONICAL_COLUMNS)
 #: Canonical columns that hold whole numbers (ids, counts): validated, not cast to float.
 INTEGER_COLUMNS: frozenset[str] = frozenset(
     c for c, unit in CANONICAL_COLUMNS.items() if unit in ("integer", "0-255"))
-
-
-#: Factors that convert a magnetic field unit to nT.
-FIELD_UNITS_TO_NT: dict[str, float] = {
-    "pt": 1.0e-3,
-    "nt": 1.0,
-    "ut": 1.0e3,
-    "\u00b5t": 1.0e3,  # micro sign (U+00B5)
-    "\u03bct": 1.0e3,  # Greek small letter mu (U+03BC): both are written for microtesla
-    "mt": 1.0e6,
-    "g": 1.0e5,
-    "gauss": 1.0e5,
-    "mg": 1.0e2,
-    "t": 1.0e9,
-}
-
-#: Unit groups: a key of ``units`` may name a group or a single column.
-UNIT_GROUPS: dict[str, tuple[str, ...]] = {
-    "flux": FLUX_COLUMNS,
-    "mag": ("mag",),
-}
 
 
 # --------------------------------------------------------------------------- column maps
@@ -105,32 +86,7 @@ def read_map_file(path: str | os.PathLike[str]) -> tuple[dict[str, str], dict[st
     -------
     columns, units : dict, dict
     """
-    from .model_file import read_map_document
-
     return read_map_document(path)
-
-
-def unit_factor(unit: str, *, what: str = "--units") -> float:
-    """Return the factor that converts a field unit to nT.
-
-    Parameters
-    ----------
-    unit : str
-        One of ``pT``, ``nT``, ``uT`` (``µT``, with either the micro sign U+00B5 or the
-        Greek mu U+03BC), ``mT``, ``G`` (``gauss``), ``mG``, ``T`` (case-insensitive).
-    what : str
-        Context quoted in the error message.
-
-    Returns
-    -------
-    float
-        Multiply values in ``unit`` by this to get nT.
-    """
-    key = unit.strip().lower()
-    if key not in FIELD_UNITS_TO_NT:
-        known = ", ".join(["pT", "nT", "uT", "mT", "G", "mG", "T"])
-        raise InputError(f"{what}: unknown field unit {unit!r}; use one of {known}")
-    return FIELD_UNITS_TO_NT[key]
 
 
 def plain_number(x: Any) -> str:

@@ -24,6 +24,7 @@ from typing import Any
 from ..errors import InputError
 from .messages import clean
 from .outputs import register_input
+from .units import unit_factor
 
 #: Largest model file read [bytes] (a calibration's report with per-segment scores is ~100 kB).
 MAX_MODEL_BYTES = 32 << 20
@@ -241,8 +242,6 @@ def read_map_document(path: str | os.PathLike[str]) -> tuple[dict[str, str], dic
     columns, units : dict, dict
         ``{canonical: source}`` and ``{column_or_group: unit}`` (units checked).
     """
-    from .columns import unit_factor
-
     p = Path(path)
     src = clean(p)
     text = read_limited(p, MAX_MAP_BYTES, "column-map file")
