@@ -39,7 +39,7 @@ def compass(
     verbose: Annotated[bool, typer.Option("-v", "--verbose", help="Log progress details.")]
     = False,
 ) -> None:
-    """Calibrate the vector magnetometer online (12 parameters) and write the heading.
+    """Calibrate the compass online (soft and hard iron).
 
     Estimates flux_cal = D @ flux + e sample by sample (recursive least squares with a
     forgetting factor) against the Earth field rotated into body axes by heading, pitch and
