@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import typer
@@ -27,8 +30,47 @@ def _warm(screen: bool, log: Path | None = None, fmt: str | None = None) -> None
     mods = ["aeromag.compensation", "scipy.signal", "aeromag.qc"]
     if screen:
         mods += ["sklearn.decomposition", "sklearn.covariance", "scipy.stats"]
-    for name in mods:
-        importlib.import_module(name)
+    with _plain_scipy_docs():
+        for name in mods:
+            importlib.import_module(name)
+
+
+class _PlainDoc(dict):
+    """Stand-in for scipy's ``FunctionDoc``: the docstring as it is, the notes appended."""
+
+    def __init__(self, func: object) -> None:
+        super().__init__(Notes=[])
+        self._doc = getattr(func, "__doc__", None) or ""
+
+    def __str__(self) -> str:  # scipy drops the first line (the signature)
+        return "\n" + self._doc + "".join("\n" + str(n) for n in self["Notes"])
+
+
+@contextmanager
+def _plain_scipy_docs() -> Iterator[None]:
+    """While importing: scipy's ``xp_capabilities`` appends its note without re-parsing.
+
+    scipy (1.15+) rebuilds the docstring of every array-API function it defines at import
+    time through its numpydoc parser (``scipy._lib._array_api.FunctionDoc``): 0.4 s of the
+    0.8 s CPU that importing scipy.signal costs, on the critical path of every command.  The
+    docstrings keep their text and the support note, unformatted.  Nothing changes when scipy
+    has no such hook or is imported already; the parser is put back afterwards.
+    """
+    mod = None
+    if "scipy.signal" not in sys.modules:
+        try:
+            import scipy._lib._array_api as mod
+        except ImportError:  # pragma: no cover - an older or reorganised scipy
+            mod = None
+    orig = getattr(mod, "FunctionDoc", None)
+    if orig is None:
+        yield
+        return
+    mod.FunctionDoc = _PlainDoc
+    try:
+        yield
+    finally:
+        mod.FunctionDoc = orig
 
 
 @command("compensate")
