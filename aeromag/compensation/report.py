@@ -24,7 +24,8 @@ from .segments import segment_counts
 if TYPE_CHECKING:
     from .fit import FitOutcome
 
-__all__ = ["AppliedRun", "applied_report", "dropped_summary", "fit_report"]
+__all__ = ["AppliedRun", "applied_report", "dropped_summary", "fit_report", "name_segments",
+           "segment_name"]
 
 
 def _header(source: str) -> dict[str, Any]:
@@ -139,7 +140,7 @@ def _segment_entries(fit: FitOutcome) -> list[dict[str, Any]]:
         segments.append({"id": sid, "n": int(n_of.get(int(sid), 0)), "n_fit": cnt,
                          "kept": False, "scores": None,
                          "residual_std": None, "condition_number": None,
-                         "reason": "too short to fit"})
+                         "too_short": True, "reason": "too short to fit"})
     segments.sort(key=lambda e: e["id"])
     if prep.line_of_segment:
         for e in segments:
@@ -149,7 +150,7 @@ def _segment_entries(fit: FitOutcome) -> list[dict[str, Any]]:
 
 
 def _explain_dropped(fit: FitOutcome, segments: list[dict[str, Any]]) -> None:
-    """Add to each dropped segment why (words and numbers), its time span and heading."""
+    """Add to each dropped segment why (words and numbers), its time span, heading and name."""
     stats, out, prep = fit.stats, fit.screening, fit.prep
     row = {int(s): j for j, s in enumerate(stats.ids)}
     for e in segments:
@@ -177,10 +178,71 @@ def _explain_dropped(fit: FitOutcome, segments: list[dict[str, Any]]) -> None:
                 h = h[np.isfinite(h)]
                 e["heading_deg"] = (float(np.rad2deg(circular_mean_rad(np.deg2rad(h))) % 360.0)
                                     if h.size else None)
+    name_segments(segments, lines=prep.from_line)
+
+
+def segment_name(entry: dict[str, Any], *, lines: bool = True) -> str:
+    """How the summary, the reports and the HTML name a segment.
+
+    Parameters
+    ----------
+    entry : dict
+        A report's segment entry (``id``; ``line``, ``start_time``, ``end_time`` [s] when
+        known).
+    lines : bool
+        Whether the segments are the log's flight lines (its ``line`` column).  Segments cut
+        from time windows or from detected heading legs / maneuvers are no lines.
+
+    Returns
+    -------
+    str
+        ``line 2`` for a flight line; otherwise ``segment 9 (120.0–185.3 s)`` (the span
+        in the log's time, when known), never ``line 9``.
+    """
+    if lines and entry.get("line") is not None:
+        return f"line {entry['line']:g}"
+    name = f"segment {entry['id']}"
+    t0, t1 = entry.get("start_time"), entry.get("end_time")
+    if t0 is not None and t1 is not None:
+        name += f" ({t0:.1f}–{t1:.1f} s)"
+    return name
+
+
+def name_segments(segments: list[dict[str, Any]], *, lines: bool) -> None:
+    """Give every segment that was not kept its ``name`` (:func:`segment_name`), in place.
+
+    With ``lines`` False (the segments are time windows, or heading legs / maneuvers that a
+    detector found in a log without a ``line`` column) no entry keeps a ``line`` key: a
+    segment id is no flight line.
+
+    Parameters
+    ----------
+    segments : list of dict
+        A report's ``segments``.
+    lines : bool
+        Whether the segments are the log's flight lines.
+    """
+    for e in segments:
+        if not lines:
+            e.pop("line", None)
+        if not e.get("kept"):
+            e["name"] = segment_name(e, lines=lines)
+
+
+def _too_short(entry: dict[str, Any]) -> bool:
+    return bool(entry.get("too_short")) or str(entry.get("reason", "")).startswith("too short")
+
+
+def _plural(n: int) -> str:
+    return f"{n} segment{'s' if n != 1 else ''}"
 
 
 def dropped_summary(report: dict[str, Any]) -> str:
-    """``dropped 1 segment: line 2`` (or ``segment 9`` without lines); empty when none.
+    """What the fit left out, for the command line's one-line summary; empty when nothing.
+
+    Segments the screening dropped and segments too short to fit are told apart:
+    ``dropped 1 segment: line 2; 1 segment not fitted (too short): line 7``; segments that
+    are no flight lines are named ``segment 9 (120.0–185.3 s)`` (:func:`segment_name`).
 
     Parameters
     ----------
@@ -193,11 +255,18 @@ def dropped_summary(report: dict[str, Any]) -> str:
         The phrase for the command line's one-line summary.
     """
     gone = [e for e in report.get("segments", []) if not e.get("kept")]
-    if not gone:
-        return ""
-    names = [f"line {e['line']:g}" if e.get("line") is not None else f"segment {e['id']}"
-             for e in gone]
-    return f"dropped {len(gone)} segment{'s' if len(gone) > 1 else ''}: {', '.join(names)}"
+
+    def names(entries: list[dict[str, Any]]) -> str:
+        return ", ".join(e.get("name") or segment_name(e) for e in entries)
+
+    screened = [e for e in gone if not _too_short(e)]
+    short = [e for e in gone if _too_short(e)]
+    parts = []
+    if screened:
+        parts.append(f"dropped {_plural(len(screened))}: {names(screened)}")
+    if short:
+        parts.append(f"{_plural(len(short))} not fitted (too short): {names(short)}")
+    return "; ".join(parts)
 
 
 def _screening_block(fit: FitOutcome) -> dict[str, Any]:

@@ -133,6 +133,13 @@ def calibrate(
         res.report["segmentation"] = segmentation
         res.model.meta["segmentation"] = segmentation
     _add_qc(res)
+    if segmentation is not None and res.data is not None and "line" in res.data.columns:
+        # The detected legs were the fit's 'line' column, but they are no flight lines:
+        # segments are named by id and time span, never "line 9" (issue 15).
+        from ..compensation.report import name_segments
+
+        name_segments(res.report["segments"], lines=False)
+        res.data = res.data.drop(columns="line")
     return res
 
 
