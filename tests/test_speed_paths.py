@@ -10,9 +10,12 @@ import subprocess
 import sys
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from aeromag._core import filters
+from aeromag.qc.fom import _box_entries
+from aeromag.qc.maneuvers import CARDINALS, MANEUVERS
 
 _WARM = """
 import scipy._lib._array_api as aa
@@ -62,3 +65,52 @@ def test_filter_stretches_stacked_equals_one_by_one(axis: int, monkeypatch) -> N
     plain = filters.filter_stretches(xa, lab, sos, axis=axis)
     assert np.isnan(plain).any()
     np.testing.assert_array_equal(fast, plain)  # bitwise, NaN where NaN
+
+
+def _box_entries_groupby(table: pd.DataFrame, cols: list[str]) -> list[dict]:
+    """The per-box entries through a pandas groupby (the code fom_summary had)."""
+    boxes = []
+    for b, g in table.groupby("box"):
+        pairs = set(zip(g["heading_leg"], g["maneuver"], strict=True))
+        missing = [f"{CARDINALS[h]} {m}" for h in range(4) for m in MANEUVERS
+                   if (h, m) not in pairs]
+        e: dict = {"box": int(b), "n_maneuvers": len(g), "complete": not missing,
+                             "missing": missing}
+        for c in cols:
+            e[f"fom_{c}_nT"] = float(np.nansum(g[f"ptp_{c}_nT"])) if not missing else None
+        if "kept" in g.columns:
+            gk = g[g["kept"].to_numpy(dtype=bool)]
+            e["n_maneuvers_kept"] = len(gk)
+            e["dropped"] = [f"{CARDINALS[int(h)]} {m}" for h, m in
+                            zip(g["heading_leg"][~g["kept"].to_numpy(dtype=bool)],
+                                g["maneuver"][~g["kept"].to_numpy(dtype=bool)], strict=True)]
+            for c in cols:
+                e[f"fom_kept_{c}_nT"] = (float(np.nansum(gk[f"ptp_{c}_nT"]))
+                                         if not missing else None)
+        boxes.append(e)
+    return boxes
+
+
+def test_fom_box_entries_equal_groupby() -> None:
+    rng = np.random.default_rng(3)
+    rows = []
+    for b in rng.permutation(40):  # boxes out of order; some incomplete, some with extras
+        for h in range(4):
+            for m in MANEUVERS:
+                if rng.random() < 0.08:
+                    continue
+                for _ in range(1 + int(rng.random() < 0.1)):
+                    rows.append((int(b), h, m))
+    rng.shuffle(rows)
+    table = pd.DataFrame(rows, columns=["box", "heading_leg", "maneuver"])
+    for c in ("before", "after", "truth"):
+        v = rng.lognormal(size=len(table)) * 10 ** rng.uniform(-3, 3, len(table))
+        v[rng.random(len(v)) < 0.05] = np.nan
+        table[f"ptp_{c}_nT"] = v
+    table["kept"] = rng.random(len(table)) > 0.2
+    table.attrs["fields"] = {"before": "mag"}
+    cols = ["before", "after", "truth"]
+    assert _box_entries(table, cols) == _box_entries_groupby(table, cols)  # exact floats
+    assert _box_entries(table.drop(columns="kept"), cols[:2]) == \
+        _box_entries_groupby(table.drop(columns="kept"), cols[:2])
+    assert _box_entries(table.iloc[:0], cols) == []

@@ -151,25 +151,7 @@ def fom_summary(table: pd.DataFrame) -> dict[str, Any]:
         ``ptp_*_nT`` is of) and ``definition`` (the words for it).
     """
     cols = [c for c in ("before", "after", "truth") if f"ptp_{c}_nT" in table.columns]
-    boxes = []
-    for b, g in table.groupby("box"):
-        pairs = set(zip(g["heading_leg"], g["maneuver"], strict=True))
-        missing = [f"{CARDINALS[h]} {m}" for h in range(4) for m in MANEUVERS
-                   if (h, m) not in pairs]
-        e: dict[str, Any] = {"box": int(b), "n_maneuvers": len(g), "complete": not missing,
-                             "missing": missing}
-        for c in cols:
-            e[f"fom_{c}_nT"] = float(np.nansum(g[f"ptp_{c}_nT"])) if not missing else None
-        if "kept" in g.columns:
-            gk = g[g["kept"].to_numpy(dtype=bool)]
-            e["n_maneuvers_kept"] = len(gk)
-            e["dropped"] = [f"{CARDINALS[int(h)]} {m}" for h, m in
-                            zip(g["heading_leg"][~g["kept"].to_numpy(dtype=bool)],
-                                g["maneuver"][~g["kept"].to_numpy(dtype=bool)], strict=True)]
-            for c in cols:
-                e[f"fom_kept_{c}_nT"] = (float(np.nansum(gk[f"ptp_{c}_nT"]))
-                                         if not missing else None)
-        boxes.append(e)
+    boxes = _box_entries(table, cols)
     complete = [e["box"] for e in boxes if e["complete"]]
     out: dict[str, Any] = {"applicable": bool(complete), "reason": None, "boxes": boxes,
                            "complete_boxes": complete, "n_maneuvers": len(table)}
@@ -213,6 +195,45 @@ def fom_summary(table: pd.DataFrame) -> dict[str, Any]:
             f" (box {worst['box']}) lacks {', '.join(worst['missing'])}" if worst else
             "no manoeuvre found")
     return out
+
+
+def _box_entries(table: pd.DataFrame, cols: list[str]) -> list[dict[str, Any]]:
+    """Per-box entries of :func:`fom_summary`, boxes ascending, rows in table order.
+
+    Plain arrays sliced per box: a pandas group per box (each copying the table's ``attrs``)
+    cost 0.17 s for the 417 boxes of a 1e6-row log.  The sums are ``np.nansum`` over the same
+    values in the same order, so the numbers are bitwise those of a groupby.
+    """
+    if table.empty:
+        return []
+    box = table["box"].to_numpy()
+    order = np.argsort(box, kind="stable")  # groups of one box, table order inside
+    ub, first = np.unique(box[order], return_index=True)
+    bounds = np.r_[first, len(order)]
+    heads = table["heading_leg"].to_numpy()[order].tolist()
+    mans = np.asarray(table["maneuver"], dtype=object)[order].tolist()
+    ptp = {c: table[f"ptp_{c}_nT"].to_numpy(dtype=np.float64)[order] for c in cols}
+    kept = (table["kept"].to_numpy(dtype=bool)[order] if "kept" in table.columns else None)
+    boxes = []
+    for j, b in enumerate(ub.tolist()):
+        a, z = int(bounds[j]), int(bounds[j + 1])
+        pairs = set(zip(heads[a:z], mans[a:z], strict=True))
+        missing = [f"{CARDINALS[h]} {m}" for h in range(4) for m in MANEUVERS
+                   if (h, m) not in pairs]
+        e: dict[str, Any] = {"box": int(b), "n_maneuvers": z - a, "complete": not missing,
+                             "missing": missing}
+        for c in cols:
+            e[f"fom_{c}_nT"] = float(np.nansum(ptp[c][a:z])) if not missing else None
+        if kept is not None:
+            k = kept[a:z]
+            e["n_maneuvers_kept"] = int(k.sum())
+            e["dropped"] = [f"{CARDINALS[int(heads[i])]} {mans[i]}"
+                            for i in range(a, z) if not kept[i]]
+            for c in cols:
+                e[f"fom_kept_{c}_nT"] = (float(np.nansum(ptp[c][a:z][k]))
+                                         if not missing else None)
+        boxes.append(e)
+    return boxes
 
 
 def not_applicable(why: str) -> str:
