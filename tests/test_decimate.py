@@ -13,7 +13,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from aeromag._core.decimate import BAND_FACTOR, decimate_stretches, decimation_factor
+from aeromag._core.decimate import (
+    BAND_FACTOR,
+    anti_alias_taps,
+    decimate_stretches,
+    decimation_factor,
+)
 
 
 # --------------------------------------------------------------------------- the factor
@@ -81,6 +86,29 @@ def test_band_is_kept_and_aliases_are_removed():
     err = y[inner] - inband[idx][inner]
     assert np.max(np.abs(err)) < 3e-3  # 0.1 % of 3 nT
     assert np.max(np.abs(ya[inner])) < 5.0 * 1e-3  # better than -60 dB
+
+
+def _gain(h: np.ndarray, f_hz: np.ndarray, fs_hz: float) -> np.ndarray:
+    """|H(f)| of a symmetric FIR centred on its middle tap."""
+    n = np.arange(len(h)) - (len(h) - 1) / 2
+    return np.abs(np.exp(-2j * np.pi * np.outer(f_hz, n) / fs_hz) @ h)
+
+
+@pytest.mark.parametrize(("fs", "q", "flat", "reject_db"), [
+    (1000.0, 13, 1e-6, 110.0),   # the default 1 kHz case (the old Kaiser FIR: 1e-3, 72 dB)
+    (200.0, 2, 1e-6, 80.0),
+    (1000.0, 12, 1e-6, 95.0),    # an even factor (third boxcar of q + 1)
+    (1000.0, 27, 2e-5, 90.0),
+])
+def test_anti_alias_filter_is_flat_in_band_and_rejects_what_folds_into_it(fs, q, flat,
+                                                                           reject_db):
+    h = anti_alias_taps(q)
+    assert len(h) % 2 == 1 and np.allclose(h, h[::-1]) and abs(h.sum() - 1) < 1e-12
+    assert len(h) <= 5 * q  # 5 multiply-adds per input sample
+    band = np.linspace(0.0, 0.9, 91)
+    assert np.max(np.abs(_gain(h, band, fs) - 1)) < flat
+    folds = np.concatenate([k * fs / q + np.linspace(-0.9, 0.9, 37) for k in range(1, q)])
+    assert 20 * np.log10(np.max(_gain(h, folds, fs))) < -reject_db
 
 
 @settings(max_examples=40, deadline=None)

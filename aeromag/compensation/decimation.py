@@ -62,7 +62,7 @@ def fit_arrays(
     if q < 2:
         return prep, 1, None
     # Per continuous stretch, never across a gap.  Not per segment piece: the FIR reaches
-    # only 10 decimated samples, far inside the edges the fit trims from every piece, while
+    # only 3 decimated samples, far inside the edges the fit trims from every piece, while
     # restarting it at every segment boundary adds edge errors that ring through the fit's
     # band-pass (on a 1 kHz simulated calibration, rms coefficient error 0.048 nT against
     # 0.011 nT per stretch and 0.013 nT at the full rate).
