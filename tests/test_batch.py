@@ -38,9 +38,20 @@ def logs(tmp_path_factory) -> Path:
 
 
 def _single(log: Path, out: Path, **kw) -> Path:
+    """``aeromag compensate`` of one log (with its self-fit check, and its warnings recorded
+    in OUT.json as inside the command's output set, as batch runs it)."""
+    from aeromag.io.outputs import output_set
+
     target = out / f"{log.stem}_comp.csv"
-    compensate_file(log, target, CompensationConfig(), **kw)
+    with output_set():
+        compensate_file(log, target, CompensationConfig(), self_check=kw.get("model") is None,
+                        **kw)
     return target
+
+
+#: A self-fitted log without a calibration box (the hand-built flights have no attitude
+#: columns) is a success with a warning: its level is not determined (issue 15).
+SELF_FIT = "warn"
 
 
 def test_folder_with_bad_files_local_pool(logs, tmp_path):
@@ -55,7 +66,8 @@ def test_folder_with_bad_files_local_pool(logs, tmp_path):
     assert not (tmp_path / "out" / "corrupt_comp.csv").exists()
     single = tmp_path / "single"
     for i in range(3):
-        assert status[f"flight{i}.csv"].status == "ok"
+        assert status[f"flight{i}.csv"].status == SELF_FIT
+        assert any("calibration box" in w for w in status[f"flight{i}.csv"].warnings)
         ref = _single(logs / f"flight{i}.csv", single)
         got = tmp_path / "out" / f"flight{i}_comp.csv"
         assert got.read_bytes() == ref.read_bytes()
@@ -63,19 +75,19 @@ def test_folder_with_bad_files_local_pool(logs, tmp_path):
     frame = pd.read_csv(summary.summary_csv)
     assert list(frame["status"]).count("failed") == 2
     js = json.loads(summary.summary_json.read_text())
-    assert js["n_failed"] == 2 and js["n_ok"] == 3
+    assert js["n_failed"] == 2 and js["n_warn"] == 3 and js["n_ok"] == 0
 
 
 def test_skip_up_to_date_and_force(logs, tmp_path):
     files = [logs / "flight0.csv"]
     first = run_batch(files, tmp_path, workers=1, progress=False)
-    assert first.results[0].status == "ok"
+    assert first.results[0].status == SELF_FIT
     again = run_batch(files, tmp_path, workers=1, progress=False)
     assert again.results[0].status == "skipped"
     forced = run_batch(files, tmp_path, workers=1, progress=False, force=True)
-    assert forced.results[0].status == "ok"
+    assert forced.results[0].status == SELF_FIT
     os.utime(files[0])  # the input changed after the outputs: redo
-    assert run_batch(files, tmp_path, workers=1, progress=False).results[0].status == "ok"
+    assert run_batch(files, tmp_path, workers=1, progress=False).results[0].status == SELF_FIT
 
 
 def test_glob_and_unmatched_inputs(logs, tmp_path):
@@ -133,9 +145,9 @@ def test_changed_options_or_model_reprocess_and_match_single_runs(logs, tmp_path
     files = [logs / "flight0.csv"]
     out = tmp_path / "out"
     first = run_batch(files, out, cfg=_cfg(filter_output=False), workers=1, progress=False)
-    assert first.results[0].status == "ok"
+    assert first.results[0].status == SELF_FIT
     again = run_batch(files, out, cfg=_cfg(), workers=1, progress=False)
-    assert again.results[0].status == "ok"  # not "skipped": the --no-filter output is stale
+    assert again.results[0].status == SELF_FIT  # not "skipped": the --no-filter output is stale
     ref = _single(files[0], tmp_path / "single")
     assert (out / "flight0_comp.csv").read_bytes() == ref.read_bytes()
     assert _report(out / "flight0_comp.json") == _report(ref.with_suffix(".json"))
@@ -143,7 +155,7 @@ def test_changed_options_or_model_reprocess_and_match_single_runs(logs, tmp_path
         == "skipped"
     # Other column maps, units or formats are other runs too.
     assert run_batch(files, out, cfg=_cfg(), columns={"mag": "mag"}, workers=1,
-                     progress=False).results[0].status == "ok"
+                     progress=False).results[0].status == SELF_FIT
     # A model: its contents count, not its time stamp or name.
     m1, m2 = tmp_path / "m1.json", tmp_path / "m2.json"
     calibrate_file(logs / "flight1.csv", m1, CompensationConfig())
@@ -164,9 +176,9 @@ def test_version_change_reprocesses(logs, tmp_path, monkeypatch):
     import aeromag
 
     files = [logs / "flight0.csv"]
-    assert run_batch(files, tmp_path, workers=1, progress=False).results[0].status == "ok"
+    assert run_batch(files, tmp_path, workers=1, progress=False).results[0].status == SELF_FIT
     monkeypatch.setattr(aeromag, "__version__", aeromag.__version__ + ".post1")
-    assert run_batch(files, tmp_path, workers=1, progress=False).results[0].status == "ok"
+    assert run_batch(files, tmp_path, workers=1, progress=False).results[0].status == SELF_FIT
 
 
 def test_failed_rerun_is_never_skipped_later(logs, tmp_path):
@@ -178,12 +190,12 @@ def test_failed_rerun_is_never_skipped_later(logs, tmp_path):
     bad.write_text("lat,lon,alt\n47.3,8.5,500\n")  # one waypoint: the track check fails
     out = tmp_path / "out"
     first = run_batch(files, out, cfg=_cfg(filter_output=False), workers=1, progress=False)
-    assert first.results[0].status == "ok"
+    assert first.results[0].status == SELF_FIT
     failed = run_batch(files, out, cfg=_cfg(), plan=bad, workers=1, progress=False)
     assert failed.results[0].status == "failed"  # compensation ran (default cfg), track failed
     assert not (out / ".flight0.batch.json").exists()
     redo = run_batch(files, out, cfg=_cfg(filter_output=False), workers=1, progress=False)
-    assert redo.results[0].status == "ok"
+    assert redo.results[0].status == SELF_FIT
 
 
 def test_cli_no_filter_then_default_is_not_up_to_date(logs, tmp_path):
@@ -195,7 +207,7 @@ def test_cli_no_filter_then_default_is_not_up_to_date(logs, tmp_path):
     assert r1.exit_code == 0, r1.output
     r2 = runner.invoke(app, args)
     assert r2.exit_code == 0, r2.output
-    assert "1 ok, 0 with warnings, 0 up to date" in r2.output
+    assert "0 ok, 1 with warnings, 0 up to date" in r2.output  # self-fit: no box
     ref = _single(logs / "flight0.csv", tmp_path / "single")
     assert (tmp_path / "o" / "flight0_comp.csv").read_bytes() == ref.read_bytes()
     r3 = runner.invoke(app, args)
@@ -205,11 +217,13 @@ def test_cli_no_filter_then_default_is_not_up_to_date(logs, tmp_path):
 def test_summary_counts_are_integers(logs, tmp_path):
     summary = run_batch([logs / "flight0.csv", logs / "empty.csv"], tmp_path, workers=1,
                         progress=False)
-    text = summary.summary_csv.read_text().splitlines()
-    header = text[0].split(",")
-    row = dict(zip(header, text[1].split(","), strict=True))
+    import csv
+
+    with summary.summary_csv.open(newline="") as f:  # the warnings column holds commas
+        header, *rows = list(csv.reader(f))
+    row = dict(zip(header, rows[0], strict=True))
     assert row["n_rows"] == "4000"
-    failed = dict(zip(header, text[2].rsplit(",", len(header) - 1)[-len(header):], strict=True))
+    failed = dict(zip(header, rows[1], strict=True))
     assert failed["n_rows"] == "" and failed["flagged_legs"] == ""
     assert json.loads(summary.summary_json.read_text())["files"][0]["n_rows"] == 4000
 
@@ -263,45 +277,141 @@ def test_cli_extension_list_matches_the_library():
 DATA = Path(__file__).resolve().parents[1] / "data_samples"
 
 
-def test_batch_mixed_folder_reports_each_file(tmp_path):
-    """Issue 15: a folder mixing good logs, a µT log, a log without mag, a too-short log and
-    a corrupt one: each reported for what it is (warnings column, warn status), none dropped
-    silently; duplicates are reported (issue 16)."""
-    d = tmp_path / "mix"
+def _mixed_folder(root: Path) -> Path:
+    """Good logs (the survey; the calibration box), duplicates, a fluxgate in uT, a log
+    without mag (and nothing that looks like one), a 13-row log and a corrupt one."""
+    d = root / "mix"
     d.mkdir()
     df = pd.read_csv(DATA / "survey.csv")
     df.to_csv(d / "good.csv", index=False)
+    pd.read_csv(DATA / "calibration.csv").to_csv(d / "box.csv", index=False)
     dup = pd.concat([df.iloc[:100], df.iloc[99:100], df.iloc[100:]], ignore_index=True)
     dup.to_csv(d / "dups.csv", index=False)
     micro = df.copy()
     micro[["flux_x", "flux_y", "flux_z"]] /= 1000.0
     micro.to_csv(d / "micro.csv", index=False)
-    df.drop(columns="mag").to_csv(d / "nomag.csv", index=False)
+    df[[c for c in df.columns if c != "mag" and not c.startswith("truth")]].to_csv(
+        d / "nomag.csv", index=False)
     df.iloc[:13].to_csv(d / "short.csv", index=False)
     raw = (DATA / "survey.csv").read_bytes()
     (d / "corrupt.csv").write_bytes(raw[:20000] + b"\x00\xff garbage")
-    model = tmp_path / "aircraft.json"
+    return d
+
+
+def _by_name(summary) -> dict:
+    return {Path(r.input).name: r for r in summary.results}
+
+
+@pytest.fixture(scope="module")
+def mixed(tmp_path_factory) -> tuple[Path, Path]:
+    root = tmp_path_factory.mktemp("mixed")
+    model = root / "aircraft.json"
     calibrate_file(DATA / "calibration.csv", model)
+    return _mixed_folder(root), model
+
+
+def test_batch_mixed_folder_reports_each_file(mixed, tmp_path):
+    """Issue 15: a folder mixing good logs, a uT log, a log without mag, a too-short log and
+    a corrupt one: each reported for what it is (status, warnings column, reason), none dropped
+    silently; duplicates are reported (issue 16).  With the box's model."""
+    d, model = mixed
     summary = run_batch([d], tmp_path / "out", workers=2, progress=False, model=model)
-    st = {Path(r.input).name: r for r in summary.results}
-    assert st["good.csv"].status == "ok" and not st["good.csv"].warnings
-    assert st["dups.csv"].status == "warn"
+    st = _by_name(summary)
+    assert {n: r.status for n, r in st.items()} == {
+        "good.csv": "ok", "box.csv": "ok", "dups.csv": "warn", "micro.csv": "warn",
+        "nomag.csv": "failed", "short.csv": "failed", "corrupt.csv": "failed"}
+    assert not st["good.csv"].warnings and not st["good.csv"].error
     assert any("dropped 1 exact duplicate row" in w for w in st["dups.csv"].warnings)
     assert st["dups.csv"].n_rows == 2010
-    assert st["micro.csv"].status in ("warn", "failed")
-    assert "uT" in " ".join(st["micro.csv"].warnings) + str(st["micro.csv"].error)
-    assert st["nomag.csv"].status in ("warn", "failed")
-    assert st["short.csv"].status in ("warn", "failed")
-    assert st["corrupt.csv"].status == "failed"
+    assert any("--units flux=uT" in w for w in st["micro.csv"].warnings)
+    assert st["micro.csv"].error is None
+    # The model was fitted on the scalar: never applied to a fluxgate magnitude.
+    assert "fitted on the scalar magnetometer" in st["nomag.csv"].error
+    assert "too short to measure the compensation" in st["short.csv"].error
     assert "corrupt.csv: line 141: binary data" in st["corrupt.csv"].error
+    assert not any("calibration box" in w for r in summary.results for w in r.warnings)
+    for name in ("nomag", "short", "corrupt"):
+        assert not (tmp_path / "out" / f"{name}_comp.csv").exists()
     frame = pd.read_csv(tmp_path / "out" / "batch_summary.csv", keep_default_na=False)
-    row = frame.set_index("input").loc[str(d / "dups.csv")]
+    frame = frame.set_index("input")
+    row = frame.loc[str(d / "dups.csv")]
     assert row["status"] == "warn" and "duplicate" in row["warnings"]
+    assert "--units flux=uT" in frame.loc[str(d / "micro.csv"), "warnings"]
+    assert "too short" in frame.loc[str(d / "short.csv"), "error"]
     rep = json.loads((tmp_path / "out" / "dups_comp.json").read_text())
     assert any("duplicate" in w for w in rep["warnings"])  # recorded in the file's JSON
+    assert "self_calibration" not in rep  # a saved model: nothing fitted on the log
     summ = json.loads((tmp_path / "out" / "batch_summary.json").read_text())
-    assert summ["n_warn"] == sum(r.status == "warn" for r in summary.results)
+    assert (summ["n_ok"], summ["n_warn"], summ["n_failed"]) == (2, 2, 3)
     assert not list((tmp_path / "out").glob(".*.tmp"))
+
+
+def test_batch_self_fit_check_as_compensate_does(mixed, tmp_path):
+    """Without --model every log is fitted on itself: batch checks for a calibration box as
+    'aeromag compensate' does (it did not: the survey was "ok" with an in-sample headline and
+    an undetermined level).  The box flight passes; the survey, the uT log and the log
+    without mag warn, with the self_calibration block in their JSON."""
+    d, _ = mixed
+    summary = run_batch([d], tmp_path / "out", workers=2, progress=False)
+    st = _by_name(summary)
+    assert {n: r.status for n, r in st.items()} == {
+        "good.csv": "warn", "box.csv": "ok", "dups.csv": "warn", "micro.csv": "warn",
+        "nomag.csv": "warn", "short.csv": "failed", "corrupt.csv": "failed"}
+    for name in ("good", "dups", "micro", "nomag"):
+        assert any("without a calibration box" in w and "in-sample" in w
+                   for w in st[f"{name}.csv"].warnings), name
+        rep = json.loads((tmp_path / "out" / f"{name}_comp.json").read_text())
+        assert rep["self_calibration"]["calibration_box"] is False
+    assert any("fluxgate magnitude is the measured total field" in w
+               for w in st["nomag.csv"].warnings)
+    assert any("--units flux=uT" in w for w in st["micro.csv"].warnings)
+    assert not st["box.csv"].warnings
+    box = json.loads((tmp_path / "out" / "box_comp.json").read_text())
+    assert box["self_calibration"]["calibration_box"] is True
+    assert "no continuous stretch is long enough" in st["short.csv"].error
+
+
+def test_batch_strict_fails_each_warned_log_and_the_others_go_on(mixed, tmp_path):
+    """--strict, per log: a log's warning is its error (status failed, the warning as the
+    reason, none of its outputs), the clean logs are written, the command exits 1."""
+    d, model = mixed
+    out = tmp_path / "out"
+    summary = run_batch([d], out, workers=2, progress=False, model=model, strict=True)
+    st = _by_name(summary)
+    assert {n: r.status for n, r in st.items()} == {
+        "good.csv": "ok", "box.csv": "ok", "dups.csv": "failed", "micro.csv": "failed",
+        "nomag.csv": "failed", "short.csv": "failed", "corrupt.csv": "failed"}
+    assert "dropped 1 exact duplicate row" in st["dups.csv"].error
+    assert "--units flux=uT" in st["micro.csv"].error
+    for name in ("dups", "micro"):
+        err = st[f"{name}.csv"].error
+        assert err.startswith(str(d / f"{name}.csv")) and "strict: warnings are errors" in err
+        assert not (out / f"{name}_comp.csv").exists()
+        assert not (out / f"{name}_comp.json").exists()
+        assert not (out / f".{name}.batch.json").exists()
+    assert (out / "good_comp.csv").exists() and (out / "box_comp.json").exists()
+    # Self-fitted: only the box flight passes.
+    selfs = _by_name(run_batch([d / "good.csv", d / "box.csv"], tmp_path / "self", workers=1,
+                               progress=False, strict=True))
+    assert selfs["box.csv"].status == "ok"
+    assert selfs["good.csv"].status == "failed"
+    assert "without a calibration box" in selfs["good.csv"].error
+    assert not (tmp_path / "self" / "good_comp.csv").exists()
+    # A lenient run's warned output is no strict run's: a strict rerun is no skip.
+    lenient = run_batch([d / "micro.csv"], tmp_path / "again", workers=1, progress=False,
+                        model=model)
+    assert lenient.results[0].status == "warn"
+    strict = run_batch([d / "micro.csv"], tmp_path / "again", workers=1, progress=False,
+                       model=model, strict=True)
+    assert strict.results[0].status == "failed"
+    # The command line.
+    r = CliRunner().invoke(app, ["batch", str(d / "good.csv"), str(d / "micro.csv"),
+                                 "--model", str(model), "-o", str(tmp_path / "cli"),
+                                 "--workers", "1", "--no-progress", "--strict"])
+    assert r.exit_code == 1, r.output
+    err = [ln for ln in r.output.splitlines() if ln.startswith("error: ")]
+    assert len(err) == 1 and "micro.csv" in err[0] and "--units flux=uT" in err[0]
+    assert (tmp_path / "cli" / "good_comp.csv").exists()
 
 
 def test_metric_warnings():

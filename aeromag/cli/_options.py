@@ -209,9 +209,14 @@ OPTIONS: list[Option] = [
                       "size (identical output; for very large logs).",
         "batch": "With --model: apply it in chunks of N rows (bounded memory for very large "
                  "logs)."}, _APPLY, metavar="N"),
-    _o("strict", "--strict", bool, False, "Treat every warning (units that do not look like nT, "
-       "a fit that leaves more than it removes, ...) as an error: exit 1, no output.",
-       {"compensate", "calibrate"}),
+    _o("strict", "--strict", bool, False,
+       {"compensate": "Treat every warning (units that do not look like nT, a fit that leaves "
+                      "more than it removes, ...) as an error: exit 1, no output.",
+        "calibrate": "Treat every warning (units that do not look like nT, a fit that leaves "
+                     "more than it removes, ...) as an error: exit 1, no output.",
+        "batch": "Treat every warning of a log as its error: that log fails with the warning "
+                 "as its reason and no outputs; the others go on (exit 1 when any failed)."},
+       {"compensate", "calibrate", "batch"}),
     _o("no_progress", "--no-progress", bool, False, "No progress bar.", {"batch"}),
     _o("verbose", ("-v", "--verbose"), bool, False,
        "Log progress details (DEBUG messages of aeromag's loggers).", _COMP),
@@ -315,6 +320,8 @@ def _flag_text(value: Any) -> str:
 
 #: Library keywords that are no CompensationConfig field, and their flags.
 _KEYWORD_FLAGS = {"model": "--model", "chunk_rows": "--chunk-rows"}
+#: Reading keywords (mappings) and their flags: ``columns={'K': 'V'}`` is ``--col K=V``.
+_DICT_FLAGS = {"columns": "--col", "units": "--units"}
 
 
 def _as_flag(name: str, value: str = "") -> str:
@@ -348,6 +355,10 @@ def flag_message(message: str) -> str:
     names = sorted({o.config for o in OPTIONS if o.config and o.flags} | set(_KEYWORD_FLAGS),
                    key=len, reverse=True)
     alt = "|".join(re.escape(n) for n in names)
+    # The reading keywords: columns={'mag': 'mag_1_uc'} -> --col mag=mag_1_uc, units=... too.
+    message = re.sub(r"(?<![\w-])(columns|units)=(?:\{'([^']*)': '([^']*)'\}|\.\.\.)",
+                     lambda m: _DICT_FLAGS[m[1]] + (f" {m[2]}={m[3]}" if m[2] is not None
+                                                    else ""), message)
     message = re.sub(rf"(?<![\w-])({alt})=([^\s,;:)]*)", lambda m: _as_flag(*m.groups()),
                      message)
     bare = "|".join(re.escape(n) for n in names if "_" in n)

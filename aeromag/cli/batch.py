@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from ._app import EXIT_USER_ERROR, column_options, setup_logging, user_errors
+from ._app import EXIT_USER_ERROR, column_options, setup_logging, strict_warnings, user_errors
 from ._options import LOG_EXTENSIONS, Options, command
 
 __all__ = ["LOG_EXTENSIONS", "batch"]
@@ -19,19 +19,23 @@ def batch(opts: Options) -> None:
     Each log is compensated exactly as 'aeromag compensate' does it (and with --plan checked
     as 'aeromag track' does); a bad log is reported in the summary without stopping the
     others, and the exit status is 1 when any failed.  Logs whose outputs are up to date are
-    skipped (see --force).
+    skipped (see --force).  A log fitted on itself is checked for a calibration box as
+    'aeromag compensate' does; with --strict a log's warning is its error.
     """
     setup_logging(opts.verbose, quiet=not opts.verbose)
     from ..workflows.batch import run_batch
 
     with user_errors():
-        columns, unit_map = column_options(opts.col, opts.map_file, opts.units)
-        cfg = opts.config()
+        with strict_warnings(opts.strict):  # a warning about the options fails them all
+            columns, unit_map = column_options(opts.col, opts.map_file, opts.units)
+            cfg = opts.config()
+        # Per log: run_batch's strict makes each log's warning that log's error.
         summary = run_batch(opts.inputs, opts.output, model=opts.model, plan=opts.plan,
                             cfg=cfg, workers=opts.workers, scheduler=opts.scheduler,
                             force=opts.force, columns=columns, units=unit_map, fmt=opts.fmt,
                             progress=not opts.no_progress, chunk_rows=opts.chunk_rows,
-                            track_options={"threshold_m": opts.threshold})
+                            track_options={"threshold_m": opts.threshold},
+                            strict=opts.strict)
     _print_summary(summary)
     if summary.failed:
         raise typer.Exit(EXIT_USER_ERROR)

@@ -13,6 +13,11 @@ Outputs: ``OUT/NAME_comp.csv`` + ``.json`` (and ``OUT/NAME_track.csv`` + ``.json
 ``NAME.ext``, and ``OUT/batch_summary.csv`` + ``.json``.  No output may be an input (a log, the
 model or the plan): such a run is refused before it starts.
 
+Strict (``strict=True``, ``aeromag batch --strict``): every warning of a file is its error,
+as ``--strict`` makes it for ``compensate``: that file is ``failed`` with the warning as its
+reason and none of its outputs is written; the other files go on.  Self-fitted logs are
+checked for a calibration box as ``aeromag compensate`` checks them (without one: a warning).
+
 Skipping: a file is skipped (unless ``force``) when its outputs are newer than it **and** were
 made with the same fingerprint -- the effective pipeline options, column map, units, format,
 chunking, track options, the SHA-256 of the model and plan files' contents and the aeromag
@@ -27,11 +32,13 @@ Engines: a local process pool (default, ``workers`` processes), or Dask distribu
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
+import threading
 import time
 import traceback
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -205,15 +212,21 @@ def process_file(job: dict[str, Any]) -> dict[str, Any]:
     except OSError as exc:
         log.debug("%s: %s", names["fingerprint"], exc)
     warnings: list[str] = []
+    strict = bool(job.get("strict"))
     try:
-        with output_set(separate=True):  # this file's CSV and JSON together, or neither
+        # This file's CSV and JSON together, or neither (a strict warning discards both).
+        with output_set(separate=True), strict_log_warnings(strict):
             report = _compensate_one(job, inp, names, res)
-        m = report.get("metrics", {})
+            m = report.get("metrics", {})
+            found = [str(w) for w in report.get("warnings") or []] + metric_warnings(m)
+            if strict and found:
+                raise StrictWarningError(found[0])
         res["improvement_ratio"] = m.get("improvement_ratio")
         res["residual_std_nT"] = m.get("residual_std_nT")
         res["outputs"] += [str(names["comp"]), str(json_path_for(names["comp"]))]
-        warnings += [str(w) for w in report.get("warnings") or []]
-        warnings += metric_warnings(m)
+        warnings += found
+    except StrictWarningError as exc:
+        errors.append(_strict_reason(inp, exc))
     except AeromagError as exc:
         errors.append(str(exc))
     except Exception as exc:  # noqa: BLE001 - isolate every file, whatever breaks
@@ -223,13 +236,18 @@ def process_file(job: dict[str, Any]) -> dict[str, Any]:
         try:
             from .track import track_file
 
-            with output_set(separate=True):
+            with output_set(separate=True), strict_log_warnings(strict):
                 tr = track_file(inp, job["plan"], names["track"], columns=job["columns"],
                                 units=job["units"], fmt=job["fmt"], **(job.get("track") or {}))
+                tw = [str(w) for w in tr.report.get("warnings") or []]
+                if strict and tw:
+                    raise StrictWarningError(tw[0])
             res["flagged_legs"] = sum(1 for leg in tr.report.get("legs", [])
                                       if leg.get("flagged"))
             res["outputs"] += [str(names["track"]), str(json_path_for(names["track"]))]
-            warnings += [f"track: {w}" for w in tr.report.get("warnings") or []]
+            warnings += [f"track: {w}" for w in tw]
+        except StrictWarningError as exc:
+            errors.append(f"track: {_strict_reason(inp, exc)}")
         except AeromagError as exc:
             errors.append(f"track: {exc}")
         except Exception as exc:  # noqa: BLE001
@@ -265,10 +283,88 @@ def _compensate_one(job: dict[str, Any], inp: Path, names: dict[str, Path],
                                      units=job["units"], fmt=job["fmt"])
         res["n_rows"] = int(report.get("n_rows", 0)) or None
         return report
+    # self_check: a log fitted on itself is checked for a calibration box, as 'aeromag
+    # compensate' does (without one its level is undetermined and its headline in-sample).
     out = compensate_file(inp, names["comp"], job["cfg"], model=job["model"],
-                          columns=job["columns"], units=job["units"], fmt=job["fmt"])
+                          columns=job["columns"], units=job["units"], fmt=job["fmt"],
+                          self_check=job.get("model") is None)
     res["n_rows"] = len(out.data) if out.data is not None else None
     return out.report
+
+
+class StrictWarningError(Exception):
+    """A warning of one log, raised as that log's error by a strict batch.
+
+    Not an :class:`~aeromag.errors.AeromagError`, so that no library code that tolerates a
+    failed step (and notes why) swallows it.
+    """
+
+
+_STRICT = threading.local()  # .on: this thread runs a strict file
+_STRICT_LOCK = threading.Lock()
+_STRICT_USERS = [0]  # files running strict in this process (the handler is installed while >0)
+
+
+class _StrictHandler(logging.Handler):
+    """Raise :class:`StrictWarningError` on a warning logged by a thread running strict."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.addFilter(self._raise)
+
+    @staticmethod
+    def _raise(record: logging.LogRecord) -> bool:
+        if record.levelno >= logging.WARNING and getattr(_STRICT, "on", False):
+            from ..io.messages import clean
+
+            raise StrictWarningError(clean(record.getMessage()))
+        return False  # nothing to emit: the capture of the output set records warnings
+
+    def emit(self, record: logging.LogRecord) -> None:  # never reached: the filter decides
+        pass
+
+
+_HANDLER = _StrictHandler()
+
+
+@contextlib.contextmanager
+def strict_log_warnings(enabled: bool) -> Iterator[None]:
+    """With ``enabled``, a warning of aeromag's loggers in this thread ends the block.
+
+    It raises :class:`StrictWarningError` where it is logged (so inside an output set
+    nothing of the file is written).  Other threads (Dask's) are not affected unless they
+    run strict too.
+
+    Parameters
+    ----------
+    enabled : bool
+        Whether warnings are errors (the batch's ``strict``).
+    """
+    if not enabled:
+        yield
+        return
+    lg = logging.getLogger("aeromag")
+    with _STRICT_LOCK:
+        if _STRICT_USERS[0] == 0:
+            lg.addHandler(_HANDLER)
+        _STRICT_USERS[0] += 1
+    before = getattr(_STRICT, "on", False)
+    _STRICT.on = True
+    try:
+        yield
+    finally:
+        _STRICT.on = before
+        with _STRICT_LOCK:
+            _STRICT_USERS[0] -= 1
+            if _STRICT_USERS[0] == 0:
+                lg.removeHandler(_HANDLER)
+
+
+def _strict_reason(inp: Path, exc: StrictWarningError) -> str:
+    """The failure of a strict file: its warning, naming the file."""
+    msg = str(exc)
+    head = msg if str(inp) in msg or inp.name in msg else f"{inp}: {msg}"
+    return f"{head} (strict: warnings are errors)"
 
 
 #: Band-passed residual [nT] above which a compensated log is implausible (a survey's is
@@ -323,6 +419,7 @@ def run_batch(
     progress: bool = True,
     chunk_rows: int | None = None,
     track_options: dict[str, Any] | None = None,
+    strict: bool = False,
 ) -> BatchSummary:
     """Compensate (and with ``plan`` track-check) many logs in parallel.
 
@@ -357,6 +454,11 @@ def run_batch(
         :mod:`aeromag.chunked`) instead of reading each log whole.
     track_options : dict, optional
         Keyword arguments of :func:`aeromag.track.track_file` (``threshold_m`` [m], ...).
+    strict : bool
+        Warnings are errors, per file: a log that draws a warning (a units warning, a log
+        fitted on itself without a calibration box, an improvement ratio below 1, ...)
+        is ``failed`` with the warning as its error and none of its outputs written; the
+        others go on.
 
     Returns
     -------
@@ -400,6 +502,11 @@ def run_batch(
     fingerprint = batch_fingerprint(cfg=cfg, model=model, plan=plan, columns=columns,
                                     units=units, fmt=fmt, chunk_rows=chunk_rows,
                                     track_options=track_options)
+    if strict:  # a strict run redoes files that passed only leniently (their warnings)
+        import hashlib
+
+        digest = hashlib.sha256(f"{fingerprint['fingerprint']}:strict".encode()).hexdigest()
+        fingerprint = {**fingerprint, "fingerprint": digest, "strict": True}
     out.mkdir(parents=True, exist_ok=True)
     results: dict[str, FileResult] = {}
     order = [str(f) for f in files] + unmatched
@@ -417,7 +524,7 @@ def run_batch(
                      "model": None if model is None else str(model),
                      "plan": None if plan is None else str(plan), "cfg": cfg,
                      "columns": columns, "units": units, "fmt": fmt, "chunk_rows": chunk_rows,
-                     "track": track_options, "fingerprint": fingerprint})
+                     "track": track_options, "fingerprint": fingerprint, "strict": strict})
     log.info("%d file(s) to process, %d up to date, %d unmatched", len(jobs),
              sum(r.status == "skipped" for r in results.values()), len(unmatched))
 
