@@ -114,3 +114,41 @@ def test_fom_box_entries_equal_groupby() -> None:
     assert _box_entries(table.drop(columns="kept"), cols[:2]) == \
         _box_entries_groupby(table.drop(columns="kept"), cols[:2])
     assert _box_entries(table.iloc[:0], cols) == []
+
+
+def test_json_layout_parses_to_the_same_document(tmp_path) -> None:
+    import json
+
+    from aeromag.io.json import dumps_readable, write_json
+
+    doc = {"a": 1, "b": [1.5, None, "x"], "c": {}, "d": [], "e": {"f": {"g": [True, False]}},
+           "segments": [{"id": i, "pca": [0.1 * i, float("nan")], "kept": i % 2 == 0,
+                         "name": f"seg {i}"} for i in range(5)],
+           "rows": [[1, 2], [3, [4, {"z": np.float64(2.5)}]], ()],
+           "np": {"i": np.int64(3), "f": np.float32(0.5), "b": np.bool_(True),
+                  "arr": np.array([[1.0, np.inf], [2.0, 3.0]])},
+           7: "int key", "u": "é\n\"q\""}
+    path = write_json(doc, tmp_path / "x.json")
+    text = path.read_text(encoding="utf-8")
+    got = json.loads(text)
+    ref = json.loads(json.dumps(_jsonable_ref(doc), indent=2, default=_default_ref))
+    assert got == ref
+    # one segment per line, keys of dicts outside lists one per line
+    lines = text.splitlines()
+    assert sum(line.strip().startswith('{"id": ') for line in lines) == 5
+    assert '  "a": 1,' in lines
+    assert dumps_readable([]) == "[]" and dumps_readable({}) == "{}"
+    assert json.loads(dumps_readable((1, [2, {"k": (3,)}]))) == [1, [2, {"k": [3]}]]
+
+
+def _jsonable_ref(obj):
+    """The old path's NaN handling (aeromag.io.json._jsonable)."""
+    from aeromag.io.json import _jsonable
+
+    return _jsonable(obj)
+
+
+def _default_ref(obj):
+    from aeromag.io.json import _json_default
+
+    return _json_default(obj)

@@ -75,7 +75,55 @@ def write_json(obj: Any, path: str | os.PathLike[str]) -> Path:
         extra = [w for w in recorded_warnings() if w not in (obj.get("warnings") or [])]
         if extra:
             obj["warnings"] = [*(obj.get("warnings") or []), *extra]
-    text = json.dumps(_jsonable(obj), indent=2, default=_json_default, allow_nan=False)
+    text = dumps_readable(_jsonable(obj))
     with atomic_path(target) as tmp:
         tmp.write_text(text + "\n", encoding="utf-8")
     return target
+
+
+_ENCODER = json.JSONEncoder(allow_nan=False, default=_json_default, separators=(", ", ": "))
+
+
+def dumps_readable(obj: Any, indent: int = 2) -> str:
+    """JSON text with dicts indented and each element of a list of containers on one line.
+
+    ``json.dumps(indent=...)`` runs the pure-Python encoder over every value (0.1 s for a
+    3 MB model file of 1,667 segments); here only the dicts outside lists are walked in
+    Python, and every list is written by the C encoder: a list of numbers on one line, a list
+    of dicts or lists (segments, table rows) one element per line.  The file stays readable
+    and parses to the same document.
+
+    Parameters
+    ----------
+    obj : object
+        JSON-ready data (NaN and inf already replaced; numpy scalars are converted).
+    indent : int
+        Spaces per level of dict nesting.
+
+    Returns
+    -------
+    str
+        The JSON text (no trailing newline).
+    """
+    out: list[str] = []
+    _write(obj, out, " " * indent, 0)
+    return "".join(out)
+
+
+def _write(obj: Any, out: list[str], ind: str, level: int) -> None:
+    enc = _ENCODER.encode
+    if isinstance(obj, dict) and obj:
+        pad = ind * (level + 1)
+        out.append("{")
+        sep = "\n"
+        for k, v in obj.items():
+            out.append(f"{sep}{pad}{enc(str(k) if not isinstance(k, str) else k)}: ")
+            _write(v, out, ind, level + 1)
+            sep = ",\n"
+        out.append(f"\n{ind * level}}}")
+    elif isinstance(obj, list | tuple) and obj and any(
+            isinstance(v, dict | list | tuple) for v in obj):
+        pad = ind * (level + 1)
+        out.append("[\n" + ",\n".join(pad + enc(v) for v in obj) + f"\n{ind * level}]")
+    else:
+        out.append(enc(obj))
