@@ -214,7 +214,7 @@ def test_dropped_segment_row_says_why(tmp_path):
 def test_load_compensated_reads_many_batches_into_the_same_columns(tmp_path, monkeypatch):
     """The report's reader (arrays allocated once, filled batch by batch) gives the log's
     columns exactly, across many batches and when its row bound is too small."""
-    import aeromag.workflows.report as wr
+    import aeromag.workflows._report_read as wr
     from aeromag.compensation.pipeline import compensate as pipe_compensate
     from aeromag.io import write_csv as io_write_csv
     from aeromag.synthetic import simulate_calibration as sim
@@ -227,7 +227,7 @@ def test_load_compensated_reads_many_batches_into_the_same_columns(tmp_path, mon
     for cap in (None, 100):
         if cap is not None:
             monkeypatch.setattr(wr, "_row_capacity", lambda src, cap=cap: cap)
-        got = wr._read_columns(tmp_path / "out.csv")
+        got = wr.read_columns(tmp_path / "out.csv")
         assert len(got) == len(want)
         for c in got.columns:
             x = got[c].to_numpy()

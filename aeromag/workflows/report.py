@@ -35,9 +35,9 @@ from ..compensation.model import TLModel
 from ..compensation.result import CompensationResult
 from ..errors import AeromagError, InputError
 from ..io import atomic_path, json_path_for, write_json
-from ..io.stream import iter_log_batches
 from ..plot import compensation as pc
 from ..qc import QCResult, compute_qc, kept_mask, segment_labels
+from ._report_read import read_columns
 
 __all__ = ["FIGURES", "build_report", "load_compensated", "render_html", "write_report"]
 
@@ -60,16 +60,6 @@ FIGURES: dict[str, str] = {
     "term_contributions.png": "Permanent, induced and eddy contributions to the interference",
     "fom.png": "Figure of Merit: peak-to-peak per heading and manoeuvre",
 }
-
-#: Columns only drawn or used for manoeuvre detection: single precision is ample (7
-#: digits: 0.005 nT of a 50000 nT fluxgate, 0.3 m of latitude), and halves their memory.
-_FLOAT32 = ("flux_x", "flux_y", "flux_z", "heading", "pitch", "roll", "lat", "lon", "alt")
-
-#: Columns the report uses (others in the log are not read).
-_COLUMNS = ("time", "mag", "mag_tl", "mag_comp", "segment", "segment_kept", "line", "flux_x",
-            "flux_y", "flux_z", "heading", "pitch", "roll", "lat", "lon", "alt",
-            "truth_mag_tl", "maneuver")
-
 
 def _figures(result: CompensationResult, qc: QCResult, band: tuple[float, float]
              ) -> dict[str, Callable[[], Any]]:
@@ -302,7 +292,7 @@ def load_compensated(
     """
     src = Path(out_csv)
     rj = Path(report_json) if report_json is not None else json_path_for(src)
-    data = _read_columns(src)
+    data = read_columns(src)
     if "mag_comp" not in data.columns:
         raise InputError(f"{src}: no mag_comp column: this log is not compensated; run"
                          f" `aeromag compensate {src} -o OUT.csv` first, then"
@@ -329,88 +319,6 @@ def load_compensated(
         except AeromagError:
             model = None
     return CompensationResult(data, model, report, config=config), config
-
-
-#: Rows per batch when reading a compensated log: pyarrow's CSV reader needs tens of times
-#: its block in transient memory, so small blocks (about 1 MB) keep the peak down.
-_BATCH_ROWS = 4_000
-
-
-def _read_columns(src: Path) -> pd.DataFrame:
-    """The columns of a compensated log the report uses, read in row batches.
-
-    Only :data:`_COLUMNS` are read.  Float columns are written batch by batch into arrays
-    allocated once for an upper bound of the rows (no list of batches, no concatenation:
-    the peak is the columns themselves plus one small batch); the others are joined at the
-    end.
-    """
-    cap = _row_capacity(src)
-    floats: dict[str, np.ndarray] = {}
-    parts: dict[str, list[np.ndarray]] = {}
-    n = 0
-    order: list[str] = []
-    for b in iter_log_batches(src, None, columns=list(_COLUMNS), batch_rows=_BATCH_ROWS):
-        k = len(b)
-        if not order:
-            order = list(b.columns)
-        if n + k > cap:  # the bound was too small (not expected): grow
-            cap = max(2 * cap, n + k)
-            floats = {c: np.resize(x, cap) for c, x in floats.items()}
-        for c in b.columns:
-            x = b[c].to_numpy()
-            if c not in floats and c not in parts:
-                if x.dtype.kind == "f" and n == 0:
-                    dt = np.float32 if c in _FLOAT32 else np.float64
-                    floats[c] = np.empty(cap, dtype=dt)
-                else:
-                    parts[c] = []
-            if c in floats:
-                floats[c][n:n + k] = x
-            else:
-                parts[c].append(x)
-        n += k
-    _release_arrow_memory()
-    if not n:
-        raise InputError(f"{src}: no rows")
-    cols: dict[str, np.ndarray] = {}
-    for c in order:
-        if c in floats:
-            cols[c] = floats.pop(c)[:n]
-        else:
-            chunks = parts.pop(c)
-            cols[c] = chunks[0] if len(chunks) == 1 else np.concatenate(chunks)
-    data = pd.DataFrame(cols, copy=False)
-    data.attrs["source"] = str(src)
-    return data
-
-
-def _row_capacity(src: Path) -> int:
-    """An upper bound of the data rows of a log: Parquet's row count, else newlines + 1."""
-    if src.suffix.lower() in (".parquet", ".pq"):
-        try:
-            import pyarrow.parquet as pq
-
-            return max(1, int(pq.ParquetFile(src).metadata.num_rows))
-        except Exception:  # noqa: BLE001 - the reader reports a bad file in its own words
-            return 1 << 16
-    n = 1
-    try:
-        with open(src, "rb") as fh:
-            while chunk := fh.read(1 << 23):
-                n += chunk.count(b"\n")
-    except OSError:
-        return 1 << 16
-    return n
-
-
-def _release_arrow_memory() -> None:
-    """Give pyarrow's freed reading buffers back to the system."""
-    try:
-        import pyarrow as pa
-
-        pa.default_memory_pool().release_unused()
-    except (ImportError, AttributeError):  # pragma: no cover - older pyarrow
-        pass
 
 
 def _config_from(report: dict[str, Any]) -> CompensationConfig:
