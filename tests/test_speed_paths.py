@@ -152,3 +152,22 @@ def _default_ref(obj):
     from aeromag.io.json import _json_default
 
     return _json_default(obj)
+
+
+def test_qc_concurrent_equals_serial(monkeypatch) -> None:
+    """compute_qc's residuals and noise on the pool give the serial run's metrics exactly."""
+    from aeromag._core import parallel
+    from aeromag.compensation.pipeline import compensate
+    from aeromag.qc import compute_qc
+    from aeromag.synthetic import simulate_calibration
+
+    df, _ = simulate_calibration(seed=5, n_boxes=1)
+    res = compensate(df)
+    threaded = compute_qc(res, fit=False, fom=True).metrics
+    monkeypatch.setattr(parallel, "FILTER_THREADS", 1)  # submit() runs inline
+    serial = compute_qc(res, fit=False, fom=True).metrics
+    assert threaded == serial
+    assert threaded["fom"]["applicable"]
+    broken = res.data[["time", "mag", "mag_comp", "mag_tl"]]  # nothing to detect from
+    notes = compute_qc(type(res)(broken, None, {}), fit=False, fom=True).metrics["notes"]
+    assert any(n.startswith("manoeuvre detection failed") for n in notes)

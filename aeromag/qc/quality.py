@@ -16,6 +16,7 @@ configuration and report).  See ``docs/qc.md`` for the definitions.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 import warnings
 from dataclasses import dataclass, field
@@ -24,6 +25,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from .._core.parallel import submit
 from .._core.stretches import find_stretches
 from ..compensation.apply import isolate_dropped
 from ..compensation.config import CompensationConfig
@@ -250,8 +252,22 @@ def _compute(
     metrics: dict[str, Any] = {"band_hz": list(band)}
     if not has_tl:
         notes.append("no mag_tl column: residuals are band-passed mag_comp (low-passed)")
-    pieces = piece_residuals(t, mag, tl, seg, kept_mask(data), band, cfg.order,
-                             trim_s=cfg.trim_s, max_gap_s=cfg.max_gap_s)
+    # The band-passed residuals and the noise (the filter kernel, long numpy passes) run on
+    # the filter pool while this thread detects the manoeuvres (0.1-0.15 s of 0.45 s wall
+    # on 1e6 rows, 2 cores); each is the same call as before, only concurrent.
+    fut_pieces = submit(functools.partial(
+        piece_residuals, t, mag, tl, seg, kept_mask(data), band, cfg.order,
+        trim_s=cfg.trim_s, max_gap_s=cfg.max_gap_s))
+    fut_noise = submit(lambda: (fourth_difference_noise(mag, t, cfg.max_gap_s),
+                                fourth_difference_noise(raw_after, t, cfg.max_gap_s)))
+    detect_error: AeromagError | None = None
+    if maneuvers is None and (fom_on or maneuver_column is not None):
+        try:
+            maneuvers = detect_maneuvers(data, maneuver_column=maneuver_column,
+                                         max_gap_s=cfg.max_gap_s)
+        except AeromagError as exc:
+            detect_error = exc
+    pieces = fut_pieces.result()
     kept = kept_mask(data)
     # The headline is the compensation's own metrics of this log (OUT.json metrics, computed on
     # its prepared arrays: gaps interpolated, stretches as fitted); recomputed only without them.
@@ -265,23 +281,20 @@ def _compute(
     band_before = cm["all_std_before_nT"]
     band_after = cm["all_residual_std_nT"]
     metrics["residual_std_by_segment_nT"] = {str(k): v for k, v in seg_std.items()}
+    noise_before, noise_after = fut_noise.result()
     metrics["noise"] = {
         "band_hz": list(band),
         "band_std_before_nT": band_before,
         "band_std_after_nT": band_after,
-        "fourth_difference_before_nT": fourth_difference_noise(mag, t, cfg.max_gap_s),
-        "fourth_difference_after_nT": fourth_difference_noise(raw_after, t, cfg.max_gap_s),
+        "fourth_difference_before_nT": noise_before,
+        "fourth_difference_after_nT": noise_after,
     }
-    # Manoeuvres, heading legs, FOM.
+    # Manoeuvres, heading legs, FOM (detected above).
     fom_tab = None
     if maneuvers is None and not fom_on and maneuver_column is None:
         notes.append(QC_SKIPPED_NOTE)
-    elif maneuvers is None:
-        try:
-            maneuvers = detect_maneuvers(data, maneuver_column=maneuver_column,
-                                         max_gap_s=cfg.max_gap_s)
-        except AeromagError as exc:
-            notes.append(f"manoeuvre detection failed: {exc}")
+    elif detect_error is not None:
+        notes.append(f"manoeuvre detection failed: {detect_error}")
     fom_block: dict[str, Any] | None = fom_not_applicable(QC_SKIPPED_FOM)
     if maneuvers is not None:
         # over the kept segments, like the headline
