@@ -86,8 +86,8 @@ def total_field_from_fluxgate(df: pd.DataFrame, cfg: CompensationConfig, source:
         raise InputError(
             f"{source}: no 'mag' column, but column {c!r} looks like a scalar magnetometer"
             f" (median {float(np.nanmedian(df[c].to_numpy(dtype=np.float64))):.0f}); map it"
-            f" with --col mag={c}, or pass mag_from_fluxgate=True to take the fluxgate magnitude"
-            " as the total field")
+            f" with columns={{'mag': '{c}'}}, or pass mag_from_fluxgate=True to take the"
+            " fluxgate magnitude as the total field")
     log.warning("%s: no 'mag' column: the fluxgate magnitude is the measured total field"
                 " (a model fitted on a scalar magnetometer is not applied to it)", source)
     return True
@@ -142,7 +142,7 @@ def check_total_field(model: Any, mag_from_flux: bool, source: str) -> None:
     if fitted_on_flux is None or bool(fitted_on_flux) == mag_from_flux:
         return
     kinds = ("the scalar magnetometer ('mag')", "the fluxgate magnitude")
-    hint = ("map the scalar with --col mag=SOURCE" if mag_from_flux else
+    hint = ("map the scalar with columns={'mag': 'SOURCE'}" if mag_from_flux else
             "pass mag_from_fluxgate=True, or calibrate on the scalar magnetometer")
     raise InputError(f"{source}: the model was fitted on {kinds[bool(fitted_on_flux)]} but this"
                      f" log's total field is {kinds[mag_from_flux]}; applying it would be"
@@ -169,8 +169,8 @@ def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = N
     missing = [c for c in ("time", *FLUX_COLUMNS) if c not in df.columns]
     if missing:
         raise InputError(
-            f"{src}: missing column(s) {', '.join(missing)}; map them with --col NAME=SOURCE"
-        )
+            f"{src}: missing column(s) {', '.join(missing)}; map them with"
+            " columns={'NAME': 'SOURCE'}")
     t = df["time"].to_numpy(dtype=np.float64)
     if len(t) < 2:
         raise InputError(f"{src}: only {len(t)} row(s); a log needs many samples to fit")
@@ -199,8 +199,9 @@ def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = N
     if not varies:
         raise FitError(
             f"{src}: columns flux_x, flux_y, flux_z are constant: the fluxgate did not record"
-            " attitude changes; check the column map (--col) or the instrument"
+            " attitude changes; check the column map (columns=...) or the instrument"
         )
+    check_field_scale(src, np.sqrt(bt2), None if mag_from_flux else mag)
     step = _every(flux_ok)
     flux_field = float(np.median(np.sqrt(bt2[::step][flux_ok[::step]])))
     mag_sub = None if mag_from_flux else mag[:: _every(mag)]
@@ -218,9 +219,81 @@ def prepare(df: pd.DataFrame, cfg: CompensationConfig, *, source: str | None = N
         line = None
     segment = assign_segments(t, stretch, line, cfg.segment_seconds)
     fs = sampling_rate(t)
+    _check_time_step(t, fs, cfg, src)
     heading = df["heading"].to_numpy(dtype=np.float64) if "heading" in df.columns else None
     return Prepared(t, flux, mag, flux_ok, valid, stretch, segment, fs, src, mag_from_flux,
                     line_labels(line), field_nT, heading, line is not None)
+
+
+#: Total fields [nT] taken for an Earth field: it is 22,000-67,000 nT at the surface; the
+#: margins leave room for a strong local anomaly.
+EARTH_FIELD_RANGE_NT: tuple[float, float] = (1_000.0, 120_000.0)
+
+#: Field units and their factors to nT (as io.units has them), for the message only.
+_UNIT_FACTORS = {"uT": 1e3, "mT": 1e6, "G": 1e5, "mG": 1e2, "pT": 1e-3, "T": 1e9}
+
+
+def check_field_scale(src: str, flux_mag: np.ndarray, mag: np.ndarray | None) -> None:
+    """Refuse a total field that is no Earth field in any unit on most samples.
+
+    The total field is the fluxgate magnitude and (when used) ``mag``.  When more than half of
+    the finite values lie outside :data:`EARTH_FIELD_RANGE_NT` and their median is no field in
+    that range in any known unit either (uT, mT, G, mG, pT, T: those draw the units warning of
+    :func:`prepare`, never a conversion), the column holds something else: a logger's error
+    value (1.8e19, -9999), a mis-mapped column.  Fewer such samples are spikes, for the QC.
+
+    Parameters
+    ----------
+    src : str
+        File name quoted in the error.
+    flux_mag : ndarray
+        Fluxgate magnitude per sample [nT].
+    mag : ndarray or None
+        Scalar magnetometer [nT], or None when the fluxgate magnitude is the total field.
+
+    Raises
+    ------
+    InputError
+        Naming the column, the first such data row and what to do.
+    """
+    lo, hi = EARTH_FIELD_RANGE_NT
+    checks = [("the fluxgate magnitude (flux_x, flux_y, flux_z)", "flux", flux_mag)]
+    if mag is not None:
+        checks.insert(0, ("column 'mag'", "mag", mag))
+    for what, group, v in checks:
+        with np.errstate(invalid="ignore"):
+            fin = np.isfinite(v)
+            out = fin & ~((v >= lo) & (v <= hi))
+        n_fin, n_out = int(fin.sum()), int(out.sum())
+        if not n_fin or 2 * n_out <= n_fin:
+            continue
+        med = float(np.median(v[fin]))
+        if any(lo <= abs(med) * f <= hi for f in _UNIT_FACTORS.values()):
+            continue  # a field in another unit: the units warning says which
+        i = int(np.flatnonzero(out)[0])
+        raise InputError(
+            f"{src}: {what}, data row {i + 1}: {v[i]:.6g} nT, and {n_out} of {n_fin} samples"
+            f" (median {med:.4g}) are outside {lo:,.0f}-{hi:,.0f} nT, no Earth field"
+            f" (22,000-67,000 nT) in any unit: check the column map (columns=...), the units"
+            f" (units={{'{group}': 'UNIT'}}) and the logger")
+
+
+def _check_time_step(t: np.ndarray, fs: float, cfg: CompensationConfig, src: str) -> None:
+    """Refuse a log sampled too slowly for the band when its time looks like ms / us / ns.
+
+    A time step of 1 "s" or more with a band edge above the Nyquist frequency is most often a
+    ``time`` logged in milliseconds (a 10 Hz log steps by 100) or microseconds (PX4): the band
+    error alone would not say so.  The message names the column, the step and the unit.
+    """
+    hi = float(cfg.band_hz[1])
+    step = 1.0 / fs if fs > 0 else float("inf")
+    if hi < fs / 2.0 or not 1.0 <= step < 1e12:
+        return
+    unit = "ms" if step < 1e3 else "us" if step < 1e6 else "ns"
+    raise InputError(
+        f"{src}: column 'time' steps by {step:g} s (median), a sampling rate of {fs:g} Hz, too"
+        f" slow for band_hz up to {hi:g} Hz; if time is in {unit}, pass"
+        f" units={{'time': '{unit}'}}, else choose band_hz below {fs / 2.0:g} Hz")
 
 
 def _every(x: np.ndarray, most: int = 100_000) -> int:

@@ -22,7 +22,12 @@ from ..errors import InputError
 from .messages import clean
 from .model_file import read_map_document
 from .rows import row_location
-from .units import FIELD_UNITS_TO_NT, UNIT_GROUPS, unit_factor  # noqa: F401 - re-exported
+from .units import (  # noqa: F401 - FIELD_UNITS_TO_NT re-exported
+    FIELD_UNITS_TO_NT,
+    UNIT_GROUPS,
+    time_ticks,
+    unit_factor,
+)
 
 log = logging.getLogger(__name__)
 
@@ -33,6 +38,21 @@ NUMERIC_COLUMNS: tuple[str, ...] = tuple(CANONICAL_COLUMNS)
 #: Canonical columns that hold whole numbers (ids, counts): validated, not cast to float.
 INTEGER_COLUMNS: frozenset[str] = frozenset(
     c for c, unit in CANONICAL_COLUMNS.items() if unit in ("integer", "0-255"))
+
+
+class ColumnNames(list):
+    """A list of column names that :func:`copy.deepcopy` copies shallowly (names are str).
+
+    pandas deep-copies ``DataFrame.attrs`` on every column access (``df[c]``): a plain list of
+    the 5,000 names of a wide log in ``attrs`` made writing it 5,000 x 5,000 copies.
+    """
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> ColumnNames:
+        return ColumnNames(self)
+
+
+#: ``df.attrs`` key of the names of the scalar datasets a reader skipped (HDF5 metadata).
+SCALARS_ATTR = "_hdf5_scalars"
 
 
 # --------------------------------------------------------------------------- column maps
@@ -214,6 +234,10 @@ def apply_column_map(
         return df
     rename: dict[str, str] = {}
     for name, src in columns.items():
+        if src not in df.columns and src in (df.attrs.get(SCALARS_ATTR) or ()):
+            raise InputError(
+                f"{clean(source)}: dataset {clean(src)!r} (mapped to {name!r}) is a scalar (one"
+                " value, shape ()), not one value per sample; map a 1-D channel instead")
         if src not in df.columns:
             avail = ", ".join(map(str, df.columns[:20]))
             raise InputError(
@@ -355,34 +379,90 @@ def datetime_seconds(s: pd.Series, source: str = "<log>",
 
 
 def convert_units(
-    df: pd.DataFrame, units: Mapping[str, str] | None, *, source: str = "<log>"
+    df: pd.DataFrame, units: Mapping[str, str] | None, *, source: str = "<log>",
+    rows: Mapping[str, Any] | None = None,
 ) -> pd.DataFrame:
-    """Convert field columns to nT as requested (never guessed).
+    """Convert field columns to nT and ``time`` to s as requested (never guessed), then check.
+
+    Without a time unit, a ``time`` that looks like epoch milliseconds, microseconds or
+    nanoseconds (median above 1e11 s, the year 5100) is an error naming the file, the column,
+    the first such row and the likely unit (see :func:`check_time_scale`).
 
     Parameters
     ----------
     df : DataFrame
         Log with canonical names.
     units : mapping or None
-        ``{column_or_group: unit}``; groups are ``flux`` (the three fluxgate axes) and ``mag``.
+        ``{column_or_group: unit}``; groups are ``flux`` (the three fluxgate axes) and ``mag``;
+        ``time`` takes ``s``, ``ms``, ``us`` or ``ns``.
     source : str
         File name quoted in errors.
+    rows : mapping, optional
+        Where the rows are in the file (see :func:`row_location`).
 
     Returns
     -------
     DataFrame
         The same frame, converted in place.
     """
-    if not units:
-        return df
+    units = dict(units or {})
     for key, unit in units.items():
-        factor = unit_factor(unit, what=f"{source}: --units {key}={unit}")
+        if key == "time":
+            ticks = time_ticks(unit, what=f"{source}: units time={unit}")
+            if "time" not in df.columns:
+                raise InputError(f"{source}: units time={unit}: no column 'time' in the log")
+            if df.attrs.get("_time_converted"):
+                raise InputError(f"{source}: units time={unit}: column 'time' holds date-times,"
+                                 " already converted to seconds; drop the time unit")
+            df["time"] = df["time"].astype(np.float64) / ticks
+            continue
+        factor = unit_factor(unit, what=f"{source}: units {key}={unit}")
         cols = UNIT_GROUPS.get(key, (key,))
         present = [c for c in cols if c in df.columns]
         if not present:
-            raise InputError(f"{source}: --units {key}={unit}: no column {key!r} in the log")
+            raise InputError(f"{source}: units {key}={unit}: no column {key!r} in the log")
         for c in present:
             if CANONICAL_COLUMNS.get(c, "nT") != "nT":
-                raise InputError(f"{source}: --units {key}: column {c!r} is not a field in nT")
+                raise InputError(f"{source}: units {key}: column {c!r} is not a field in nT")
             df[c] = df[c].astype(np.float64) * factor
+    if "time" in df.columns and "time" not in units:
+        check_time_scale(df["time"], source, rows)
     return df
+
+
+#: Median ``|time|`` [s] above which a time is taken for epoch ms / us / ns (the year 5100).
+EPOCH_TIME_LIMIT_S = 1e11
+
+
+def check_time_scale(t: pd.Series, source: str, rows: Mapping[str, Any] | None = None) -> None:
+    """Refuse a ``time`` column whose values look like epoch ms, us or ns instead of seconds.
+
+    Seconds since 1970 are about 1.8e9 today; milliseconds 1.8e12, microseconds 1.8e15,
+    nanoseconds 1.8e18.  A median ``|time|`` above :data:`EPOCH_TIME_LIMIT_S` names the likely
+    unit and ``units={'time': UNIT}``.  Isolated huge values are left to the time checks of
+    :func:`aeromag.io.read_log` (which name their row).
+
+    Parameters
+    ----------
+    t : Series
+        The time column (numbers).
+    source : str
+        File name quoted in the error.
+    rows : mapping, optional
+        Where the rows are in the file.
+    """
+    if t.dtype.kind not in "fiu":
+        return
+    v = np.abs(t.to_numpy(dtype=np.float64))
+    fin = np.isfinite(v)
+    if not fin.any():
+        return
+    med = float(np.median(v[fin]))
+    if med <= EPOCH_TIME_LIMIT_S:
+        return
+    unit = "ms" if med < 1e14 else "us" if med < 1e17 else "ns"
+    i = int(np.flatnonzero(fin & (v > EPOCH_TIME_LIMIT_S))[0])
+    raise InputError(
+        f"{clean(source)}: column 'time', {row_location(rows, i)}: time"
+        f" {plain_number(t.iloc[i])} is not seconds (median {med:.3g}, beyond the year 5000);"
+        f" it looks like {unit} since 1970: pass units={{'time': '{unit}'}}")

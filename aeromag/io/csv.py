@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
-from .columns import check_unique_names, filled_cells
+from .columns import ColumnNames, check_unique_names, filled_cells
 from .messages import clean
 from .rows import ROWS_ATTR, row_location, rows_after_header, text_lines
 
@@ -245,7 +245,7 @@ def read_csv(path: Path, spare_fields: int = 1, *, allow_truncated: bool = False
     raw_names = [str(c) for c in df.columns]
     df.columns = [c.strip() for c in raw_names]
     if plain and raw_names == list(df.columns):
-        df.attrs["_plain_csv_columns"] = raw_names
+        df.attrs["_plain_csv_columns"] = ColumnNames(raw_names)  # cheap to deep-copy
     df.attrs[ROWS_ATTR] = rows_after_header(path, header_line)
     return df
 

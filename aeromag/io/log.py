@@ -123,7 +123,7 @@ def read_log(
                          " give a longer log")
     present = [c for c in NUMERIC_COLUMNS if c in df.columns]
     df = to_numeric(df, present, source, rows)
-    df = convert_units(df, units, source=source)
+    df = convert_units(df, units, source=source, rows=rows)
     n_read = len(df)
     plain = df.attrs.pop("_plain_csv_columns", None)
     if df.attrs.pop("_time_converted", False):

@@ -39,7 +39,7 @@ from .csv import (
     short_row,
     truncated_row_message,
 )
-from .formats import detect_format, read_table_rows
+from .formats import check_delimiter, detect_format, read_table_rows
 from .formats.parquet import check_flat_schema, parquet_error
 from .messages import check_input_file, clean
 from .outputs import recorded_warnings, register_input
@@ -73,6 +73,7 @@ def iter_batches(path: Path, fmt: str | None, columns: list[str] | None = None,
     register_input(path, "input log")
     f = detect_format(path, fmt)
     if f == "csv":
+        check_delimiter(path)
         yield from _csv_batches(path, columns, batch_rows, allow_truncated)
     elif f == "parquet":
         yield from _parquet_batches(path, columns, batch_rows)
@@ -215,13 +216,14 @@ def canonical_batch(df: pd.DataFrame, source: str, *, columns: Mapping[str, str]
     df = apply_column_map(df, columns, source=source) if columns else df
     present = [c for c in NUMERIC_COLUMNS if c in df.columns]
     df = to_numeric(df, present, source, rows)
+    df.attrs.pop("_plain_csv_columns", None)
+    df = convert_units(df, units, source=source, rows=rows)
+    df.attrs.pop("_time_converted", None)
     if "time" in df.columns:
         from .log import check_time_values
 
         check_time_values(df["time"].to_numpy(np.float64), source, rows)
-    df.attrs.pop("_time_converted", None)
-    df.attrs.pop("_plain_csv_columns", None)
-    return convert_units(df, units, source=source) if units else df
+    return df
 
 
 def iter_log_batches(path: Path, fmt: str | None, columns: Sequence[str] | None = None, *,

@@ -45,7 +45,7 @@ from ...errors import InputError
 from ..csv import read_csv
 from ..csv_write import write_csv
 from ..rows import ROWS_ATTR
-from .hdf5 import read_hdf5
+from .hdf5 import check_scalar_channels, read_hdf5
 from .magarrow import read_magarrow
 from .magdrone import read_magdrone
 from .parquet import read_parquet, write_parquet
@@ -126,7 +126,9 @@ def _read_xyz(path: Path, **kw: bool) -> pd.DataFrame:
 
 
 def _read_hdf5(path: Path) -> pd.DataFrame:
-    return apply_preset(read_hdf5(path), MAGNAV_PRESET, MAGNAV_FLUXGATES)
+    df = apply_preset(read_hdf5(path), MAGNAV_PRESET, MAGNAV_FLUXGATES)
+    check_scalar_channels(df, MAGNAV_PRESET, str(path))
+    return df
 
 
 _TEXT = ("allow_truncated",)
@@ -199,6 +201,48 @@ def sniff_csv(path: Path) -> str | None:
 
 
 # --------------------------------------------------------------------------- reading
+#: Delimiters a log is sometimes written with instead of commas, and their names.
+_OTHER_DELIMITERS = {"\t": ("tab", "tabs"), ";": ("semicolon", "semicolons"),
+                     "|": ("pipe", "pipes")}
+
+
+def check_delimiter(path: Path) -> None:
+    """Refuse a CSV log whose header is one field holding tabs, semicolons or pipes.
+
+    Such a file is tab- (or ``;``-) separated: read as CSV it is one column, and every
+    canonical column would be reported missing.  aeromag's CSV is comma-separated (with
+    ``.`` decimals); a file that is not is an error naming the delimiter and what to do.
+
+    Parameters
+    ----------
+    path : Path
+        The file (read as format ``csv``).
+
+    Raises
+    ------
+    InputError
+        When the header looks separated by another delimiter.
+    """
+    from ..csv import _csv_header_fields
+    from ..messages import clean
+
+    head = _csv_header_fields(path)
+    if head is None or len(head[0]) != 1:
+        return
+    names, line = head
+    counts = {d: names[0].count(d) for d in _OTHER_DELIMITERS}
+    d = max(counts, key=counts.__getitem__)
+    if counts[d] == 0:
+        return
+    one, many = _OTHER_DELIMITERS[d]
+    decimals = " with '.' decimals" if d == ";" else ""
+    raise InputError(
+        f"{clean(path)}: looks {one}-separated (header line {line} has {counts[d]}"
+        f" {many if counts[d] > 1 else one} and no comma); aeromag reads comma-separated CSV:"
+        f" save it comma-separated{decimals} (e.g. from a spreadsheet, or"
+        f" tr '{repr(d)[1:-1]}' ',' < IN > OUT.csv when no value holds a comma)")
+
+
 def read_table(path: str | os.PathLike[str], fmt: str | None = None) -> pd.DataFrame:
     """Read the raw table of a log file in any supported format.
 
@@ -235,6 +279,8 @@ def read_table_rows(path: str | os.PathLike[str], fmt: str | None = None, *,
     check_input_file(p)
     f = detect_format(p, fmt)
     reader = REGISTRY[f].read
+    if f == "csv":
+        check_delimiter(p)
     if reader is None:
         raise InputError(f"{p}: aeromag cannot read the {f} format")
     opts = {"allow_truncated": allow_truncated} if allow_truncated else {}
@@ -306,7 +352,8 @@ def write_table(df: pd.DataFrame, path: str | os.PathLike[str], fmt: str | None 
 
 __all__ = [
     "EXTENSIONS", "FORMATS", "GEOSOFT_DUMMY", "MAGNAV_FLUXGATES", "MAGNAV_PRESET", "REGISTRY",
-    "XYZ_LINE_HEADER", "XYZ_LINE_TYPES", "Format", "apply_preset", "detect_format",
+    "XYZ_LINE_HEADER", "XYZ_LINE_TYPES", "Format", "apply_preset", "check_delimiter",
+    "detect_format",
     "extensions", "formats", "output_format", "read_magarrow", "read_magdrone", "read_table",
     "read_table_rows", "read_xyz", "register", "sniff_csv", "write_table", "write_xyz",
 ]

@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from ...errors import InputError
+from ..columns import SCALARS_ATTR
 from ..messages import clean
 from ..rows import ROWS_ATTR, rows_numbered
 
@@ -22,6 +23,7 @@ def read_hdf5(path: Path) -> pd.DataFrame:
         raise InputError(f"{path}: reading HDF5 needs h5py: pip install 'aeromag[hdf5]'") from None
     arrays: dict[str, np.ndarray] = {}
     other: list[str] = []
+    scalars: list[str] = []
     try:
         with h5py.File(path, "r") as h5:
             for name in list(h5.keys()):
@@ -29,7 +31,8 @@ def read_hdf5(path: Path) -> pd.DataFrame:
                 if not isinstance(ds, h5py.Dataset):
                     continue  # a group: not a channel
                 if ds.ndim == 0 or (ds.ndim == 1 and ds.shape[0] <= 1):
-                    continue  # a scalar: metadata (MagNav's dt, N ...), not a channel
+                    scalars.append(name)  # metadata (MagNav's dt, N ...), not a channel
+                    continue
                 if ds.ndim != 1:
                     other.append(f"{clean(name)!r} is {ds.ndim}-D (shape"
                                  f" {'x'.join(map(str, ds.shape))})")
@@ -60,7 +63,45 @@ def read_hdf5(path: Path) -> pd.DataFrame:
                                  " UTF-8 text; fix or remove that dataset") from None
     df = pd.DataFrame(arrays)
     df.attrs[ROWS_ATTR] = rows_numbered("sample")
+    if scalars:
+        names = ", ".join(repr(clean(k)) for k in scalars[:10])
+        more = f" and {len(scalars) - 10} more" if len(scalars) > 10 else ""
+        log.info("%s: %d scalar dataset(s) skipped, not channels: %s%s", clean(path),
+                 len(scalars), names, more)
+        df.attrs[SCALARS_ATTR] = tuple(scalars)
     return df
+
+
+def check_scalar_channels(df: pd.DataFrame, wanted: dict[str, tuple[str, ...]],
+                          source: str) -> None:
+    """Refuse a canonical column that only a skipped scalar dataset could have given.
+
+    A scalar dataset (shape ``()`` or one value) is metadata, not a channel; when the table
+    lacks a canonical column that a scalar dataset is named after (itself, or a preset name
+    of it), the file holds that channel as one number and reading on would report the column
+    missing, or silently use another.  The skipped names are in ``df.attrs``.
+
+    Parameters
+    ----------
+    df : DataFrame
+        The table after the preset (canonical names added).
+    wanted : mapping
+        ``{canonical: (native names, ...)}``: the preset.
+    source : str
+        File name quoted in the error.
+    """
+    scalars = df.attrs.get(SCALARS_ATTR) or ()
+    lower = {k.lower(): k for k in scalars}
+    for canon, natives in wanted.items():
+        if canon in df.columns:
+            continue
+        for name in (canon, *natives):
+            if name.lower() in lower:
+                k = lower[name.lower()]
+                raise InputError(
+                    f"{clean(source)}: dataset {clean(k)!r} (the {canon!r} channel) is a scalar"
+                    " (one value, shape ()), not one value per sample; write it as a 1-D dataset"
+                    " as long as the others, or map another channel with columns=...")
 
 
 #: Geosoft line types: the header words Oasis montaj writes, and the letters of compact line
