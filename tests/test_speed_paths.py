@@ -171,3 +171,18 @@ def test_qc_concurrent_equals_serial(monkeypatch) -> None:
     broken = res.data[["time", "mag", "mag_comp", "mag_tl"]]  # nothing to detect from
     notes = compute_qc(type(res)(broken, None, {}), fit=False, fom=True).metrics["notes"]
     assert any(n.startswith("manoeuvre detection failed") for n in notes)
+
+
+def test_known_sampling_rate_gives_the_same_fom_and_maneuvers() -> None:
+    from aeromag._core.filters import sampling_rate
+    from aeromag.compensation.pipeline import compensate
+    from aeromag.qc import detect_maneuvers, fom_table
+    from aeromag.synthetic import simulate_calibration
+
+    df, _ = simulate_calibration(seed=6, n_boxes=1)
+    data = compensate(df).data
+    fs = sampling_rate(data["time"].to_numpy())
+    m0, m1 = detect_maneuvers(data), detect_maneuvers(data, fs_hz=fs)
+    pd.testing.assert_frame_equal(m0.table, m1.table)
+    pd.testing.assert_frame_equal(m0.labels, m1.labels)
+    pd.testing.assert_frame_equal(fom_table(data, m0), fom_table(data, m0, fs_hz=fs))

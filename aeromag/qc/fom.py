@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from .._core.filters import sampling_rate
 from .._core.runs import run_bounds
 from ..errors import InputError
 from .labels import kept_mask, segment_labels
@@ -33,6 +34,7 @@ def fom_table(
     after: str | None = None,
     truth: str | None = "truth_mag_tl",
     max_gap_s: float | None = None,
+    fs_hz: float | None = None,
     **detect_kw: Any,
 ) -> pd.DataFrame:
     """Peak-to-peak amplitude of the band-passed field in every manoeuvre, before and after.
@@ -59,6 +61,8 @@ def fom_table(
         Column of the true interference [nT] (simulations); ignored when absent.
     max_gap_s : float, optional
         Longest time step inside a stretch [s].
+    fs_hz : float, optional
+        Sampling rate [Hz] when the caller knows it (default: from ``time``).
 
     Returns
     -------
@@ -73,6 +77,7 @@ def fom_table(
     if maneuvers is None:
         maneuvers = detect_maneuvers(data, max_gap_s=max_gap_s, **detect_kw)
     t = data["time"].to_numpy(dtype=np.float64)
+    fs = sampling_rate(t) if fs_hz is None else fs_hz  # once for the two or three fields
     if before in data.columns:
         b = data[before].to_numpy(dtype=np.float64)
     elif {"flux_x", "flux_y", "flux_z"} <= set(data.columns):
@@ -106,7 +111,7 @@ def fom_table(
     seg = segment_labels(data)
     dropped = np.where((seg >= 0) & ~keep, seg, -1)  # each dropped segment filtered alone
     for name, x in cols.items():
-        xf = band_passed(x, t, band_hz, order, max_gap_s, split=dropped)
+        xf = band_passed(x, t, band_hz, order, max_gap_s, split=dropped, fs_hz=fs)
         ptp = np.full(len(tab), np.nan)
         if len(ids):
             # [a, b) of each run only (reduceat over a alone ran on to the next start)

@@ -304,6 +304,7 @@ def detect_maneuvers(
     tolerance_deg: float = 15.0,
     declination_deg: float = 0.0,
     max_gap_s: float | None = None,
+    fs_hz: float | None = None,
 ) -> ManeuverResult:
     """Find the heading legs and the pitch/roll/yaw manoeuvres of a calibration flight.
 
@@ -339,6 +340,8 @@ def detect_maneuvers(
         detection's own time scales (10 s heading smoothing, 4 s energy windows, 10 s shortest
         manoeuvre) are far longer than 1 / rate_hz, so this costs a few tenths of a second of
         edge placement and saves most of the time on 10 Hz to 1 kHz logs.  None: full rate.
+    fs_hz : float, optional
+        Sampling rate of ``df`` [Hz] when the caller knows it (default: from ``time``).
 
     Returns
     -------
@@ -357,7 +360,7 @@ def detect_maneuvers(
               smooth_s=smooth_s, tolerance_deg=tolerance_deg,
               declination_deg=declination_deg)
     t = df["time"].to_numpy(dtype=np.float64)
-    fs = sampling_rate(t)
+    fs = sampling_rate(t) if fs_hz is None else fs_hz
     step = int(fs // rate_hz) if rate_hz else 1
     if step < 2 or maneuver_column is not None or leg_column is not None:
         res = _detect_full(df, max_gap_s=max_gap_s, **kw)

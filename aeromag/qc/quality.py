@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from .._core.filters import sampling_rate
 from .._core.parallel import submit
 from .._core.stretches import find_stretches
 from ..compensation.apply import isolate_dropped
@@ -255,16 +256,17 @@ def _compute(
     # The band-passed residuals and the noise (the filter kernel, long numpy passes) run on
     # the filter pool while this thread detects the manoeuvres (0.1-0.15 s of 0.45 s wall
     # on 1e6 rows, 2 cores); each is the same call as before, only concurrent.
+    fs = sampling_rate(t)  # once: a median over 1e6 steps costs 10-20 ms
     fut_pieces = submit(functools.partial(
         piece_residuals, t, mag, tl, seg, kept_mask(data), band, cfg.order,
-        trim_s=cfg.trim_s, max_gap_s=cfg.max_gap_s))
+        trim_s=cfg.trim_s, max_gap_s=cfg.max_gap_s, fs_hz=fs))
     fut_noise = submit(lambda: (fourth_difference_noise(mag, t, cfg.max_gap_s),
                                 fourth_difference_noise(raw_after, t, cfg.max_gap_s)))
     detect_error: AeromagError | None = None
     if maneuvers is None and (fom_on or maneuver_column is not None):
         try:
             maneuvers = detect_maneuvers(data, maneuver_column=maneuver_column,
-                                         max_gap_s=cfg.max_gap_s)
+                                         max_gap_s=cfg.max_gap_s, fs_hz=fs)
         except AeromagError as exc:
             detect_error = exc
     pieces = fut_pieces.result()
@@ -307,7 +309,7 @@ def _compute(
             "heading_offset_deg": maneuvers.heading_offset_deg, "notes": maneuvers.notes}
         if len(maneuvers.table):
             fom_tab = fom_table(data, maneuvers, band_hz=band, order=cfg.order,
-                                max_gap_s=cfg.max_gap_s)
+                                max_gap_s=cfg.max_gap_s, fs_hz=fs)
             fom_block = fom_summary(fom_tab)
             fom_block["table"] = _records(fom_tab)
             if not fom_block["applicable"]:
