@@ -186,3 +186,23 @@ def test_known_sampling_rate_gives_the_same_fom_and_maneuvers() -> None:
     pd.testing.assert_frame_equal(m0.table, m1.table)
     pd.testing.assert_frame_equal(m0.labels, m1.labels)
     pd.testing.assert_frame_equal(fom_table(data, m0), fom_table(data, m0, fs_hz=fs))
+
+
+def test_clip_to_lines_shallow_copy_leaves_the_input_labels() -> None:
+    from aeromag.qc._lines import clip_to_lines
+    from aeromag.qc.maneuvers import ManeuverResult
+
+    t = np.arange(100) * 0.1
+    line = np.where(t < 3.0, 1, 2)
+    mid = np.where(t < 9.0, 0, -1)
+    lab = pd.DataFrame({"heading_leg": 0, "leg_id": 0, "box": 0, "maneuver_id": mid})
+    lab["maneuver"] = pd.Categorical.from_codes(np.where(mid == 0, 2, 0),
+                                                categories=["", *MANEUVERS])
+    before = lab.copy()
+    tab = pd.DataFrame({"id": [0], "box": [0], "heading_leg": [0], "heading": ["N"],
+                        "maneuver": ["roll"], "t_start": [0.0], "t_end": [8.9],
+                        "duration_s": [9.0], "n": [90]})
+    got = clip_to_lines(ManeuverResult(lab, tab, pd.DataFrame(), "column:maneuver"), line, t,
+                        10.0)
+    assert (got.labels["maneuver_id"].to_numpy()[t < 3.0] == -1).all()
+    pd.testing.assert_frame_equal(lab, before)  # the input's columns are untouched

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -419,12 +420,13 @@ def _expand(res: ManeuverResult, df: pd.DataFrame, t: np.ndarray, fs: float,
             cnt: np.ndarray) -> ManeuverResult:
     """Labels and tables of a block-rate detection on every sample of the log."""
     lab = res.labels
-    labels = pd.DataFrame({c: np.repeat(lab[c].to_numpy(), cnt)
-                           for c in ("heading_leg", "leg_id", "box")}, index=df.index)
-    labels["maneuver"] = pd.Categorical.from_codes(
+    cols: dict[str, Any] = {c: np.repeat(lab[c].to_numpy(), cnt)
+                            for c in ("heading_leg", "leg_id", "box")}
+    cols["maneuver"] = pd.Categorical.from_codes(
         np.repeat(np.asarray(lab["maneuver"].cat.codes), cnt),
         categories=lab["maneuver"].cat.categories)
-    labels["maneuver_id"] = np.repeat(lab["maneuver_id"].to_numpy(), cnt)
+    cols["maneuver_id"] = np.repeat(lab["maneuver_id"].to_numpy(), cnt)
+    labels = pd.DataFrame(cols, index=df.index)  # one construction, not three block copies
     first = np.r_[0, np.cumsum(cnt)]  # block k spans samples first[k]:first[k + 1]
     legs = res.legs.copy()
     table = res.table.copy()
