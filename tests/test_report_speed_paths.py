@@ -3,6 +3,9 @@
 * the plain-CSV reader (:func:`aeromag.workflows._report_read._read_csv_fast`, pyarrow straight into
   numpy) reads the same frame as the validating batch reader (``_read_batches``), and hands
   every file it is not sure of to it, so errors are worded the same;
+* the display envelope (in-place column keys, no masked copies when every sample is valid)
+  equals the masked formulation it replaced;
+* the batched Welch PSD (linear detrend as a projection) is scipy's, stretch by stretch.
 """
 
 from __future__ import annotations
@@ -85,3 +88,71 @@ def test_fast_reader_declines_iso_times_and_trailing_delimiters(out_csv: Path,
         rep._read_csv_fast(trail)
     pd.testing.assert_frame_equal(rep.read_columns(trail), rep._read_batches(trail),
                                   check_exact=True)
+
+
+def _envelope_reference(x, y, columns=2000, breaks=None):
+    """The envelope as first written (full-length masked copies): the fast one must equal it."""
+    from aeromag._core.runs import run_bounds
+
+    xf = np.asarray(x, dtype=np.float64)
+    yv = np.asarray(y, dtype=np.float64)
+    lab = np.zeros(len(yv), dtype=np.int64) if breaks is None else np.asarray(breaks)
+    lab = np.where(np.isfinite(yv) & np.isfinite(xf), lab, -1)
+    good = lab >= 0
+    if not good.any():
+        return np.zeros(0), np.zeros(0)
+    if len(yv) > 4 * columns:
+        lo, hi = float(np.min(xf[good])), float(np.max(xf[good]))
+        width = (hi - lo) / columns if hi > lo else 1.0
+        col = np.clip(((xf - lo) / width).astype(np.int64), 0, columns - 1)
+        a, b, _ = run_bounds(np.where(good, col + columns * (lab - lab[good].min()), -1))
+        px = np.column_stack([xf[a], xf[b - 1]]).ravel()
+        py = np.column_stack([np.minimum.reduceat(np.where(good, yv, np.inf), a),
+                              np.maximum.reduceat(np.where(good, yv, -np.inf), a)]).ravel()
+        seg = np.repeat(lab[a], 2)
+    else:
+        px, py, seg = xf[good], yv[good], lab[good]
+    brk = np.flatnonzero(seg[1:] != seg[:-1]) + 1
+    return np.insert(px, brk, np.nan), np.insert(py, brk, np.nan)
+
+
+def test_envelope_equals_the_masked_reference():
+    from aeromag.plot._style import envelope
+
+    rng = np.random.default_rng(5)
+    n = 200_000
+    x = np.arange(n) * 0.1
+    y = rng.normal(size=n)
+    st = np.repeat(np.arange(400), n // 400)
+    holes = y.copy()
+    holes[rng.random(n) < 0.2] = np.nan
+    holes[50_000:60_000] = np.nan
+    unlabelled = st.copy()
+    unlabelled[:3000] = -1
+    bad_x = x.copy()
+    bad_x[7] = np.nan
+    for xx, yy, bb in [(x, y, None), (x, y, st), (x, holes, st), (x, y, unlabelled),
+                       (bad_x, y, st), (x / 86400 + 19000, holes, None),
+                       (x.astype(np.float32), y.astype(np.float32), st),
+                       (x[:3000], holes[:3000], st[:3000]), (x, np.full(n, np.nan), None)]:
+        got, want = envelope(xx, yy, breaks=bb), _envelope_reference(xx, yy, breaks=bb)
+        for g, w in zip(got, want, strict=True):
+            np.testing.assert_array_equal(g, w)
+
+
+def test_welch_equals_scipy_per_stretch():
+    """The batched PSD (linear detrend as a projection) is scipy's Welch averaged over the
+    stretches, weighted by their length."""
+    from scipy import signal
+
+    from aeromag.plot.compensation import _welch
+
+    rng = np.random.default_rng(2)
+    t = np.r_[np.arange(3000), np.arange(5000) + 4000.0, np.arange(1700) + 10000.0] * 0.1
+    x = np.cumsum(rng.normal(size=len(t))) + 50000.0 + 3 * np.sin(2 * np.pi * 0.3 * t)
+    f, p = _welch(x, t, 512)
+    parts = [(3000, slice(0, 3000)), (5000, slice(3000, 8000)), (1700, slice(8000, 9700))]
+    want = sum(n * signal.welch(x[s], fs=10.0, nperseg=512, detrend="linear")[1]
+               for n, s in parts) / 9700
+    np.testing.assert_allclose(f, signal.welch(x[:3000], fs=10.0, nperseg=512)[0])
+    np.testing.assert_allclose(p, want, rtol=1e-9)

@@ -189,22 +189,49 @@ def envelope(x: np.ndarray, y: np.ndarray, columns: int = DISPLAY_COLUMNS,
     """
     xf = np.asarray(x, dtype=np.float64)
     yv = np.asarray(y, dtype=np.float64)
-    lab = np.zeros(len(yv), dtype=np.int64) if breaks is None else np.asarray(breaks)
-    lab = np.where(np.isfinite(yv) & np.isfinite(xf), lab, -1)
-    good = lab >= 0
+    good = np.isfinite(yv)
+    good &= np.isfinite(xf)
+    all_good = bool(good.all())
+    if breaks is None:
+        lab = None
+    else:
+        lab = np.asarray(breaks)
+        good &= lab >= 0
+        all_good = all_good and bool(good.all())
     if not good.any():
         return np.zeros(0), np.zeros(0)
     if len(yv) > 4 * columns:
-        lo, hi = float(np.min(xf[good])), float(np.max(xf[good]))
+        # The column of every sample, computed in place (a few full-length passes, no more):
+        # the key of a sample is its column and stretch; runs of one key are reduced to
+        # their minimum and maximum.  Invalid samples get the key -1 (they belong to no run).
+        xg = xf if all_good else xf[good]
+        lo, hi = float(np.min(xg)), float(np.max(xg))
+        del xg
         width = (hi - lo) / columns if hi > lo else 1.0
-        col = np.clip(((xf - lo) / width).astype(np.int64), 0, columns - 1)
-        a, b, _ = run_bounds(np.where(good, col + columns * (lab - lab[good].min()), -1))
+        c = xf - lo
+        c /= width
+        key = c.astype(np.int64)
+        del c
+        np.clip(key, 0, columns - 1, out=key)
+        if lab is not None:
+            lmin = int(lab[good].min()) if not all_good else int(lab.min())
+            key += columns * (lab - lmin)
+        if not all_good:
+            key[~good] = -1
+        a, b, _ = run_bounds(key)
+        seg_of = (np.zeros(len(a), dtype=np.int64) if lab is None else lab[a])
+        del key
         px = np.column_stack([xf[a], xf[b - 1]]).ravel()
-        py = np.column_stack([np.minimum.reduceat(np.where(good, yv, np.inf), a),
-                              np.maximum.reduceat(np.where(good, yv, -np.inf), a)]).ravel()
-        seg = np.repeat(lab[a], 2)
+        if all_good:  # runs tile the samples: no masking copy
+            ymin, ymax = np.minimum.reduceat(yv, a), np.maximum.reduceat(yv, a)
+        else:
+            ymin = np.minimum.reduceat(np.where(good, yv, np.inf), a)
+            ymax = np.maximum.reduceat(np.where(good, yv, -np.inf), a)
+        py = np.column_stack([ymin, ymax]).ravel()
+        seg = np.repeat(seg_of, 2)
     else:
-        px, py, seg = xf[good], yv[good], lab[good]
+        labv = np.zeros(len(yv), dtype=np.int64) if lab is None else lab
+        px, py, seg = xf[good], yv[good], labv[good]
     brk = np.flatnonzero(seg[1:] != seg[:-1]) + 1
     return np.insert(px, brk, np.nan), np.insert(py, brk, np.nan)
 

@@ -332,9 +332,15 @@ def _welch(x: np.ndarray, t: np.ndarray, nperseg: int) -> tuple[np.ndarray, np.n
     scale = 1.0 / (fs * float(win @ win))
     acc = np.zeros(nps // 2 + 1)
     xv = np.asarray(x, dtype=np.float64)
+    # Linear detrend as a projection (the least-squares line of each segment removed: what
+    # scipy.signal.detrend computes through lstsq, to rounding; 0.8 s -> 0.1 s on 2e6 rows).
+    tc = np.arange(nps) - (nps - 1) / 2.0
+    tc_w = tc / float(tc @ tc)
     for i in range(0, len(seg0), 2048):
         seg = xv[seg0[i:i + 2048, None] + np.arange(nps)]
-        seg = signal.detrend(seg, type="linear", axis=-1) * win
+        seg -= seg.mean(axis=-1, keepdims=True)
+        seg -= (seg @ tc_w)[:, None] * tc
+        seg *= win
         acc += weight[i:i + 2048] @ (np.abs(np.fft.rfft(seg, axis=-1)) ** 2)
     acc *= scale / lens[ok].sum()
     acc[1:None if nps % 2 else -1] *= 2.0  # one-sided: all but DC (and Nyquist)
