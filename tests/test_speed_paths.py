@@ -206,3 +206,41 @@ def test_clip_to_lines_shallow_copy_leaves_the_input_labels() -> None:
                         10.0)
     assert (got.labels["maneuver_id"].to_numpy()[t < 3.0] == -1).all()
     pd.testing.assert_frame_equal(lab, before)  # the input's columns are untouched
+
+
+def test_early_detection_gives_the_qc_of_a_late_one(monkeypatch) -> None:
+    """calibrate() detects the manoeuvres beside the fit: the report is the same as after it."""
+    import aeromag.workflows.compensate as wc
+    from aeromag.compensation.config import CompensationConfig
+    from aeromag.synthetic import simulate_calibration
+
+    df, _ = simulate_calibration(seed=5, n_boxes=1)
+    assert "line" in df.columns
+    cfg = CompensationConfig(fom=True)
+    used = []
+    take = wc._take_early
+    monkeypatch.setattr(wc, "_take_early", lambda *a: used.append(take(*a)) or used[-1])
+    early = wc.calibrate(df, cfg).report
+    assert used and used[0] is not None  # the early detection was taken
+    monkeypatch.setattr(wc, "_detect_early", lambda df, cfg: None)
+    late = wc.calibrate(df, cfg).report
+    for r in (early, late):
+        r.pop("created", None)
+    assert early == late
+
+
+def test_early_detection_refused_when_the_log_changed() -> None:
+    import aeromag.workflows.compensate as wc
+    from aeromag.compensation.config import CompensationConfig
+    from aeromag.compensation.pipeline import calibrate
+    from aeromag.synthetic import simulate_calibration
+
+    df, _ = simulate_calibration(seed=5, n_boxes=1)
+    cfg = CompensationConfig(fom=True)
+    res = calibrate(df, cfg)
+    early = wc._detect_early(df, cfg)
+    assert wc._take_early(early, df, res) is not None
+    other = df.assign(flux_x=df["flux_x"] + 1.0)  # detection would have read other values
+    assert wc._take_early(wc._detect_early(other, cfg), other, res) is None
+    gap = wc._detect_early(df, CompensationConfig(fom=True, max_gap_s=123.0))
+    assert wc._take_early(gap, df, res) is None
