@@ -171,5 +171,6 @@ def test_cli_reversed_plan_warns(mission, tmp_path):
                         "--plan", str(rev), "-o", str(out)], capture_output=True, text=True,
                        timeout=300)
     assert r.returncode == 0, r.stderr
-    assert "reversed" in r.stderr and "0/11 legs flagged" in r.stdout
+    # checked along the reversed legs: the disturbed legs 2, 4, 6, 8 are legs 8, 6, 4, 2
+    assert "reversed" in r.stderr and "4/11 legs flagged (2, 4, 6, 8)" in r.stdout
     assert "warning(s)" in r.stdout

@@ -224,7 +224,11 @@ def test_altitude_relative_to_home_is_found_and_removed(small_mission):
 def test_reversed_and_far_plans_warn(small_mission):
     df, plan, _ = small_mission
     rev = check_track(df, plan.iloc[::-1].reset_index(drop=True))
-    assert rev.report["n_on_leg"] == 0
+    ok = check_track(df, plan)
+    # a mission flown against its plan reversed is checked along the reversed legs
+    assert rev.report["n_on_leg"] == ok.report["n_on_leg"] > 0
+    assert rev.report["flagged_legs"] == sorted(len(plan) - 2 - k
+                                                for k in ok.report["flagged_legs"])
     assert any("backwards" in w and "reversed" in w for w in rev.report["warnings"])
     far = check_track(df, plan.assign(lat=plan["lat"] + 0.05))
     assert any("within" in w and "site" in w for w in far.report["warnings"])

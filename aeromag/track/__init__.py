@@ -11,10 +11,11 @@ import warnings
 from typing import Any
 
 from .._core import geodesy as _geodesy
+from .assign import assign_legs
 from .check import ADDED_COLUMNS, TrackResult, check_track
 from .deviation import leg_summary, track_alarm
 from .geometry import cross_track, plan_ned
-from .legs import DEFAULT_WAYPOINT_RADIUS_M, assign_legs
+from .legs import DEFAULT_WAYPOINT_RADIUS_M
 from .plan import MIN_LEG_LENGTH_M, PLAN_NEEDS, validate_plan
 
 __all__ = ["ADDED_COLUMNS", "DEFAULT_WAYPOINT_RADIUS_M", "MIN_LEG_LENGTH_M", "PLAN_NEEDS",

@@ -58,17 +58,10 @@ from ..detection.heading import (
 )
 from ..errors import InputError
 from . import diagnose
+from .assign import assign_track_legs
 from .deviation import leg_summary, track_alarm
 from .geometry import cross_track
-from .legs import (
-    LegModel,
-    continue_legs,
-    decode_legs,
-    labels_from_column,
-    leg_evidence,
-    leg_passes,
-    velocity_for_legs,
-)
+from .legs import LegModel, labels_from_column, leg_passes, velocity_for_legs
 from .plan import validate_plan
 
 __all__ = ["ADDED_COLUMNS", "TrackResult", "check_track"]
@@ -241,11 +234,24 @@ def check_track(
         labels = labels_from_column(data, n_legs, src)
         how = "log column"
     else:
-        labels = continue_legs(decode_legs(leg_evidence(ned, vel, wps, model), t, model),
-                               ned, vel, wps, model)
+        labels, model, assign_info, w = assign_track_legs(ned, vel, t, wps, model)
         how = "assigned"
-        warnings += diagnose.plan_warnings(ned, vel, t, wps, labels, model, plan_src,
-                                           info=plan_check)
+        warnings += w
+        if assign_info["direction"] == "reversed":
+            # diagnosed against the plan as flown (reversed); the plan as given is reversed
+            n_k = n_legs - 1
+            warnings += diagnose.plan_warnings(ned, vel, t, wps[::-1].copy(),
+                                               np.where(labels >= 0, n_k - labels, -1), model,
+                                               plan_src, info=plan_check)
+            if plan_check.get("mismatch") is None:
+                plan_check["mismatch"] = "reversed"
+            # counted against the plan as given: on its legs, and on them backwards
+            plan_check.update(n_on_leg=assign_info["n_forward"],
+                              n_reversed=assign_info["n_reversed"])
+        else:
+            warnings += diagnose.plan_warnings(ned, vel, t, wps, labels, model, plan_src,
+                                               info=plan_check)
+        plan_check["assignment"] = assign_info
     labels[~ok] = -1
 
     xt, xh, xv, al = (np.full(n, np.nan) for _ in range(4))

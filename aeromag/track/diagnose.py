@@ -59,6 +59,10 @@ def altitude_offset(ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray, mod
     """
     text = str(spec).strip().lower()
     est, spread, n = estimate_altitude_offset(ned, vel, waypoints, model)
+    # a mission flown against the plan reversed follows the reversed legs
+    est_r, spread_r, n_r = estimate_altitude_offset(ned, vel, waypoints[::-1].copy(), model)
+    if n_r > n:
+        est, spread, n = est_r, spread_r, n_r
     info = {"mode": text if text in ("auto", "none") else "given",
             "estimated_m": None if not np.isfinite(est) else est,
             "spread_m": None if not np.isfinite(spread) else spread,
@@ -106,6 +110,10 @@ MISMATCH_RATIO = 1.25
 
 #: Tolerance factor of the widened check for a plan moved sideways (a neighbouring field).
 OFFSET_TOLERANCE_FACTOR = 5.0
+
+#: Largest robust spread of the distances beside the legs, as a fraction of their median, of a
+#: plan diagnosed as offset (a parallel track; the tests' offsets give under 0.1).
+OFFSET_MAX_SPREAD = 0.3
 
 
 def _decoded(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray, waypoints: np.ndarray,
@@ -177,8 +185,19 @@ def plan_warnings(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray, waypoint
     wide = _decoded(ned, vel, time_s, waypoints, wide_model)
     n_wide = int((wide >= 0).sum())
     info.update(n_reversed=n_rev, n_widened=n_wide)
-    # offset: most of the flight along the legs' directions is beside them, not on them
-    offset_like = n_on < 0.5 * n_wide and n_wide - n_on > margin
+    # offset: most of the flight along the legs' directions is beside them, not on them, at a
+    # steady distance (a ferry between legs flown out of order converges to or diverges from
+    # a leg's line: its distances spread from 0 to the widened tolerance)
+    sel = (wide >= 0) & (labels < 0)
+    side = np.full(int(sel.sum()), np.nan)
+    for k in np.unique(wide[sel]):
+        m = wide[sel] == k
+        _, h, _, _ = cross_track(ned[sel][m], waypoints[k], waypoints[k + 1])
+        side[m] = np.abs(h)
+    off = float(np.median(side)) if side.size else float("nan")
+    steady = side.size > 0 and (
+        1.4826 * float(np.median(np.abs(side - off))) < OFFSET_MAX_SPREAD * off)
+    offset_like = n_on < 0.5 * n_wide and n_wide - n_on > margin and steady
     reversed_like = n_rev > MISMATCH_RATIO * n_on and n_rev - n_on > margin
     if reversed_like and not (offset_like and n_wide > MISMATCH_RATIO * n_rev):
         info["mismatch"] = "reversed"
@@ -188,13 +207,6 @@ def plan_warnings(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray, waypoint
             " the flight against the plan as given")
         return warns
     if offset_like:
-        sel = (wide >= 0) & (labels < 0)
-        side = np.full(int(sel.sum()), np.nan)
-        for k in np.unique(wide[sel]):
-            m = wide[sel] == k
-            _, h, _, _ = cross_track(ned[sel][m], waypoints[k], waypoints[k + 1])
-            side[m] = np.abs(h)
-        off = float(np.median(side)) if side.size else float("nan")
         info.update(mismatch="offset", offset_m=off)
         warns.append(
             f"most straight flight follows no leg of {plan_name}: {n_wide - n_on} sample(s) fly"

@@ -29,6 +29,9 @@ flown twice is two runs of its label (two *passes*).
 
 With ``horizontal_only`` the vertical term is left out (logs whose altitude cannot be trusted);
 take-off, landing and ground time are then off plan by their lack of motion along the leg.
+
+:func:`aeromag.track.assign.assign_track_legs` runs this model over a whole log: the plan as
+given and reversed, tolerances widened for a noisy position, transits taken for a leg dropped.
 """
 
 from __future__ import annotations
@@ -43,7 +46,7 @@ from ..errors import InputError
 from .continuation import continue_legs
 from .geometry import cross_track
 
-__all__ = ["DEFAULT_WAYPOINT_RADIUS_M", "LegModel", "assign_legs", "decode_legs",
+__all__ = ["DEFAULT_WAYPOINT_RADIUS_M", "LegModel", "decode_legs",
            "estimate_altitude_offset", "position_jitter_m", "velocity_for_legs",
            "leg_evidence", "labels_from_column", "leg_passes", "motion_velocity", "viterbi",
            "continue_legs"]
@@ -408,46 +411,6 @@ def decode_legs(evidence: np.ndarray, time_s: np.ndarray, model: LegModel = LegM
     pad = np.full((nb * b - n, evidence.shape[1]), np.nan, dtype=np.float64)
     blocks = np.nanmean(np.vstack([evidence, pad]).reshape(nb, b, -1), axis=1)
     return np.repeat(viterbi(blocks, model.switch_cost, model.order_cost), b)[:n]
-
-
-def assign_legs(
-    ned: np.ndarray,
-    waypoints: np.ndarray,
-    *,
-    time_s: np.ndarray | None = None,
-    model: LegModel | None = None,
-    waypoint_radius_m: float | None = None,
-) -> np.ndarray:
-    """Assign each sample to a mission leg (HMM + Viterbi, see the module docstring).
-
-    Parameters
-    ----------
-    ned : ndarray, shape (n, 3)
-        Antenna positions, NED, m (NaN rows: no leg).
-    waypoints : ndarray, shape (m, 3)
-        Plan waypoints, NED, m.
-    time_s : ndarray, shape (n,), optional
-        Sample times, s (default: 10 Hz from 0).
-    model : LegModel, optional
-        Parameters (default :class:`LegModel`).
-    waypoint_radius_m : float, optional
-        Ignored (the old rule's waypoint sphere); kept so that old calls still run.
-
-    Returns
-    -------
-    ndarray of int, shape (n,)
-        Leg index per sample, -1 for none.
-    """
-    del waypoint_radius_m
-    model = model or LegModel()
-    p = np.asarray(ned, dtype=np.float64)
-    t = np.arange(len(p)) / 10.0 if time_s is None else np.asarray(time_s, dtype=np.float64)
-    vel, _ = velocity_for_legs(t, p, model)
-    ev = leg_evidence(p, vel, np.asarray(waypoints, dtype=np.float64), model)
-    lab = continue_legs(decode_legs(ev, t, model), p, vel, np.asarray(waypoints, dtype=np.float64),
-                        model)
-    lab[~np.isfinite(p).all(axis=1)] = -1
-    return lab
 
 
 def estimate_altitude_offset(

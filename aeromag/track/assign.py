@@ -1,0 +1,326 @@
+"""Leg assignment of a whole log: direction of the mission, GNSS error, transits kept off legs.
+
+:mod:`aeromag.track.legs` decodes one plan in one direction with one tolerance.  A real log
+asks three more questions, answered here in :func:`assign_track_legs`:
+
+* **Which way was the mission flown?**  Crews fly a plan backwards (last waypoint first) as
+  often as not.  The log is decoded against the plan and against the plan reversed (waypoint
+  order: every leg B to A, last leg first); when the reversed plan explains
+  :data:`REVERSED_RATIO` times more samples, its labels are used (leg ``j`` of the reversed plan
+  is leg ``K - 1 - j`` of the plan).  A leg flown backwards is on its line: it is checked.  The
+  transits stay off plan as they do for a mission flown as planned (the mission order, motion
+  and progress terms of the HMM apply to the reversed plan).
+* **How good is the position?**  Plain GNSS wanders by metres with correlation times of minutes
+  (a random walk or Gauss-Markov error); with the default 10 m tolerance whole stretches of a
+  leg then fall off it, unchecked.  The robust scatter of the assigned samples about their
+  line (:func:`line_error_sigma_m`: horizontal and vertical apart, a constant offset such as
+  a plan moved sideways removed) estimates the error; when
+  :data:`GATE_SIGMAS` times it exceeds a tolerance, the log is decoded again with that
+  tolerance (at most :data:`MAX_TOLERANCE_FACTOR` times the given one) and an end margin of
+  one sigma (the error along a leg moves samples before its start or past its end).
+* **Is a run a pass or a transit?**  A ferry between legs flown out of order (the next leg's
+  start is not the last leg's end) can run along a leg's direction a few degrees off its line,
+  converging to or diverging from it: the HMM takes it for the leg and every sample of it
+  alarms.  A pass is flown on its line: a run is kept only when at least
+  ``min(MIN_ON_LINE_S, ON_LINE_FRACTION * duration)`` of it is within the on-line gate
+  (``max(ON_LINE_GATE_M, GATE_SIGMAS * sigma)``, horizontally, about the flight's constant
+  offset from the plan) of the line.  A disturbed pass starts on its
+  line and stays a pass however far it then veers; a ferry that meets the line only at a
+  waypoint is dropped.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from typing import Any
+
+import numpy as np
+
+from .._core.runs import run_bounds
+from .continuation import continue_legs
+from .geometry import cross_track
+from .legs import LegModel, decode_legs, leg_evidence, velocity_for_legs
+
+__all__ = ["GATE_SIGMAS", "MAX_TOLERANCE_FACTOR", "MIN_ON_LINE_S", "ON_LINE_FRACTION",
+           "ON_LINE_GATE_M", "REVERSED_RATIO", "assign_legs", "assign_track_legs",
+           "drop_transit_runs", "line_error_sigma_m"]
+
+log = logging.getLogger(__name__)
+
+#: How many times more samples the reversed plan must explain to be taken as flown.
+REVERSED_RATIO = 1.25
+
+#: Gate in robust sigmas of the position error (tolerance widening and on-line gate).
+GATE_SIGMAS = 4.0
+
+#: Largest widening of the tolerances by the position error.
+MAX_TOLERANCE_FACTOR = 5.0
+
+#: Smallest on-line gate, m: an autopilot holds its line to well within this on RTK.
+ON_LINE_GATE_M = 2.0
+
+#: A run must be within the on-line gate this long, s (or for ``ON_LINE_FRACTION`` of a
+#: shorter run) to be a pass.
+MIN_ON_LINE_S = 5.0
+
+#: Fraction of a short run that must be within the on-line gate.
+ON_LINE_FRACTION = 0.5
+
+
+def line_error_sigma_m(ned: np.ndarray, labels: np.ndarray, waypoints: np.ndarray
+                       ) -> tuple[float, float, int, np.ndarray]:
+    """Robust scatter of the assigned samples about their leg's line, a constant offset aside.
+
+    The horizontal residual of a sample is its signed distance to the line times the line's
+    horizontal normal (a north-east vector); the median vector over the samples (a plan moved
+    sideways, which :mod:`aeromag.track.diagnose` reports, or the mean of the GNSS error) is
+    removed before the scatter is taken, and likewise the median vertical distance.
+
+    Parameters
+    ----------
+    ned : ndarray, shape (n, 3)
+        Positions, NED, m.
+    labels : ndarray of int, shape (n,)
+        Leg per sample, -1 for none.
+    waypoints : ndarray, shape (m, 3)
+        Plan waypoints, NED, m.
+
+    Returns
+    -------
+    sigma_h_m, sigma_v_m : float
+        ``1.4826 median |d - offset|`` of the horizontal and vertical distances, m (NaN when
+        fewer than 10 samples are assigned).
+    n : int
+        Samples used.
+    offset_ne : ndarray, shape (2,)
+        The median horizontal residual (north, east), m (zeros when too few samples).
+    """
+    on = np.flatnonzero((labels >= 0) & np.isfinite(ned).all(axis=1))
+    if on.size < 10:
+        return float("nan"), float("nan"), int(on.size), np.zeros(2)
+    h = np.empty(on.size)
+    v = np.empty(on.size)
+    nrm = np.empty((on.size, 2))
+    for k in np.unique(labels[on]):
+        m = labels[on] == k
+        _, hk, vk, _ = cross_track(ned[on[m]], waypoints[k], waypoints[k + 1])
+        h[m], v[m] = hk, vk
+        d = waypoints[k + 1, :2] - waypoints[k, :2]
+        ln = float(np.linalg.norm(d))
+        nrm[m] = (-d[1] / ln, d[0] / ln) if ln > 0 else (0.0, 0.0)
+    off = np.median(h[:, None] * nrm, axis=0)
+    hr = h - nrm @ off
+    vr = v - float(np.median(v))
+    return (1.4826 * float(np.median(np.abs(hr))), 1.4826 * float(np.median(np.abs(vr))),
+            int(on.size), off)
+
+
+def drop_transit_runs(labels: np.ndarray, ned: np.ndarray, time_s: np.ndarray,
+                      waypoints: np.ndarray, gate_h_m: float,
+                      offset_ne: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+    """Unassign the runs that are not flown on their line (transits taken for a leg).
+
+    Horizontal only: a ferry between legs is a horizontal transit (climbs and descents have no
+    motion along a leg), and a pass flown at a constant wrong height is a deviation to report.
+
+    Parameters
+    ----------
+    labels : ndarray of int, shape (n,)
+        Leg per sample, -1 for none.
+    ned : ndarray, shape (n, 3)
+        Positions, NED, m.
+    time_s : ndarray, shape (n,)
+        Sample times, s.
+    waypoints : ndarray, shape (m, 3)
+        Plan waypoints, NED, m.
+    gate_h_m : float
+        On-line gate, horizontal, m.
+    offset_ne : ndarray, shape (2,), optional
+        Constant horizontal offset of the flight from the plan (north, east), m: the gate is
+        centred on it (:func:`line_error_sigma_m`), so that a plan moved sideways by a few
+        metres is checked (and alarms), not dropped.
+
+    Returns
+    -------
+    labels : ndarray of int
+        A new array without the dropped runs.
+    n_dropped : int
+        Runs dropped.
+    """
+    lab = np.array(labels, dtype=np.int64, copy=True)
+    t = np.asarray(time_s, dtype=np.float64)
+    dts = np.diff(t)
+    dt = float(np.median(dts)) if dts.size else 0.1
+    starts, stops, vals = run_bounds(lab)
+    dropped = 0
+    for s0, s1, k in zip(starts, stops, vals, strict=True):
+        p = ned[s0:s1]
+        fin = np.isfinite(p).all(axis=1)
+        if not fin.any():
+            continue
+        _, h, _, _ = cross_track(np.where(fin[:, None], p, 0.0), waypoints[k], waypoints[k + 1])
+        centre = 0.0
+        if offset_ne is not None:
+            d = waypoints[k + 1, :2] - waypoints[k, :2]
+            ln = float(np.linalg.norm(d))
+            centre = float((-d[1] * offset_ne[0] + d[0] * offset_ne[1]) / ln) if ln > 0 else 0.0
+        near = fin & (np.abs(h - centre) <= gate_h_m)
+        duration = float(t[s1 - 1] - t[s0]) + dt
+        need = min(MIN_ON_LINE_S, ON_LINE_FRACTION * duration)
+        # time on the line: its share of the positioned samples (sparse fixes) of the run
+        if near.sum() / fin.sum() * duration < need - 1e-9:
+            lab[s0:s1] = -1
+            dropped += 1
+    return lab, dropped
+
+
+def _raw(ned: np.ndarray, vel: np.ndarray, t: np.ndarray, wps: np.ndarray, model: LegModel
+         ) -> tuple[np.ndarray, np.ndarray]:
+    """Labels against the plan and against it reversed (reversed plan numbering)."""
+    out = []
+    for w in (wps, wps[::-1].copy()):
+        out.append(continue_legs(decode_legs(leg_evidence(ned, vel, w, model), t, model),
+                                 ned, vel, w, model))
+    return out[0], out[1]
+
+
+def _gate(sig_h: float) -> float:
+    return max(ON_LINE_GATE_M, GATE_SIGMAS * sig_h) if np.isfinite(sig_h) else ON_LINE_GATE_M
+
+
+def _choose(ned: np.ndarray, t: np.ndarray, wps: np.ndarray, fwd: np.ndarray, rev: np.ndarray,
+            gate: tuple[float, np.ndarray] | None
+            ) -> tuple[np.ndarray, bool, dict[str, int]]:
+    """The labelling (plan numbering) that explains more samples, transit runs dropped."""
+    d_f = d_r = 0
+    if gate is not None:
+        fwd, d_f = drop_transit_runs(fwd, ned, t, wps, *gate)
+        # the reversed plan must be followed on its lines to be taken as flown (no offset:
+        # the transits of a flight beside its plan run along the reversed legs)
+        rev, d_r = drop_transit_runs(rev, ned, t, wps[::-1].copy(), gate[0])
+    n_f, n_r = int((fwd >= 0).sum()), int((rev >= 0).sum())
+    margin = max(10, int(0.01 * np.isfinite(ned).all(axis=1).sum()))
+    counts = {"n_forward": n_f, "n_reversed": n_r}
+    if n_r > REVERSED_RATIO * n_f and n_r - n_f > margin:
+        counts["n_dropped_runs"] = d_r
+        return np.where(rev >= 0, len(wps) - 2 - rev, -1), True, counts
+    counts["n_dropped_runs"] = d_f
+    return fwd, False, counts
+
+
+def assign_track_legs(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray,
+                      waypoints: np.ndarray, model: LegModel
+                      ) -> tuple[np.ndarray, LegModel, dict[str, Any], list[str]]:
+    """Assign legs to a whole log (see the module docstring).
+
+    Parameters
+    ----------
+    ned : ndarray, shape (n, 3)
+        Antenna positions, NED, m (datum offset removed).
+    vel : ndarray, shape (n, 3)
+        Velocities, m/s.
+    time_s : ndarray, shape (n,)
+        Sample times, s.
+    waypoints : ndarray, shape (m, 3)
+        Plan waypoints, NED, m.
+    model : LegModel
+        Parameters as given.
+
+    Returns
+    -------
+    labels : ndarray of int, shape (n,)
+        Leg per sample (plan numbering), -1 for none.
+    model : LegModel
+        The parameters used (tolerances widened for the position error).
+    info : dict
+        ``direction`` (``"as planned"`` or ``"reversed"``), ``sigma_h_m``, ``sigma_v_m``,
+        ``gate_h_m``, ``offset_ne_m``, ``tolerance_m``, ``vertical_tolerance_m``,
+        ``n_forward``, ``n_reversed``, ``n_dropped_runs``.
+    warnings : list of str
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    wps = np.asarray(waypoints, dtype=np.float64)
+    used = model
+    # the position error from a first decoding (no run dropped: the gate depends on it)
+    raw = _raw(ned, vel, t, wps, used)
+    lab, _, _ = _choose(ned, t, wps, *raw, None)
+    sig_h, sig_v, _, off_ne = line_error_sigma_m(ned, lab, wps)
+    for _ in range(2):
+        if not np.isfinite(sig_h):
+            break
+        tol_h = min(max(model.tolerance_m, GATE_SIGMAS * sig_h),
+                    MAX_TOLERANCE_FACTOR * model.tolerance_m)
+        tol_v = model.vertical_tolerance_m if model.horizontal_only else min(
+            max(model.vertical_tolerance_m, GATE_SIGMAS * sig_v),
+            MAX_TOLERANCE_FACTOR * model.vertical_tolerance_m)
+        if tol_h <= used.tolerance_m and tol_v <= used.vertical_tolerance_m:
+            break
+        # the error along the leg moves samples before its start or past its end
+        used = dataclasses.replace(used, tolerance_m=max(tol_h, used.tolerance_m),
+                                   vertical_tolerance_m=max(tol_v, used.vertical_tolerance_m),
+                                   end_margin_m=max(model.end_margin_m, sig_h))
+        raw = _raw(ned, vel, t, wps, used)
+        lab, _, _ = _choose(ned, t, wps, *raw, None)
+        sig_h, sig_v, _, off_ne = line_error_sigma_m(ned, lab, wps)
+    gate_h = _gate(sig_h)
+    lab, rev, counts = _choose(ned, t, wps, *raw, (gate_h, off_ne))
+    warns: list[str] = []
+    if used is not model:
+        warns.append(
+            f"the positions scatter {sig_h:.1f} m about the legs' lines horizontally and"
+            f" {sig_v:.1f} m vertically (not RTK?): legs assigned with a tolerance of"
+            f" {used.tolerance_m:.0f} m horizontally and {used.vertical_tolerance_m:.0f} m"
+            " vertically; deviations below a few times that scatter are noise")
+    if rev:
+        warns.append(
+            "the plan looks reversed: the flight follows its legs backwards (last waypoint"
+            " first); the legs are assigned and checked in that direction")
+    info: dict[str, Any] = {
+        "direction": "reversed" if rev else "as planned",
+        "sigma_h_m": None if not np.isfinite(sig_h) else sig_h,
+        "sigma_v_m": None if not np.isfinite(sig_v) else sig_v,
+        "gate_h_m": gate_h, "offset_ne_m": [float(x) for x in off_ne],
+        "tolerance_m": used.tolerance_m, "vertical_tolerance_m": used.vertical_tolerance_m,
+        **counts,
+    }
+    log.debug("leg assignment: %s", info)
+    return lab, used, info, warns
+
+
+def assign_legs(
+    ned: np.ndarray,
+    waypoints: np.ndarray,
+    *,
+    time_s: np.ndarray | None = None,
+    model: LegModel | None = None,
+    waypoint_radius_m: float | None = None,
+) -> np.ndarray:
+    """Assign each sample to a mission leg (see :func:`assign_track_legs`).
+
+    Parameters
+    ----------
+    ned : ndarray, shape (n, 3)
+        Antenna positions, NED, m (NaN rows: no leg).
+    waypoints : ndarray, shape (m, 3)
+        Plan waypoints, NED, m.
+    time_s : ndarray, shape (n,), optional
+        Sample times, s (default: 10 Hz from 0).
+    model : LegModel, optional
+        Parameters (default :class:`LegModel`).
+    waypoint_radius_m : float, optional
+        Ignored (the old rule's waypoint sphere); kept so that old calls still run.
+
+    Returns
+    -------
+    ndarray of int, shape (n,)
+        Leg index per sample, -1 for none.
+    """
+    del waypoint_radius_m
+    model = model or LegModel()
+    p = np.asarray(ned, dtype=np.float64)
+    t = np.arange(len(p)) / 10.0 if time_s is None else np.asarray(time_s, dtype=np.float64)
+    vel, _ = velocity_for_legs(t, p, model)
+    lab, _, _, _ = assign_track_legs(p, vel, t, np.asarray(waypoints, dtype=np.float64), model)
+    lab[~np.isfinite(p).all(axis=1)] = -1
+    return lab
