@@ -156,3 +156,25 @@ def test_welch_equals_scipy_per_stretch():
                for n, s in parts) / 9700
     np.testing.assert_allclose(f, signal.welch(x[:3000], fs=10.0, nperseg=512)[0])
     np.testing.assert_allclose(p, want, rtol=1e-9)
+
+
+def test_envelope_bridges_only_subpixel_gaps_between_subpixel_stretches():
+    """8000 stretches narrower than a pixel (a calibration cut at every turn) draw as one line,
+    not 8000 pieces; a gap wider than a pixel column, or a change between two wide stretches,
+    still breaks it."""
+    from aeromag.plot._style import envelope
+
+    n_st, per = 8000, 250
+    x = (np.arange(n_st)[:, None] * (per + 100) + np.arange(per)).ravel() * 0.1
+    st = np.repeat(np.arange(n_st), per)
+    y = np.sin(x / 50.0)
+    width = (x[-1] - x[0]) / 2000  # 140 s a column: stretches 25 s, gaps 10 s
+    ex, ey = envelope(x, y, columns=2000, breaks=st)
+    assert np.isnan(ey).sum() == 0 and len(ex) <= 2 * 2000 + 2 * n_st
+    assert np.nanmax(ey) == y.max() and np.nanmin(ey) == y.min()
+    far = x.copy()
+    far[per * 4000:] += 3 * width  # one gap wider than a column
+    ex, ey = envelope(far, y, columns=2000, breaks=st)
+    assert np.isnan(ey).sum() == 1
+    i = int(np.flatnonzero(np.isnan(ex))[0])
+    assert ex[i - 1] == far[per * 4000 - 1] and ex[i + 1] == far[per * 4000]

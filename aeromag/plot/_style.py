@@ -180,7 +180,9 @@ def envelope(x: np.ndarray, y: np.ndarray, columns: int = DISPLAY_COLUMNS,
     columns : int
         Pixel columns across the x range; a line of at most ``4 * columns`` points is kept.
     breaks : ndarray of int, optional
-        Stretch label per sample (the line is never drawn across a change of label).
+        Stretch label per sample: the line is not drawn across a change of label (on a
+        long line, except across a sub-pixel gap next to a sub-pixel stretch, see
+        :func:`_subpixel_breaks_merged`).
 
     Returns
     -------
@@ -228,12 +230,36 @@ def envelope(x: np.ndarray, y: np.ndarray, columns: int = DISPLAY_COLUMNS,
             ymin = np.minimum.reduceat(np.where(good, yv, np.inf), a)
             ymax = np.maximum.reduceat(np.where(good, yv, -np.inf), a)
         py = np.column_stack([ymin, ymax]).ravel()
-        seg = np.repeat(seg_of, 2)
-    else:
-        labv = np.zeros(len(yv), dtype=np.int64) if lab is None else lab
-        px, py, seg = xf[good], yv[good], labv[good]
+        brk = _subpixel_breaks_merged(xf[a], xf[b - 1], seg_of, width)
+        return np.insert(px, brk, np.nan), np.insert(py, brk, np.nan)
+    labv = np.zeros(len(yv), dtype=np.int64) if lab is None else lab
+    px, py, seg = xf[good], yv[good], labv[good]
     brk = np.flatnonzero(seg[1:] != seg[:-1]) + 1
     return np.insert(px, brk, np.nan), np.insert(py, brk, np.nan)
+
+
+def _subpixel_breaks_merged(x0: np.ndarray, x1: np.ndarray, seg: np.ndarray,
+                            width: float) -> np.ndarray:
+    """Where to break the envelope line (indices into its points, two per run).
+
+    A change of stretch breaks the line, except where the gap before the next stretch is
+    narrower than a pixel column and one of the two stretches is too: thousands of
+    stretches shorter than a pixel (a calibration cut at every turn) would otherwise make a
+    line of thousands of pieces, invisible at that scale and slow to draw.  A gap wider than
+    a column, or between two stretches at least a column wide, always breaks the line.
+    """
+    change = np.flatnonzero(seg[1:] != seg[:-1])
+    if not change.size:
+        return change
+    ids, inv = np.unique(seg, return_inverse=True)
+    first = np.full(len(ids), np.inf)
+    last = np.full(len(ids), -np.inf)
+    np.minimum.at(first, inv, x0)
+    np.maximum.at(last, inv, x1)
+    narrow = (last - first) < width
+    gap = x0[change + 1] - x1[change]
+    keep = (gap >= width) | ~(narrow[inv[change]] | narrow[inv[change + 1]])
+    return 2 * (change[keep] + 1)
 
 
 def _line(ax: Axes, x: np.ndarray, y: np.ndarray, st: np.ndarray | None = None,

@@ -144,6 +144,7 @@ def write_report(
             progress(step, total, what)
 
     qc = compute_qc(result, config=config, **qc_kw)
+    _trim_heap()
     advance("quality metrics")
     band = tuple(qc.metrics["band_hz"])
     pngs: dict[str, bytes] = {}
@@ -154,6 +155,7 @@ def write_report(
         except (AeromagError, KeyError) as exc:
             skipped[name] = str(exc)
             log.info("report: %s skipped: %s", name, exc)
+        _trim_heap()
         advance(name)
     for name, data in pngs.items():
         with atomic_path(out / name) as tmp:
@@ -169,6 +171,29 @@ def write_report(
     advance("report.html")
     log.info("wrote %s (%d figures)", html_path, len(pngs))
     return html_path
+
+
+def _trim_heap() -> None:
+    """Give the C heap's free pages back to the system (glibc ``malloc_trim``; else nothing).
+
+    The QC's and the figures' full-length temporaries are freed, but glibc keeps much of
+    them in its arenas (the filter threads have their own): on a 2e6-row log 145 MB stay
+    resident after the QC, and the next figure's temporaries then set the peak on top.
+    """
+    global _LIBC
+    if _LIBC is None:
+        try:
+            import ctypes
+
+            _LIBC = ctypes.CDLL("libc.so.6")
+            _LIBC.malloc_trim.argtypes = [ctypes.c_size_t]
+        except (OSError, AttributeError):
+            _LIBC = False
+    if _LIBC:
+        _LIBC.malloc_trim(0)
+
+
+_LIBC: Any = None
 
 
 def segment_rows(result: CompensationResult, qc: QCResult) -> list[dict[str, Any]]:
