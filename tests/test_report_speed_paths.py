@@ -178,3 +178,18 @@ def test_envelope_bridges_only_subpixel_gaps_between_subpixel_stretches():
     assert np.isnan(ey).sum() == 1
     i = int(np.flatnonzero(np.isnan(ex))[0])
     assert ex[i - 1] == far[per * 4000 - 1] and ex[i + 1] == far[per * 4000]
+
+
+def test_fast_reader_hands_on_a_log_beating_its_row_bound(out_csv: Path, tmp_path: Path) -> None:
+    """The row bound comes from the first 64 kB; later rows far shorter overflow it, and the
+    validating reader reads the file (same frame as reading it through that reader)."""
+    lines = out_csv.read_text().splitlines()
+    head = lines[0].split(",")
+    short = [",".join(f"{1000 + i * 0.1:.1f}" if c == "time" else
+                      ("true" if c == "segment_kept" else "0") for c in head)
+             for i in range(20_000)]
+    f = tmp_path / "short.csv"
+    f.write_text("\n".join(lines[:400] + short) + "\n")
+    with pytest.raises(rep._NotPlain):
+        rep._read_csv_fast(f)
+    pd.testing.assert_frame_equal(rep.read_columns(f), rep._read_batches(f), check_exact=True)

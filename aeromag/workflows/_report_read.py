@@ -95,6 +95,7 @@ def _read_csv_fast(src: Path) -> pd.DataFrame | None:
     with open(src, "rb") as fh:
         head = fh.readline(1 << 16)
         first = fh.readline(1 << 16)
+        sample = fh.read(1 << 16).split(b"\n")[:-1]
     try:
         header = head.decode("utf-8").rstrip("\r\n").split(",")
         fields = first.decode("utf-8").rstrip("\r\n").split(",")
@@ -110,7 +111,12 @@ def _read_csv_fast(src: Path) -> pd.DataFrame | None:
         raise _NotPlain("time is not a number (ISO 8601 times?)") from None
     want = [c for c in header if c in _COLUMNS]
     types = {c: pa.float64() for c in want if c in NUMERIC_COLUMNS}
-    cap = _row_capacity(src)
+    # Rows bound: the data bytes over half the shortest row seen (never under a row of empty
+    # fields).  Pages never written are never resident, so a generous bound costs no memory
+    # (counting the newlines of a 636 MB file cost 0.4-0.7 s); a file that beats it goes to
+    # the validating reader.
+    shortest = min([len(first), *(len(r) + 1 for r in sample if r.strip())])
+    cap = (src.stat().st_size - len(head)) // max(len(header), shortest // 2) + 1
     floats: dict[str, np.ndarray] = {}
     parts: dict[str, list[np.ndarray]] = {c: [] for c in want}
     n = 0
