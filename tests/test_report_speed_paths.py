@@ -193,3 +193,19 @@ def test_fast_reader_hands_on_a_log_beating_its_row_bound(out_csv: Path, tmp_pat
     with pytest.raises(rep._NotPlain):
         rep._read_csv_fast(f)
     pd.testing.assert_frame_equal(rep.read_columns(f), rep._read_batches(f), check_exact=True)
+
+
+def test_map_of_single_precision_positions_equals_double(out_csv: Path) -> None:
+    """The map converts only its drawn samples to float64: the same points and colours as a
+    frame converted to float64 as a whole (the conversion is exact)."""
+    from aeromag.plot.maps import plot_map
+
+    d32 = rep.read_columns(out_csv)
+    d32.loc[d32.index[200:260], "segment_kept"] = False
+    d32.loc[d32.index[10:20], "lat"] = np.nan
+    d64 = d32.astype({c: np.float64 for c in ("lat", "lon", "alt")})
+    a, b = plot_map(d32, max_points=500), plot_map(d64, max_points=500)
+    for ca, cb in zip(a.axes[0].collections, b.axes[0].collections, strict=True):
+        np.testing.assert_array_equal(ca.get_offsets(), cb.get_offsets())
+        if ca.get_array() is not None:
+            np.testing.assert_array_equal(ca.get_array(), cb.get_array())

@@ -51,24 +51,25 @@ def plot_map(
     data = _data(data)
     if not {"lat", "lon", column} <= set(data.columns):
         raise InputError(f"the map needs columns lat, lon and {column}")
-    lat = data["lat"].to_numpy(dtype=np.float64)
-    lon = data["lon"].to_numpy(dtype=np.float64)
-    v = data[column].to_numpy(dtype=np.float64)
-    ok = np.isfinite(lat) & np.isfinite(lon) & np.isfinite(v)
+    # Columns as stored (the report holds positions in single precision): only the drawn
+    # samples are converted to float64, not three full-length copies.
+    lat_s, lon_s = data["lat"].to_numpy(), data["lon"].to_numpy()
+    v_s = data[column].to_numpy()
+    ok = np.isfinite(lat_s) & np.isfinite(lon_s) & np.isfinite(v_s)
     if not ok.any():
         raise InputError("no sample with a position and a compensated field to map")
     step = max(1, -(-int(ok.sum()) // max_points))
     idx = np.flatnonzero(ok)[::step]
-    alt = data["alt"].to_numpy(dtype=np.float64)[idx] if "alt" in data.columns \
-        else np.zeros(len(idx))
+    lat, lon, v = (np.asarray(a[idx], dtype=np.float64) for a in (lat_s, lon_s, v_s))
+    alt = np.asarray(data["alt"].to_numpy()[idx], dtype=np.float64) \
+        if "alt" in data.columns else np.zeros(len(idx))
     alt = np.where(np.isfinite(alt), alt, 0.0)
-    ned = geodetic_to_ned(lat[idx], lon[idx], alt, (float(lat[idx[0]]), float(lon[idx[0]]),
-                                                    float(alt[0])))
+    ned = geodetic_to_ned(lat, lon, alt, (float(lat[0]), float(lon[0]), float(alt[0])))
     north, east = ned[:, 0], ned[:, 1]
     kept = kept_mask(data)[idx]
     fig, ax = _target(ax, (6.5, 6.0))
-    vk = v[idx][kept]
-    lo, hi = np.percentile(vk if vk.size else v[idx], [2, 98])
+    vk = v[kept]
+    lo, hi = np.percentile(vk if vk.size else v, [2, 98])
     sc = ax.scatter(east[kept], north[kept], c=vk, s=4, cmap="viridis", vmin=lo, vmax=hi,
                     rasterized=True)
     cb = fig.colorbar(sc, ax=ax, label=f"{column} (nT)")
