@@ -61,12 +61,19 @@ def user_errors() -> Iterator[None]:
 
     An operating-system error (an output folder that cannot be written, a full disk, a path
     that is a directory) is the user's to fix too: one line naming the path, no traceback.
+    Every command runs its library calls in here, so this is where the library's words become
+    the command line's: errors and warnings that name a parameter (``units={'time': 'ms'}``,
+    ``band_hz``) name its flag instead (``--units time=ms``, ``--band``; see
+    :func:`~aeromag.cli._options.config_errors` and
+    :func:`~aeromag.cli._options.flag_messages`).
     """
     from ..io.messages import clean
     from ..io.outputs import output_set
+    from ._options import config_errors, flag_messages
 
     try:
-        with output_set():  # all outputs of the command appear together, or none does
+        # all outputs of the command appear together, or none does
+        with output_set(), flag_messages(), config_errors():
             yield
     except AeromagError as exc:
         typer.echo(f"error: {clean(exc)}", err=True)

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import inspect
+import logging
 import re
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
@@ -32,7 +33,7 @@ from ..errors import InputError
 from ._app import app
 
 __all__ = ["OPTIONS", "Option", "Options", "add_option", "command", "config_errors",
-           "flag_message"]
+           "flag_batch_summary", "flag_message", "flag_messages"]
 
 _REQUIRED = inspect.Parameter.empty
 
@@ -386,6 +387,97 @@ def config_errors() -> Iterator[None]:
         if len(exc.args) == 1 and isinstance(exc.args[0], str):
             exc.args = (flag_message(exc.args[0]),)
         raise
+
+
+def _library_record(name: str) -> bool:
+    """Whether a logger is the library's (``aeromag.*`` but not the command line's own)."""
+    return (name == "aeromag" or name.startswith("aeromag.")) and not (
+        name == __package__ or name.startswith(f"{__package__}."))
+
+
+@contextlib.contextmanager
+def flag_messages() -> Iterator[None]:
+    """While open, the library's warnings name command-line flags (:func:`flag_message`).
+
+    The library names the parameter a Python caller sets (``units={'flux': 'uT'}``); on the
+    command line the same warning says ``--units flux=uT``.  The message is rewritten where
+    the record is made, so every consumer sees the same text: the terminal, the warnings
+    recorded in OUT.json (:mod:`aeromag.io.outputs`) and ``--strict``'s error.  Records of
+    ``aeromag.cli`` (which name flags already) and below WARNING are left as they are.
+    """
+    old = logging.getLogRecordFactory()
+
+    def factory(*args: Any, **kwargs: Any) -> logging.LogRecord:
+        rec = old(*args, **kwargs)
+        if rec.levelno >= logging.WARNING and _library_record(rec.name):
+            try:
+                msg = rec.getMessage()
+            except Exception:  # noqa: BLE001 - a bad format string is logging's to report
+                return rec
+            new = flag_message(msg)
+            if new != msg:
+                rec.msg, rec.args = new, None
+        return rec
+
+    logging.setLogRecordFactory(factory)
+    try:
+        yield
+    finally:
+        logging.setLogRecordFactory(old)
+
+
+def flag_batch_summary(summary: Any) -> bool:
+    """Spell the reasons and warnings of a batch run with command-line flags.
+
+    :func:`~aeromag.workflows.batch.run_batch` collects each log's error and warnings from its
+    worker process, in the library's words (``columns={'mag': 'mag_1_uc'}``); ``aeromag
+    batch`` shows them as ``--col mag=mag_1_uc`` like ``aeromag compensate`` does.  The
+    results are rewritten in place and, when any text changed, ``batch_summary.csv`` and
+    ``batch_summary.json`` are written again with the same contents otherwise; so is the
+    ``warnings`` list of each log's reports (``NAME_comp.json``, ``NAME_track.json``), which
+    a worker process recorded in the library's words.
+
+    Parameters
+    ----------
+    summary : BatchSummary
+        What ``run_batch`` returned (its summary files written).
+
+    Returns
+    -------
+    bool
+        Whether any message changed.
+    """
+    import json
+    from dataclasses import asdict
+
+    from ..io import write_csv, write_json
+
+    changed = False
+    for r in summary.results:
+        err = flag_message(r.error) if r.error else r.error
+        warns = [flag_message(w) for w in r.warnings]
+        if err != r.error or warns != r.warnings:
+            r.error, r.warnings, changed = err, warns, True
+            for out in (Path(o) for o in r.outputs if str(o).endswith(".json")):
+                if not out.is_file():
+                    continue
+                rep = json.loads(out.read_text(encoding="utf-8"))
+                old = rep.get("warnings") if isinstance(rep, dict) else None
+                if isinstance(old, list) and any(isinstance(w, str) for w in old):
+                    new = [flag_message(w) if isinstance(w, str) else w for w in old]
+                    if new != old:
+                        rep["warnings"] = new
+                        write_json(rep, out)
+    if not changed:
+        return False
+
+    if summary.summary_csv is not None:
+        write_csv(summary.to_frame(), summary.summary_csv)
+    if summary.summary_json is not None and Path(summary.summary_json).is_file():
+        doc = json.loads(Path(summary.summary_json).read_text(encoding="utf-8"))
+        doc["files"] = [asdict(r) for r in summary.results]
+        write_json(doc, summary.summary_json)
+    return True
 
 
 def command(name: str, **typer_kw: Any) -> Callable[[Callable[[Options], None]], Callable]:

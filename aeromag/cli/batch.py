@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from ._app import EXIT_USER_ERROR, column_options, setup_logging, strict_warnings, user_errors
-from ._options import LOG_EXTENSIONS, Options, command
+from ._options import LOG_EXTENSIONS, Options, command, flag_batch_summary
 
 __all__ = ["LOG_EXTENSIONS", "batch"]
 
@@ -36,6 +36,8 @@ def batch(opts: Options) -> None:
                             progress=not opts.no_progress, chunk_rows=opts.chunk_rows,
                             track_options={"threshold_m": opts.threshold},
                             strict=opts.strict)
+    with user_errors():  # reasons and warnings in the flags' words, as 'compensate' says them
+        flag_batch_summary(summary)
     _print_summary(summary)
     if summary.failed:
         raise typer.Exit(EXIT_USER_ERROR)
@@ -62,12 +64,21 @@ def _print_summary(summary) -> None:  # noqa: ANN001 - BatchSummary
     console.print(table)
     n_ok = sum(r.status == "ok" for r in summary.results)
     n_skip = sum(r.status == "skipped" for r in summary.results)
+    # One line whatever the terminal's width (a path is never broken after "summary: ").
     console.print(f"{n_ok} ok, {len(summary.warned)} with warnings, {n_skip} up to date,"
                   f" {len(summary.failed)} failed in {summary.seconds:.1f} s; summary:"
-                  f" {summary.summary_csv}", highlight=False)
+                  f" {summary.summary_csv}", highlight=False, markup=False, soft_wrap=True)
     err = Console(stderr=True, highlight=False)
     for r in summary.warned:
         for w in r.warnings:
-            err.print(f"warning: {Path(r.input).name}: {w}", markup=False, soft_wrap=True)
+            err.print(f"warning: {_naming(r.input, w)}", markup=False, soft_wrap=True)
     for r in summary.failed:
         err.print(f"error: {r.error}", markup=False, soft_wrap=True)
+
+
+def _naming(inp: str, message: str) -> str:
+    """``message`` led by the input's name, unless it names the input already."""
+    name = Path(inp).name
+    if f"{inp}:" in message or f"{name}:" in message:
+        return message
+    return f"{name}: {message}"

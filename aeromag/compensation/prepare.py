@@ -48,8 +48,8 @@ def total_field_from_fluxgate(df: pd.DataFrame, cfg: CompensationConfig, source:
     is never a silent fallback: that draws a warning (recorded in OUT.json), and a log without
     ``mag`` whose other columns hold a scalar-like field (a misnamed or mis-mapped scalar,
     e.g. ``mag_1_uc``, median 10,000-100,000) is refused unless ``cfg.mag_from_fluxgate``
-    (``--mag-from-fluxgate``) says so; the option also makes the fluxgate magnitude the total
-    field when the log has a ``mag``.
+    (``--mag-from-fluxgate`` on the command line) says so; the option also makes the fluxgate
+    magnitude the total field when the log has a ``mag``.
 
     Parameters
     ----------
@@ -68,12 +68,12 @@ def total_field_from_fluxgate(df: pd.DataFrame, cfg: CompensationConfig, source:
     Raises
     ------
     InputError
-        No ``mag``, a column that looks like one, and no ``--mag-from-fluxgate``.
+        No ``mag``, a column that looks like one, and no ``cfg.mag_from_fluxgate``.
     """
     has_mag = "mag" in df.columns
     if cfg.mag_from_fluxgate:
         if has_mag:
-            log.warning("%s: --mag-from-fluxgate: the log's 'mag' column is not used; the"
+            log.warning("%s: mag_from_fluxgate=True: the log's 'mag' column is not used; the"
                         " fluxgate magnitude is the measured total field", source)
         return True
     if has_mag:
@@ -309,12 +309,14 @@ def _warn_units(src: str, med: float, mag: np.ndarray | None) -> None:
     if not 1_000.0 <= med <= 200_000.0:
         log.warning(
             "%s: the fluxgate magnitude is %.4g, not an Earth field in nT (20000-70000);"
-            " if the fluxgate is in uT, mT or G pass --units flux=uT (or mT, G)", src, med)
+            " if the fluxgate is in uT, mT or G pass units={'flux': 'uT'} (or mT, G)", src,
+            med)
     if mag is not None:
         fin = mag[np.isfinite(mag)]
         mm = float(np.median(fin)) if fin.size else float("nan")
         if np.isfinite(mm) and not 0.1 < mm / med < 10.0:
             log.warning(
                 "%s: median mag %.4g and fluxgate magnitude %.4g differ by more than 10x;"
-                " check their units (--units mag=..., --units flux=...)", src, mm, med)
+                " check their units (units={'mag': '...'}, units={'flux': '...'})", src, mm,
+                med)
 
