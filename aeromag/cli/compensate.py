@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import sys
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 import typer
@@ -30,47 +27,8 @@ def _warm(screen: bool, log: Path | None = None, fmt: str | None = None) -> None
     mods = ["aeromag.compensation", "scipy.signal", "aeromag.qc"]
     if screen:
         mods += ["sklearn.decomposition", "sklearn.covariance", "scipy.stats"]
-    with _plain_scipy_docs():
-        for name in mods:
-            importlib.import_module(name)
-
-
-class _PlainDoc(dict):
-    """Stand-in for scipy's ``FunctionDoc``: the docstring as it is, the notes appended."""
-
-    def __init__(self, func: object) -> None:
-        super().__init__(Notes=[])
-        self._doc = getattr(func, "__doc__", None) or ""
-
-    def __str__(self) -> str:  # scipy drops the first line (the signature)
-        return "\n" + self._doc + "".join("\n" + str(n) for n in self["Notes"])
-
-
-@contextmanager
-def _plain_scipy_docs() -> Iterator[None]:
-    """While importing: scipy's ``xp_capabilities`` appends its note without re-parsing.
-
-    scipy (1.15+) rebuilds the docstring of every array-API function it defines at import
-    time through its numpydoc parser (``scipy._lib._array_api.FunctionDoc``): 0.4 s of the
-    0.8 s CPU that importing scipy.signal costs, on the critical path of every command.  The
-    docstrings keep their text and the support note, unformatted.  Nothing changes when scipy
-    has no such hook or is imported already; the parser is put back afterwards.
-    """
-    mod = None
-    if "scipy.signal" not in sys.modules:
-        try:
-            import scipy._lib._array_api as mod
-        except ImportError:  # pragma: no cover - an older or reorganised scipy
-            mod = None
-    orig = getattr(mod, "FunctionDoc", None)
-    if orig is None:
-        yield
-        return
-    mod.FunctionDoc = _PlainDoc
-    try:
-        yield
-    finally:
-        mod.FunctionDoc = orig
+    for name in mods:
+        importlib.import_module(name)
 
 
 @command("compensate")
@@ -176,4 +134,7 @@ def _summary(report: dict, out: Path, out_json: Path | None) -> None:
                      " all)")
         if report.get("self_calibration"):
             line += "; in-sample (fitted on this log)"
+    no_mag = m.get("n_rows_without_mag")
+    if no_mag:
+        line += f"; {no_mag} row{'s' if no_mag != 1 else ''} without mag: mag_comp left empty"
     typer.echo(line)
