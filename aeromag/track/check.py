@@ -26,8 +26,11 @@ decoded with Viterbi follows what the vehicle does (:mod:`aeromag.track.legs`): 
 the leg, motion along it, distance to its line and altitude near the planned one.  Take-off,
 climb, hovering and turning at waypoints, transits not in the plan, landing and ground time
 belong to no leg: empty ``leg``, no ``xtrack_*`` values, never an alarm.  A leg flown twice gets
-both passes.  A constant vertical offset (a different altitude datum) is detected, reported and
-removed (:mod:`aeromag.track.diagnose`); ``horizontal=True`` uses the horizontal distance only.
+both passes.  Over the whole log (:mod:`aeromag.track.assign`) the plan is also tried reversed
+(a mission flown last waypoint first is checked along its legs), the tolerances widen for a
+noisy (non-RTK) position, and runs not flown on their line (ferries between legs) are dropped.
+A constant vertical offset (a different altitude datum) is detected, reported and removed
+(:mod:`aeromag.track.diagnose`); ``horizontal=True`` uses the horizontal distance only.
 
 Per-leg summary: ``leg``, ``n_samples``, ``t_start``/``t_end`` [s], ``max_xtrack_m``,
 ``max_abs_xtrack_h_m``, ``max_abs_xtrack_v_m``, ``first_alarm_time`` (combined verdict; null
