@@ -58,9 +58,11 @@ def test_geosoft_xyz_write_read_round_trip(tmp_path):
     assert any(" * " in f" {r} " for r in text)  # the missing mag
     back = read_xyz(tmp_path / "s.xyz")
     for col in df.columns:
-        if col in ("ok", "line_type"):
+        if col == "line_type":
             assert back[col].astype(str).str.lower().tolist() == (
                 df[col].astype(str).str.lower().tolist())
+        elif col == "ok":  # booleans are written 1/0 (Oasis channels are numbers)
+            assert back[col].tolist() == df[col].astype(int).tolist()
         else:
             np.testing.assert_array_equal(back[col].to_numpy(dtype=float),
                                           df[col].to_numpy(dtype=float))
@@ -73,7 +75,9 @@ def test_xyz_without_lines_and_bad_xyz(tmp_path):
     df = _log().head(50).drop(columns=["line"])
     write_table(df, tmp_path / "n.xyz")
     back = read_xyz(tmp_path / "n.xyz")
-    assert "line" not in back.columns and len(back) == 50
+    # Oasis needs a line header before the data: one Line 0 (no segment column either)
+    assert (tmp_path / "n.xyz").read_text().split("\n")[2] == "Line 0"
+    assert back["line"].tolist() == [0] * 50 and len(back) == 50
     (tmp_path / "bad.xyz").write_text("1 2 3\n")
     with pytest.raises(InputError, match="bad.xyz"):
         read_table(tmp_path / "bad.xyz")

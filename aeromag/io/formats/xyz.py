@@ -334,9 +334,15 @@ def write_xyz(df: pd.DataFrame, path: str | os.PathLike[str], *,
     * rows without a line id at the start of the table are written before the first header
       (no line, as read back); later ones under ``Line *`` (read back as missing).
 
+    Oasis montaj imports rows under a line header only, so a table without ``line`` gets
+    headers too (:func:`_stand_in_lines`): ``Line N`` from its integer ``segment`` column
+    (the fitting segments of ``aeromag compensate``; ``-1``, no segment, reads back as a turn
+    as it is), else one ``Line 0`` before all rows.  The ``segment`` channel stays in the rows.
+
     Numbers are written in their shortest round-trip form, missing values as ``*``, booleans
-    as ``true``/``false``, date-times in ISO 8601 (UTC, ``T`` separator): reading the file back
-    gives every value exactly.  Text that XYZ cannot hold (blanks, empty, ``*``, a first
+    as ``1``/``0`` (Oasis channels are numbers; ``true`` would not import), date-times in ISO
+    8601 (UTC, ``T`` separator): reading the file back gives every value exactly (a boolean
+    as the integer 1 or 0).  Text that XYZ cannot hold (blanks, empty, ``*``, a first
     column starting with ``/``) is an error naming its column and row.
 
     Parameters
@@ -355,8 +361,10 @@ def write_xyz(df: pd.DataFrame, path: str | os.PathLike[str], *,
     p = display_path(path)  # the output named in errors (never a temporary)
     dest = Path(path)
     line_cols = [c for c in ("line", "line_type", "line_label") if c in df.columns]
+    lines = df
     if "line" not in df.columns and "line_label" not in df.columns:
         line_cols = []
+        lines = _stand_in_lines(df)
     check_no_binary(df, p)
     body = df.drop(columns=line_cols)
     names = [str(c) for c in body.columns]
@@ -372,25 +380,38 @@ def write_xyz(df: pd.DataFrame, path: str | os.PathLike[str], *,
     del text
     _check_xyz_rows(body, rows, p)
     out: list[str] = [f"/ {title}", "/ " + " ".join(names)]
-    if line_cols:
-        for a, b, header in _xyz_line_runs(df, p):
-            if header is not None:
-                out.append(header)
-            out.extend(rows[a:b])
-    else:
-        out.extend(rows)
+    for a, b, header in _xyz_line_runs(lines, p):
+        if header is not None:
+            out.append(header)
+        out.extend(rows[a:b])
     with atomic_path(dest) as tmp:
         tmp.write_text("\n".join(out) + "\n", encoding="utf-8")
     return dest
 
 
+def _stand_in_lines(df: pd.DataFrame) -> pd.DataFrame:
+    """The ``line`` of the headers of a table that has none: its segments, or one line 0.
+
+    ``segment`` is used when it holds integers (missing ones are rows without a line);
+    anything else (text, fractions) is no line number, and the table becomes ``Line 0``.
+    """
+    seg = df["segment"] if "segment" in df.columns else None
+    if seg is not None and pd.api.types.is_numeric_dtype(seg.dtype) and not (
+            pd.api.types.is_bool_dtype(seg.dtype)):
+        v = seg.to_numpy(dtype=np.float64, na_value=np.nan)
+        fin = v[np.isfinite(v)]
+        if fin.size and np.array_equal(fin, np.rint(fin)) and np.abs(fin).max() < 2.0**53:
+            return pd.DataFrame({"line": seg.astype("Int64")}, index=df.index)
+    return pd.DataFrame({"line": np.zeros(len(df), dtype=np.int64)}, index=df.index)
+
+
 def _xyz_ready(body: pd.DataFrame, p: Path) -> pd.DataFrame:
-    """Booleans as ``true``/``false``, date-times as ISO 8601; text XYZ cannot hold refused."""
+    """Booleans as ``1``/``0``, date-times as ISO 8601; text XYZ cannot hold refused."""
     conv: dict[str, object] = {}
     for j, c in enumerate(body.columns):
         s = body[c]
         if pd.api.types.is_bool_dtype(s.dtype):
-            conv[c] = np.where(s.to_numpy(dtype=bool, na_value=False), "true", "false")
+            conv[c] = np.where(s.to_numpy(dtype=bool, na_value=False), "1", "0")
             if s.isna().any():
                 conv[c] = np.where(s.isna().to_numpy(), None, conv[c])
         elif pd.api.types.is_datetime64_any_dtype(s.dtype):
