@@ -12,6 +12,8 @@ import pandas as pd
 from .._core.filters import butter_sos, filter_stretches, lowpass_stretches
 from .._core.parallel import submit
 from .._core.stretches import find_stretches
+from ..conventions import FLUX_COLUMNS
+from .checks import check_metrics
 from .config import CompensationConfig
 from .fit import check_interference
 from .metrics import _band_metrics
@@ -112,12 +114,53 @@ def _apply(
         del comp  # the unfiltered copy is not kept (mag - mag_tl, for whoever needs it)
     else:
         comp_out = comp
+    no_mag = missing_total_field(df, prep.mag_from_flux)
+    if no_mag is not None:
+        # Short gaps of mag were interpolated for the filters; a row without a measured total
+        # field has no compensated one (mag_comp = mag - mag_tl).
+        comp_out = np.array(comp_out, dtype=np.float64, copy=True)
+        comp_out[no_mag] = np.nan
+    metrics[MISSING_MAG_KEY] = 0 if no_mag is None else int(no_mag.sum())
     missing = seg < 0
     added = {"mag_tl": mag_tl, "mag_comp": comp_out,
              "segment": pd.arrays.IntegerArray(np.where(missing, 0, seg) if missing.any()
                                                else seg, missing),
              "segment_kept": kept}
     return _with_columns(df, added), metrics, comp_bp
+
+
+#: Key of the report's ``metrics`` counting the rows without a measured total field.
+MISSING_MAG_KEY = "n_rows_without_mag"
+
+
+def missing_total_field(df: pd.DataFrame, mag_from_flux: bool) -> np.ndarray | None:
+    """Rows of ``df`` without a measured total field (None when every row has one).
+
+    Parameters
+    ----------
+    df : DataFrame
+        The log as read (``mag`` [nT], or the fluxgate columns [nT] when they are the total
+        field).
+    mag_from_flux : bool
+        Whether the fluxgate magnitude is the total field (no ``mag`` column, or
+        ``mag_from_fluxgate``).
+
+    Returns
+    -------
+    ndarray of bool or None
+        True where ``mag`` (or a fluxgate component) is missing or not finite; ``mag_comp``
+        is left empty there.
+    """
+    if mag_from_flux:
+        cols = [c for c in FLUX_COLUMNS if c in df.columns]
+        if not cols:
+            return None
+        bad = ~np.isfinite(df[cols].to_numpy(dtype=np.float64)).all(axis=1)
+    elif "mag" in df.columns:
+        bad = ~np.isfinite(df["mag"].to_numpy(dtype=np.float64))
+    else:
+        return None
+    return bad if bad.any() else None
 
 
 def _with_columns(df: pd.DataFrame, added: dict[str, Any]) -> pd.DataFrame:
@@ -174,16 +217,11 @@ def _check_plausible(data: pd.DataFrame, metrics: dict[str, Any], prep: Prepared
                      cfg: CompensationConfig, *, fitted: bool) -> None:
     """Refuse (fitted) or warn about (saved model) a non-physical compensation.
 
-    A model fitted on this very log must not make its band-passed field worse, and no
-    aircraft's interference approaches the Earth field itself (``cfg.max_interference``,
-    :func:`aeromag.compensation.fit.check_interference`).
+    No aircraft's interference approaches the Earth field itself (``cfg.max_interference``,
+    :func:`aeromag.compensation.fit.check_interference`); a compensation that makes the
+    band-passed field worse, or leaves an implausible residual, is a warning
+    (:func:`aeromag.compensation.checks.check_metrics`, the checks ``aeromag batch`` makes).
     """
     check_interference(data["mag_tl"].to_numpy(), prep.field_nT, cfg.max_interference,
                        source=prep.source, fitted=fitted)
-    ratio = metrics.get("improvement_ratio", float("nan"))
-    if fitted and np.isfinite(ratio) and ratio < 1.0:
-        log.warning(
-            "%s: the fitted model leaves more band-passed variation than it removes"
-            " (improvement ratio %.3g < 1): the fit is unreliable; calibrate on a flight with"
-            " maneuvers and use --model", prep.source, ratio)
-
+    check_metrics(metrics, source=prep.source, fitted=fitted)

@@ -27,6 +27,7 @@ class SegmentStats:
     rhs: np.ndarray
     yy: np.ndarray
     too_short: dict[int, int]
+    min_samples: int = 0  # fewest band-passed samples a segment needs to be fitted
 
 
 
@@ -129,7 +130,7 @@ def segment_normal_equations(
     gram = Mseg[ok, :k, :k]
     rhs = Mseg[ok, :k, k]
     yy = Mseg[ok, k, k]
-    return SegmentStats(ids[ok], counts[ok], gram, rhs, yy, too_short)
+    return SegmentStats(ids[ok], counts[ok], gram, rhs, yy, too_short, nmin)
 
 
 def _residual_std(stats: SegmentStats, coef: np.ndarray) -> np.ndarray:

@@ -24,8 +24,8 @@ from .segments import segment_counts
 if TYPE_CHECKING:
     from .fit import FitOutcome
 
-__all__ = ["AppliedRun", "applied_report", "dropped_summary", "fit_report", "name_segments",
-           "segment_name"]
+__all__ = ["AppliedRun", "applied_report", "dropped_summary", "fit_report", "format_time",
+           "is_epoch", "name_segments", "segment_name", "time_span"]
 
 
 def _header(source: str) -> dict[str, Any]:
@@ -135,12 +135,18 @@ def _segment_entries(fit: FitOutcome) -> list[dict[str, Any]]:
             entry["residual_excess"] = float(out.excess[j])
             entry["own_fit_excess"] = float(out.own_ratio[j])
             entry["readmitted"] = bool(out.readmitted[j])
+        if out.residual_pool_nT is not None:
+            # Under the pooled fit of the screening's last round: the median of these over the
+            # segments it kept (kept and not readmitted) is what residual_excess divides by.
+            entry["pool_residual_nT"] = float(out.residual_pool_nT[j])
         segments.append(entry)
     for sid, cnt in sorted(stats.too_short.items()):
         segments.append({"id": sid, "n": int(n_of.get(int(sid), 0)), "n_fit": cnt,
                          "kept": False, "scores": None,
                          "residual_std": None, "condition_number": None,
-                         "too_short": True, "reason": "too short to fit"})
+                         "too_short": True, "min_samples": int(stats.min_samples),
+                         "reason": _too_short_reason(cnt, int(n_of.get(int(sid), 0)),
+                                                     int(stats.min_samples), fit.decimation)})
     segments.sort(key=lambda e: e["id"])
     if prep.line_of_segment:
         for e in segments:
@@ -149,10 +155,30 @@ def _segment_entries(fit: FitOutcome) -> list[dict[str, Any]]:
     return segments
 
 
+def _too_short_reason(n_fit: int, n: int, need: int, decimation: int) -> str:
+    """Why a segment was not fitted, with its numbers."""
+    what = "usable samples" + (f" (decimated by {decimation})" if decimation > 1 else "")
+    return (f"too short to fit: {n_fit} {what} of its {n} (band-passed, filter edges trimmed),"
+            f" needs \u2265 {need}")
+
+
 def _explain_dropped(fit: FitOutcome, segments: list[dict[str, Any]]) -> None:
-    """Add to each dropped segment why (words and numbers), its time span, heading and name."""
+    """Add to each dropped segment why (words and numbers), its time span, heading and name.
+
+    A screened-out segment's reason gives its pooled-fit residual [nT] and the median it is
+    compared with: the median pooled-fit residual of the segments the screening kept (each
+    segment's ``pool_residual_nT``, under the pooled fit of the screening's last round, over
+    the entries ``kept`` and not ``readmitted``), so that ``residual_excess =
+    pool_residual_nT / pool_median_nT``.
+    """
+    from .normal import _residual_std
+    from .screening import own_fit_excess
+
     stats, out, prep = fit.stats, fit.screening, fit.prep
     row = {int(s): j for j, s in enumerate(stats.ids)}
+    own = None
+    if out.residual_pool_nT is not None:
+        own = own_fit_excess(out.residual_pool_nT, _residual_std(stats, out.seg_coef))
     for e in segments:
         if e["kept"]:
             continue
@@ -161,14 +187,22 @@ def _explain_dropped(fit: FitOutcome, segments: list[dict[str, Any]]) -> None:
         j = row.get(e["id"])
         if j is not None and out.screen is not None and out.residual_pool_nT is not None:
             r, ex = float(out.residual_pool_nT[j]), float(out.excess[j])
+            med = r / ex if ex > 0 else None
+            e["pool_median_nT"] = med
+            vs = (f"the median pooled-fit residual of the kept segments ({med:.3g} nT)"
+                  if med is not None else "the median pooled-fit residual of the kept segments")
             if not out.screen.kept[j]:
                 e["reason"] = (f"PCA outlier: robust distance\u00b2 {out.screen.distance[j]:.4g} >"
                                f" {out.screen.cutoff:.3g}; pooled-fit residual {r:.3g} nT ="
-                               f" {ex:.3g}x the median")
+                               f" {ex:.3g}x {vs}")
             else:
+                oj, oratio = float(own[j]), float(out.own_ratio[j])
+                omed = oj / oratio if oratio > 0 else None
+                e["own_excess_nT"], e["own_excess_median_nT"] = oj, omed
+                otail = f" ({omed:.3g} nT)" if omed is not None else ""
                 e["reason"] = (f"faulty although inside the PCA cluster: pooled-fit residual"
-                               f" {r:.3g} nT = {ex:.3g}x the median, own-fit excess"
-                               f" {out.own_ratio[j]:.3g}x its median")
+                               f" {r:.3g} nT = {ex:.3g}x {vs}; own-fit excess {oj:.3g} nT ="
+                               f" {oratio:.3g}x the kept segments' median{otail}")
         sel = prep.segment == e["id"]
         if sel.any():
             t = prep.time[sel]
@@ -197,15 +231,58 @@ def segment_name(entry: dict[str, Any], *, lines: bool = True) -> str:
     -------
     str
         ``line 2`` for a flight line; otherwise ``segment 9 (120.0–185.3 s)`` (the span
-        in the log's time, when known), never ``line 9``.
+        in the log's time, when known; ``segment 4 (22:15:19–22:15:49 UTC)`` when the time is
+        epoch seconds, :func:`time_span`), never ``line 9``.
     """
     if lines and entry.get("line") is not None:
         return f"line {entry['line']:g}"
     name = f"segment {entry['id']}"
     t0, t1 = entry.get("start_time"), entry.get("end_time")
     if t0 is not None and t1 is not None:
-        name += f" ({t0:.1f}–{t1:.1f} s)"
+        name += f" ({time_span(t0, t1)})"
     return name
+
+
+def is_epoch(t: float) -> bool:
+    """Whether a time [s] reads as Unix epoch seconds (2001-09-09 to 2099-12-04).
+
+    Parameters
+    ----------
+    t : float
+        A time of the log [s].
+
+    Returns
+    -------
+    bool
+    """
+    return bool(np.isfinite(t) and 1e9 <= t < 4.1e9)
+
+
+def format_time(t: float) -> str:
+    """A log time for people: ``HH:MM:SS`` (UTC) for epoch seconds, else ``123.4`` [s].
+
+    The summary, the report's segment names and the HTML tables write times this way.
+
+    Parameters
+    ----------
+    t : float
+        A time of the log [s].
+
+    Returns
+    -------
+    str
+    """
+    if is_epoch(t):
+        return _dt.datetime.fromtimestamp(t, _dt.UTC).strftime("%H:%M:%S")
+    return f"{t:.1f}"
+
+
+def time_span(t0: float, t1: float) -> str:
+    """``22:15:19–22:15:49 UTC`` for epoch seconds, else ``120.0–185.3 s`` (log time)."""
+    unit = " UTC" if is_epoch(t0) and is_epoch(t1) else " s"
+    if unit == " s":
+        return f"{t0:.1f}–{t1:.1f} s"
+    return f"{format_time(t0)}–{format_time(t1)}{unit}"
 
 
 def name_segments(segments: list[dict[str, Any]], *, lines: bool) -> None:

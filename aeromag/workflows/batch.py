@@ -45,6 +45,10 @@ from typing import Any
 
 import pandas as pd
 
+from ..compensation.checks import (  # noqa: F401 - importable from here too
+    IMPLAUSIBLE_RESIDUAL_NT,
+    metric_warnings,
+)
 from ..errors import AeromagError, InputError
 from .batch_engines import run_dask, run_local
 from .batch_inputs import (  # noqa: F401 - FINGERPRINT_SUFFIX ... importable from here too
@@ -218,7 +222,10 @@ def process_file(job: dict[str, Any]) -> dict[str, Any]:
         with output_set(separate=True), strict_log_warnings(strict):
             report = _compensate_one(job, inp, names, res)
             m = report.get("metrics", {})
-            found = [str(w) for w in report.get("warnings") or []] + metric_warnings(m)
+            # The metric checks the single-file commands log (recorded in the report, so
+            # the same words are found once); a report made without them is checked here.
+            found = [str(w) for w in report.get("warnings") or []] + metric_warnings(
+                m, source=str(inp), fitted=report.get("model_source") == "fitted")
             if strict and found:
                 raise StrictWarningError(found[0])
         res["improvement_ratio"] = m.get("improvement_ratio")
@@ -365,41 +372,6 @@ def _strict_reason(inp: Path, exc: StrictWarningError) -> str:
     msg = str(exc)
     head = msg if str(inp) in msg or inp.name in msg else f"{inp}: {msg}"
     return f"{head} (strict: warnings are errors)"
-
-
-#: Band-passed residual [nT] above which a compensated log is implausible (a survey's is
-#: well under 1 nT; tens of nT mean a wrong model, unit or column).
-IMPLAUSIBLE_RESIDUAL_NT = 50.0
-
-
-def metric_warnings(metrics: dict[str, Any]) -> list[str]:
-    """The batch's own checks of a compensation's metrics (each a warning of the file).
-
-    Parameters
-    ----------
-    metrics : dict
-        The report's ``metrics`` (``improvement_ratio``, ``residual_std_nT``).
-
-    Returns
-    -------
-    list of str
-        An improvement ratio below 1 (the compensation adds interference), or a residual
-        that is missing, zero, or above :data:`IMPLAUSIBLE_RESIDUAL_NT`.
-    """
-    out = []
-    ratio, resid = metrics.get("improvement_ratio"), metrics.get("residual_std_nT")
-    if ratio is not None and ratio == ratio and ratio < 1.0:
-        out.append(f"improvement ratio {ratio:.3g} < 1: the compensation adds variation;"
-                   " check the model and the columns")
-    if resid is None or resid != resid:
-        out.append("no residual could be computed (too few band-passed samples?)")
-    elif resid <= 1e-6:
-        out.append(f"residual std {resid:.3g} nT is implausibly small (a log too short for"
-                   " the band-pass filter?)")
-    elif resid > IMPLAUSIBLE_RESIDUAL_NT:
-        out.append(f"residual std {resid:.4g} nT is implausible for a compensated survey"
-                   f" (> {IMPLAUSIBLE_RESIDUAL_NT:g} nT): check units (--units) and columns")
-    return out
 
 
 # --------------------------------------------------------------------------- driver

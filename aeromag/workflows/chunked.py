@@ -37,6 +37,8 @@ import pandas as pd
 from .._core.filters import butter_sos, filter_stretches, min_filter_length, trim_mask
 from .._core.moments import StreamingMoments
 from .._core.stretches import find_stretches, interpolate_short_gaps
+from ..compensation.apply import MISSING_MAG_KEY, missing_total_field
+from ..compensation.checks import check_metrics
 from ..compensation.config import CompensationConfig
 from ..compensation.metrics import metrics_dict, require_samples
 from ..compensation.model import TLModel
@@ -306,6 +308,7 @@ def apply_model_chunked(
     q_sums = {"all": np.zeros(3), "seg": np.zeros(3)}  # n, sum before^2, sum after^2
     out_csv = Path(out_path)
     header_written = False
+    n_no_mag = 0
     import pyarrow as pa
 
     with atomic_path(out_csv) as tmp, open(tmp, "wb") as fh:
@@ -378,6 +381,10 @@ def apply_model_chunked(
                 acc = np.vstack([np.bincount(ginv), np.bincount(ginv, qf[1, qseg] ** 2)])
                 for j, i in enumerate(gi.tolist()):
                     seg_stats[i] = seg_stats.get(i, np.zeros(2)) + acc[:, j]
+            no_mag = missing_total_field(w, not has_mag)  # mag_comp empty there, as in memory
+            if no_mag is not None:
+                comp_out = np.where(no_mag, np.nan, comp_out)
+                n_no_mag += int(no_mag[core].sum())
             out = w.iloc[a:b].copy()
             out["mag_tl"] = mag_tl[core]
             out["mag_comp"] = comp_out[core]
@@ -405,6 +412,8 @@ def apply_model_chunked(
                 write_arrow_csv(table, fh, "needed")
         fh.flush()
         metrics = _metrics(m_use, m_kept, cfg, fs, source)
+        metrics[MISSING_MAG_KEY] = n_no_mag
+        check_metrics(metrics, source=source)
         residual = {i: float(np.sqrt(s[1] / s[0])) for i, s in seg_stats.items()}
         qc = _qc_block(metrics, residual, q_sums if seg_n else {**q_sums, "seg": q_sums["all"]},
                        d4_before, d4_after, cfg, qc_trim)
