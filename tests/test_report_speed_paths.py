@@ -209,3 +209,21 @@ def test_map_of_single_precision_positions_equals_double(out_csv: Path) -> None:
         np.testing.assert_array_equal(ca.get_offsets(), cb.get_offsets())
         if ca.get_array() is not None:
             np.testing.assert_array_equal(ca.get_array(), cb.get_array())
+
+
+def test_report_command_asks_for_one_heap_arena(out_csv: Path, tmp_path: Path,
+                                                monkeypatch) -> None:
+    """`aeromag report` sets glibc to one heap arena before the QC starts its threads."""
+    from typer.testing import CliRunner
+
+    import aeromag.workflows.report as wr
+    from aeromag.cli import app
+
+    calls: list[str] = []
+    real_qc = wr.compute_qc
+    monkeypatch.setattr(wr, "one_heap_arena", lambda: calls.append("arena") or True)
+    monkeypatch.setattr(wr, "compute_qc",
+                        lambda *a, **k: calls.append("qc") or real_qc(*a, **k))
+    r = CliRunner().invoke(app, ["report", str(out_csv), "-o", str(tmp_path / "rep")])
+    assert r.exit_code == 0, r.output
+    assert calls[:2] == ["arena", "qc"]

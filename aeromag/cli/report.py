@@ -36,7 +36,9 @@ def report(
     """
     setup_logging(verbose)
     with user_errors(), progress_bar("aeromag report") as progress:
-        from ..workflows.report import build_report
+        from ..workflows.report import build_report, one_heap_arena
+
+        one_heap_arena()  # before the QC's threads: their arenas kept ~90 MB resident
 
         page = build_report(out_csv, output, report_json, maneuver_column=maneuver_column,
                             progress=progress)
