@@ -134,13 +134,21 @@ def test_pca_screen_flags_an_obvious_outlier_and_reports_80_percent():
 def test_a_clean_segment_dropped_beside_a_fault_is_readmitted():
     """The loop judges a dropped segment by a pool without it, so a clean segment sharing a
     heading with a fault could never come back; re-admission judges it in-sample, like the
-    kept ones (here segment 16 was dropped with the on-board source of segment 4)."""
+    kept ones (here segment 16 was dropped with the on-board source of segment 4).
+
+    The in-band noise floor (``noise_factor``) keeps segment 16 in the loop from the start
+    (its excess is inside 3 noise standard deviations), so the mechanism is exercised with
+    the floor off, as the rule stood before it.
+    """
     df, truth = simulate_calibration(seed=7, rate_hz=10, faults={4: "onboard_source"})
-    rep = compensate(df).report
-    assert rep["screening"]["dropped"] == [4] == [f["segment"] for f in truth["faults"]]
+    faults = [f["segment"] for f in truth["faults"]]
+    rep = compensate(df, CompensationConfig(noise_factor=0.0)).report
+    assert rep["screening"]["dropped"] == [4] == faults
     assert rep["screening"]["readmitted"] == [16]
     seg = {s["id"]: s for s in rep["segments"]}
     assert seg[16]["kept"] and seg[16]["readmitted"] and seg[16]["pca_outlier"]
+    rep = compensate(df).report
+    assert rep["screening"]["dropped"] == [4] and rep["screening"]["readmitted"] == []
 
 
 def test_readmission_never_brings_back_a_fault():

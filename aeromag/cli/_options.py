@@ -186,8 +186,10 @@ OPTIONS: list[Option] = [
     _o("min_excess", "--min-excess", float, 1.5, "A PCA outlier is dropped only when the pooled "
        "fit leaves it a residual above this times the median segment's.", _COMP,
        config="min_excess"),
-    _o("min_excess_nt", "--min-excess-nt", float, 0.01, "... and by at least this much in nT "
-       "(harmless differences are kept).", _COMP, config="min_excess_nT"),
+    _o("min_excess_nt", "--min-excess-nt", float, 0.01, "... and by at least this much in nT, "
+       "and by 3 standard deviations of the in-band noise (the median residual of the "
+       "segments' own fits): an excess inside the sensor noise is kept.", _COMP,
+       config="min_excess_nT"),
     # stretches
     _o("max_gap", "--max-gap", float | None, None, "A time step longer than this starts a new "
        "stretch, s (default 5 dt).", _COMP, metavar="S", config="max_gap_s"),

@@ -112,6 +112,7 @@ class ScreeningOptions:
     min_segments: int = 6
     min_excess: float = 1.5
     min_excess_nT: float = 0.01
+    noise_factor: float = 3.0
     gross_excess: float = 10.0
     inlier_excess: float = 2.5
     inlier_own_excess: float = 4.0
@@ -120,6 +121,7 @@ class ScreeningOptions:
         _nonneg("shrink", self.shrink)
         _nonneg("min_excess", self.min_excess)
         _nonneg("min_excess_nT", self.min_excess_nT)
+        _nonneg("noise_factor", self.noise_factor)
         for name in ("gross_excess", "inlier_excess", "inlier_own_excess"):
             _positive(name, getattr(self, name))
         if not 0 < self.pca_variance <= 1:
@@ -197,6 +199,15 @@ class CompensationConfig:
         ... and only when that residual also exceeds the median by this much [nT]: with a quiet
         sensor at a high rate, in-band residuals of 0.001 nT differ by large ratios that no
         survey can see.
+    noise_factor : float
+        ... and by this many standard deviations of the data's in-band noise (default 3; the
+        median over kept segments of the residual each segment's own TL fit leaves, sensor
+        noise plus geology): the floor is ``max(min_excess_nT, noise_factor * noise)``.  An
+        excess inside the noise is no fault whatever its ratio: a reviewer's fault-free box
+        (0.02 nT sensor, 10 Hz, in-band noise 0.008 nT) lost its E and W yaw lines, 0.014 and
+        0.020 nT above the median (ratios 2.8 and 3.5), to the 0.01 nT floor alone.  A fixed
+        0.05 nT floor instead kept a simulated on-board source (0.063 nT above the median in
+        band) whose out-of-band leak cost the clean lines 0.16 nT; 0 turns the noise floor off.
     gross_excess : float
         The guard also asks the segment's own-fit excess (the part of its pooled residual that
         its own TL fit removes; geology is removed by none) to be material, unless its pooled
@@ -262,6 +273,7 @@ class CompensationConfig:
     min_segments: int = ScreeningOptions.min_segments
     min_excess: float = ScreeningOptions.min_excess
     min_excess_nT: float = ScreeningOptions.min_excess_nT
+    noise_factor: float = ScreeningOptions.noise_factor
     min_segment_seconds: float | None = SegmentOptions.min_segment_seconds
     max_gap_s: float | None = SegmentOptions.max_gap_s
     max_interp_s: float = SegmentOptions.max_interp_s
@@ -333,7 +345,8 @@ class CompensationConfig:
 #: CompensationConfig keywords that only steer a fit: applying a saved model ignores them, so
 #: the command line refuses them with ``--model`` and an applied run's report leaves them out.
 FIT_ONLY = ("terms", "decimate", "screen", "shrink", "pca_variance", "screen_quantile",
-            "max_iter", "min_segments", "min_excess", "min_excess_nT", "gross_excess",
+            "max_iter", "min_segments", "min_excess", "min_excess_nT", "noise_factor",
+            "gross_excess",
             "inlier_excess", "inlier_own_excess", "ridge", "max_condition")
 
 

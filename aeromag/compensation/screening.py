@@ -17,7 +17,10 @@ aeromag's rule for "outside the main cluster" is robust and documented:
   chi-square quantile ``chi2.ppf(quantile, n_components)`` (default quantile 0.975);
 * an outlier is dropped only when it also *matters* (:func:`material`): the pooled fit leaves
   it a band-passed residual std above ``min_excess`` (default 1.5) times the median segment's
-  (and 0.01 nT above it), and so does the part of that residual its own TL fit removes
+  and above that median by ``noise_factor`` (default 3) standard deviations of the data's
+  in-band noise (:func:`band_noise_level`, :func:`pool_floor_nT`; at least 0.01 nT): an
+  excess inside the sensor noise is no fault, however large its ratio to a quiet median; and
+  the part of that residual its own TL fit removes
   (:func:`own_fit_excess`; geology is removed by no TL fit, so a clean line over strong
   anomalies is not material), unless the residual is 10 times the median.  With low noise,
   clean segments differ in ways that are statistically significant yet harmless;
@@ -47,9 +50,11 @@ log = logging.getLogger(__name__)
 RULE = (
     "robust squared Mahalanobis distance (MinCovDet) of the segment's PCA scores, components up"
     " to the cumulative explained-variance threshold, above the chi-square quantile, and"
-    " material: pooled-fit residual std above min_excess times the median segment's (and"
-    " min_excess_nT above it), and so its own-fit excess sqrt(r_pool^2 - r_own^2) unless the"
-    " residual is gross_excess times the median; a PCA inlier is dropped when its residual"
+    " material: pooled-fit residual std above min_excess times the median segment's and above it"
+    " by max(min_excess_nT, noise_factor x the in-band noise [the median own-fit residual]),"
+    " and its own-fit excess sqrt(r_pool^2 - r_own^2) min_excess times its median and"
+    " min_excess_nT above it unless the residual is gross_excess times the median; a PCA"
+    " inlier is dropped when its residual"
     " exceeds inlier_excess and its own-fit excess inlier_own_excess times their medians (the"
     " worst, one per round); iterated, then dropped segments that the pool including them"
     " finds not material are re-admitted"
@@ -183,15 +188,66 @@ def _excess(x: np.ndarray, ref: np.ndarray, ratio: float, floor_nT: float) -> np
     return (rel > ratio) & (x - med > floor_nT)
 
 
+def band_noise_level(r_own: np.ndarray, ref: np.ndarray) -> float:
+    """The data's in-band noise level: the median own-fit residual of the reference segments [nT].
+
+    ``r_own`` is what is left of each segment in the band after its own TL fit: sensor noise
+    plus whatever geology and diurnal no TL fit removes.  Its median over the kept segments is
+    a robust estimate that faults cannot pull up.  (A high-pass estimate from the raw scalar
+    is no good at survey rates: at 10 Hz the manoeuvres' interference dominates the second
+    differences, 0.055-0.062 nT on the simulator's 0.02 nT sensor.)
+
+    Parameters
+    ----------
+    r_own : ndarray, shape (m,)
+        Band-passed residual std of each segment under its own (shrunk) fit [nT].
+    ref : ndarray of bool, shape (m,)
+        Reference (kept) segments.
+
+    Returns
+    -------
+    float
+        Noise level [nT] (0 when there is no reference segment).
+    """
+    return float(np.median(r_own[ref])) if ref.any() else 0.0
+
+
+def pool_floor_nT(noise_nT: float, *, min_excess_nT: float, noise_factor: float) -> float:
+    """How far a pooled residual must exceed the median to matter [nT].
+
+    ``max(min_excess_nT, noise_factor * noise_nT)``: an excess of less than ``noise_factor``
+    in-band noise standard deviations is inside the sensor noise whatever its ratio to the
+    median (a quiet sensor makes ratios large), and ``min_excess_nT`` is the absolute floor.
+
+    Parameters
+    ----------
+    noise_nT : float
+        In-band noise level of the data (:func:`band_noise_level`) [nT].
+    min_excess_nT : float
+        Absolute floor [nT].
+    noise_factor : float
+        Floor in noise standard deviations.
+
+    Returns
+    -------
+    float
+        Floor [nT].
+    """
+    return max(float(min_excess_nT), float(noise_factor) * float(noise_nT))
+
+
 def material(r_pool: np.ndarray, excess: np.ndarray, ref: np.ndarray, *, min_excess: float,
-             min_excess_nT: float, gross_excess: float) -> np.ndarray:
+             min_excess_nT: float, gross_excess: float, noise_nT: float = 0.0,
+             noise_factor: float = 0.0) -> np.ndarray:
     """The materiality guard: segments whose fault would matter to the compensation.
 
     Material means the pooled fit leaves the segment a residual above ``min_excess`` times
-    the median of the reference (kept) segments and above it by ``min_excess_nT``, **and**
-    the same holds for its own-fit excess :func:`own_fit_excess` (so a line that is merely
-    over strong geology is not material), unless the residual is ``gross_excess`` times the
-    median (a noise burst so large that its own fit absorbs little of it).
+    the median of the reference (kept) segments and above it by ``min_excess_nT`` and by
+    ``noise_factor`` times the data's in-band noise ``noise_nT`` (:func:`pool_floor_nT`),
+    **and** its own-fit excess :func:`own_fit_excess` is ``min_excess`` times its median and
+    ``min_excess_nT`` above it (so a line that is merely over strong geology is not material),
+    unless the residual is ``gross_excess`` times the median (a noise burst so large that its
+    own fit absorbs little of it).
 
     Parameters
     ----------
@@ -203,27 +259,31 @@ def material(r_pool: np.ndarray, excess: np.ndarray, ref: np.ndarray, *, min_exc
         Segments whose medians are the reference (the kept set).
     min_excess, min_excess_nT, gross_excess : float
         Ratio to the median, floor above it [nT], ratio that is material by itself.
+    noise_nT, noise_factor : float
+        In-band noise level of the data [nT] and the pooled residual's floor in units of it
+        (0 and 0: no noise floor).
 
     Returns
     -------
     ndarray of bool, shape (m,)
     """
-    by_pool = _excess(r_pool, ref, min_excess, min_excess_nT)
+    floor = pool_floor_nT(noise_nT, min_excess_nT=min_excess_nT, noise_factor=noise_factor)
+    by_pool = _excess(r_pool, ref, min_excess, floor)
     by_own = _excess(excess, ref, min_excess, min_excess_nT)
     gross = r_pool / max(float(np.median(r_pool[ref])), 1e-300) > gross_excess
     return by_pool & (by_own | gross)
 
 
 def masked_outlier(r_pool: np.ndarray, excess: np.ndarray, inlier: np.ndarray, ref: np.ndarray,
-                   *, residual_ratio: float, own_ratio: float, min_excess_nT: float
-                   ) -> int | None:
+                   *, residual_ratio: float, own_ratio: float, min_excess_nT: float,
+                   residual_floor_nT: float | None = None) -> int | None:
     """The one PCA inlier that the residuals show to be faulty, if any (index or None).
 
     With few segments (8 survey lines give one or two components) one fault can mask itself in
     the score plot.  Among the segments inside the main cluster, those whose pooled residual is
     ``residual_ratio`` times the median **and** whose own-fit excess is ``own_ratio`` times
-    its median (both by ``min_excess_nT`` at least) are candidates; the worst by own-fit excess
-    is returned (one per screening round).
+    its median (by ``residual_floor_nT`` and ``min_excess_nT`` at least) are candidates; the
+    worst by own-fit excess is returned (one per screening round).
 
     Parameters
     ----------
@@ -235,12 +295,16 @@ def masked_outlier(r_pool: np.ndarray, excess: np.ndarray, inlier: np.ndarray, r
         Reference (kept) segments for the medians.
     residual_ratio, own_ratio, min_excess_nT : float
         Thresholds.
+    residual_floor_nT : float, optional
+        Floor of the pooled residual above its median [nT] (:func:`pool_floor_nT`); default
+        ``min_excess_nT``.
 
     Returns
     -------
     int or None
     """
-    cand = inlier & _excess(r_pool, ref, residual_ratio, min_excess_nT) & _excess(
+    floor = min_excess_nT if residual_floor_nT is None else residual_floor_nT
+    cand = inlier & _excess(r_pool, ref, residual_ratio, floor) & _excess(
         excess, ref, own_ratio, min_excess_nT)
     if not cand.any():
         return None
@@ -345,14 +409,15 @@ def pca_screen(
 
 
 def _material(r_pool: np.ndarray, own: np.ndarray, ref: np.ndarray,
-              cfg: CompensationConfig) -> np.ndarray:
+              cfg: CompensationConfig, noise_nT: float) -> np.ndarray:
     return material(r_pool, own, ref, min_excess=cfg.min_excess,
-                    min_excess_nT=cfg.min_excess_nT, gross_excess=cfg.gross_excess)
+                    min_excess_nT=cfg.min_excess_nT, gross_excess=cfg.gross_excess,
+                    noise_nT=noise_nT, noise_factor=cfg.noise_factor)
 
 
 def _add_one_guard(stats: SegmentStats, kept: np.ndarray, cfg: CompensationConfig
-                   ) -> tuple[np.ndarray, np.ndarray]:
-    """Pooled residual and own-fit excess of every segment under the pool that includes it.
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pooled residual, own-fit excess and own-fit residual of each segment, in-sample [nT].
 
     Kept segments are judged by the pool of the kept set; each dropped segment by the pool of
     the kept set plus itself (a batch of 16 x 16 solves), with its own fit shrunk toward that
@@ -377,7 +442,7 @@ def _add_one_guard(stats: SegmentStats, kept: np.ndarray, cfg: CompensationConfi
         r[d] = _residual_std(sub, cd)
         own[d] = _residual_std(sub, shrunk_segment_fits(sub.gram, sub.rhs, n[d], cd, msd,
                                                         cfg.shrink))
-    return r, own_fit_excess(r, own)
+    return r, own_fit_excess(r, own), own
 
 
 def _readmit(stats: SegmentStats, kept: np.ndarray, cfg: CompensationConfig
@@ -400,8 +465,8 @@ def _readmit(stats: SegmentStats, kept: np.ndarray, cfg: CompensationConfig
     kept = kept.copy()
     back_all = np.zeros(len(kept), dtype=bool)
     while (~kept).any():
-        r, own = _add_one_guard(stats, kept, cfg)
-        ok = ~kept & ~_material(r, own, kept, cfg)
+        r, own, r_own = _add_one_guard(stats, kept, cfg)
+        ok = ~kept & ~_material(r, own, kept, cfg, band_noise_level(r_own, kept))
         if not ok.any():
             break
         idx = np.flatnonzero(ok)
@@ -494,14 +559,19 @@ def screen_segments(stats: SegmentStats, cfg: CompensationConfig) -> ScreeningOu
             screen = pca_screen(seg_coef, variance=cfg.pca_variance,
                                 quantile=cfg.screen_quantile)
             r_pool = _residual_std(stats, pooled)
-            own = own_fit_excess(r_pool, _residual_std(stats, seg_coef))
+            r_own = _residual_std(stats, seg_coef)
+            own = own_fit_excess(r_pool, r_own)
+            noise = band_noise_level(r_own, kept)
             excess = r_pool / np.median(r_pool[kept])
             own_ratio = own / max(float(np.median(own[kept])), 1e-300)
-            out = ~screen.kept & _material(r_pool, own, kept, cfg)
+            out = ~screen.kept & _material(r_pool, own, kept, cfg, noise)
+            floor = pool_floor_nT(noise, min_excess_nT=cfg.min_excess_nT,
+                                  noise_factor=cfg.noise_factor)
             masked = masked_outlier(r_pool, own, screen.kept, kept,
                                     residual_ratio=cfg.inlier_excess,
                                     own_ratio=cfg.inlier_own_excess,
-                                    min_excess_nT=cfg.min_excess_nT)
+                                    min_excess_nT=cfg.min_excess_nT,
+                                    residual_floor_nT=floor)
             if masked is not None:
                 out[masked] = True
             new = ~out
