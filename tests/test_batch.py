@@ -323,7 +323,7 @@ def test_batch_mixed_folder_reports_each_file(mixed, tmp_path):
     assert not st["good.csv"].warnings and not st["good.csv"].error
     assert any("dropped 1 exact duplicate row" in w for w in st["dups.csv"].warnings)
     assert st["dups.csv"].n_rows == 2010
-    assert any("--units flux=uT" in w for w in st["micro.csv"].warnings)
+    assert any("units={'flux': 'uT'}" in w for w in st["micro.csv"].warnings)
     assert st["micro.csv"].error is None
     # The model was fitted on the scalar: never applied to a fluxgate magnitude.
     assert "fitted on the scalar magnetometer" in st["nomag.csv"].error
@@ -336,7 +336,7 @@ def test_batch_mixed_folder_reports_each_file(mixed, tmp_path):
     frame = frame.set_index("input")
     row = frame.loc[str(d / "dups.csv")]
     assert row["status"] == "warn" and "duplicate" in row["warnings"]
-    assert "--units flux=uT" in frame.loc[str(d / "micro.csv"), "warnings"]
+    assert "units={'flux': 'uT'}" in frame.loc[str(d / "micro.csv"), "warnings"]
     assert "too short" in frame.loc[str(d / "short.csv"), "error"]
     rep = json.loads((tmp_path / "out" / "dups_comp.json").read_text())
     assert any("duplicate" in w for w in rep["warnings"])  # recorded in the file's JSON
@@ -364,7 +364,7 @@ def test_batch_self_fit_check_as_compensate_does(mixed, tmp_path):
         assert rep["self_calibration"]["calibration_box"] is False
     assert any("fluxgate magnitude is the measured total field" in w
                for w in st["nomag.csv"].warnings)
-    assert any("--units flux=uT" in w for w in st["micro.csv"].warnings)
+    assert any("units={'flux': 'uT'}" in w for w in st["micro.csv"].warnings)
     assert not st["box.csv"].warnings
     box = json.loads((tmp_path / "out" / "box_comp.json").read_text())
     assert box["self_calibration"]["calibration_box"] is True
@@ -382,7 +382,7 @@ def test_batch_strict_fails_each_warned_log_and_the_others_go_on(mixed, tmp_path
         "good.csv": "ok", "box.csv": "ok", "dups.csv": "failed", "micro.csv": "failed",
         "nomag.csv": "failed", "short.csv": "failed", "corrupt.csv": "failed"}
     assert "dropped 1 exact duplicate row" in st["dups.csv"].error
-    assert "--units flux=uT" in st["micro.csv"].error
+    assert "units={'flux': 'uT'}" in st["micro.csv"].error
     for name in ("dups", "micro"):
         err = st[f"{name}.csv"].error
         assert err.startswith(str(d / f"{name}.csv")) and "strict: warnings are errors" in err
