@@ -1,4 +1,4 @@
-"""The typer application object and helpers shared by every command.
+"""Helpers shared by every command (the typer application object lives in ``_typer``).
 
 The CLI is a thin shell over the Python API: each command parses options, calls one API
 function, and turns :class:`~aeromag.errors.AeromagError` into a one-line message on stderr
@@ -17,19 +17,7 @@ from typing import Annotated
 import typer
 
 from ..errors import AeromagError
-
-app = typer.Typer(
-    name="aeromag",
-    help="Aeromagnetic survey post-processing: Tolles-Lawson compensation with PCA screening "
-    "of segments, DGPS track-deviation checks, batch processing.",
-    no_args_is_help=True,
-    add_completion=False,
-    pretty_exceptions_enable=False,
-    # Plain click help: help strings are shown as written (rich markup would eat "[columns]"
-    # and "'aeromag[dask]'"), flags get no "<bool>" type as if they took a value, and a usage
-    # error is three plain lines instead of a box.
-    rich_markup_mode=None,
-)
+from ._typer import app
 
 log = logging.getLogger(__name__)
 

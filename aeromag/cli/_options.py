@@ -30,7 +30,7 @@ from typing import Annotated, Any
 import typer
 
 from ..errors import InputError
-from ._app import app
+from ._typer import app
 
 __all__ = ["OPTIONS", "Option", "Options", "add_option", "command", "config_errors",
            "flag_batch_summary", "flag_message", "flag_messages"]
