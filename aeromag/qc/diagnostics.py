@@ -24,6 +24,7 @@ __all__ = ["diagnostics_from_stats", "fit_diagnostics", "loso_cv", "variance_inf
 
 def fit_diagnostics(
     data: pd.DataFrame, cfg: CompensationConfig, terms: tuple[str, ...] = TERMS_16,
+    *, seg: np.ndarray | None = None,
 ) -> tuple[dict[str, Any], pd.DataFrame]:
     """Condition number, VIF and leave-one-segment-out CV of the fit on a compensated log.
 
@@ -40,6 +41,9 @@ def fit_diagnostics(
         The configuration the log was compensated with (band, order, gaps, ridge).
     terms : tuple of str
         Terms of the model that was applied.
+    seg : ndarray of int, shape (n,), optional
+        :func:`aeromag.qc.segment_labels` of ``data`` when the caller already has them
+        (not computed again).
 
     Returns
     -------
@@ -52,10 +56,12 @@ def fit_diagnostics(
     fit_terms = tuple(x for x in terms if x != "bias")
     base = data.drop(columns=[c for c in ("mag_tl", "mag_comp") if c in data.columns])
     prep = prepare(base, cfg)
-    seg = segment_labels(data)
+    if seg is None:
+        seg = segment_labels(data)
     if (seg >= 0).any():
         prep.segment = seg
     stats = segment_normal_equations(prep, fit_terms, cfg)
+    del prep  # its full-length arrays: the diagnostics need only the per-segment sums
     kept_samples = kept_mask(data)
     kept_ids = np.unique(seg[kept_samples & (seg >= 0)]) if (seg >= 0).any() else stats.ids
     kept = np.isin(stats.ids, kept_ids)

@@ -22,6 +22,11 @@ def segment_labels(data: pd.DataFrame) -> np.ndarray:
     """
     if "segment" not in data.columns:
         return np.full(len(data), -1, dtype=np.int64)
+    col = data["segment"]
+    if pd.api.types.is_integer_dtype(col.dtype) and not col.hasnans:
+        # The usual case (``aeromag compensate`` writes integers): one int64 array, not the
+        # float64 copy, the where() and the cast (3 full-length arrays, 48 MB at 2e6 rows).
+        return col.to_numpy(dtype=np.int64, copy=True)
     s = pd.to_numeric(data["segment"], errors="coerce").to_numpy(dtype=np.float64)
     return np.where(np.isfinite(s), s, -1).astype(np.int64)
 

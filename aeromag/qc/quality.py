@@ -229,6 +229,16 @@ def compute_qc(
                     fit=fit, fom_on=fom)
 
 
+def _noise_pair(mag: np.ndarray, after: np.ndarray, t: np.ndarray,
+                max_gap_s: float | None) -> tuple[float, float]:
+    """Fourth-difference noise [nT] of ``mag`` and of ``after``.
+
+    A function, not a closure, so that ``_compute`` can free the arrays once the pool ran it.
+    """
+    return (fourth_difference_noise(mag, t, max_gap_s),
+            fourth_difference_noise(after, t, max_gap_s))
+
+
 def _compute(
     data: pd.DataFrame, report: dict[str, Any], cfg: CompensationConfig, *,
     maneuvers: ManeuverResult | None, maneuver_column: str | None, fit: bool, fom_on: bool,
@@ -260,8 +270,7 @@ def _compute(
     fut_pieces = submit(functools.partial(
         piece_residuals, t, mag, tl, seg, kept_mask(data), band, cfg.order,
         trim_s=cfg.trim_s, max_gap_s=cfg.max_gap_s, fs_hz=fs))
-    fut_noise = submit(lambda: (fourth_difference_noise(mag, t, cfg.max_gap_s),
-                                fourth_difference_noise(raw_after, t, cfg.max_gap_s)))
+    fut_noise = submit(functools.partial(_noise_pair, mag, raw_after, t, cfg.max_gap_s))
     detect_error: AeromagError | None = None
     if maneuvers is None and (fom_on or maneuver_column is not None):
         try:
@@ -303,6 +312,7 @@ def _compute(
         hl = np.where(kept_mask(data), maneuvers.labels["heading_leg"].to_numpy(), -1)
         metrics["residual_std_by_heading_nT"] = {
             CARDINALS[k]: v for k, v in grouped_std(resid_bp, hl).items()}
+        del hl
         metrics["maneuvers"] = {
             "method": maneuvers.method, "n_legs": len(maneuvers.legs),
             "n_maneuvers": len(maneuvers.table), "complete_boxes": maneuvers.complete_boxes,
@@ -323,6 +333,9 @@ def _compute(
     metrics["fom"] = fom_block
     segs = pd.DataFrame({"segment": list(seg_std), "residual_std_nT": list(seg_std.values())})
     segs["n"] = [pieces.n_by_segment[s] for s in seg_std]
+    # Only the per-segment labels go on: free the full-length temporaries (mag - mag_tl, the
+    # heading legs, the kept mask; ~45 MB at 2e6 rows) before the fit diagnostics build theirs.
+    del t, mag, comp, tl, raw_after, resid_bp, kept
     fitted = report.get("fit") or {}
     if fit and fitted.get("vif"):  # the fit measured them on its own data
         metrics["fit"] = {"source": "the fit (model file)", **{
@@ -332,7 +345,7 @@ def _compute(
             "n_segments_kept": fitted.get("n_segments_fitted")}
     elif fit and {"flux_x", "flux_y", "flux_z"} <= set(data.columns):
         try:
-            diag, cv = fit_diagnostics(data, cfg, terms)
+            diag, cv = fit_diagnostics(data, cfg, terms, seg=seg)
             metrics["fit"] = diag
             cv = cv.drop(columns=["n"])
             segs = cv.merge(segs, on="segment", how="outer")
