@@ -100,7 +100,7 @@ def test_spikes_and_other_units_are_not_refused(survey, caplog):
     ut = survey.assign(**{c: survey[c] / 1000 for c in ("flux_x", "flux_y", "flux_z")})
     with caplog.at_level(logging.WARNING):
         prepare(ut, CompensationConfig(), source="ut.csv")  # a units warning, no error
-    assert "flux=uT" in caplog.text
+    assert "units={'flux': 'uT'}" in caplog.text  # the library names the parameter
 
 
 # ---------------------------------------------------------------- 3. delimiters
