@@ -166,16 +166,7 @@ def _read_csv_fast(src: Path) -> pd.DataFrame | None:
         if (np.abs(ln[np.isfinite(ln)]) > MAX_ID).any():
             raise _NotPlain("line id out of range")
     register_input(src, "input log")
-    cols: dict[str, np.ndarray] = {}
-    for c in want:
-        if c in floats:
-            cols[c] = floats.pop(c)[:n]
-        else:
-            chunks = parts.pop(c)
-            cols[c] = chunks[0] if len(chunks) == 1 else np.concatenate(chunks)
-    data = pd.DataFrame(cols, copy=False)
-    data.attrs["source"] = str(src)
-    return data
+    return _frame(src, want, n, floats, parts)
 
 
 def _read_batches(src: Path) -> pd.DataFrame:
@@ -214,6 +205,15 @@ def _read_batches(src: Path) -> pd.DataFrame:
     _release_arrow_memory()
     if not n:
         raise InputError(f"{src}: no rows")
+    return _frame(src, order, n, floats, parts)
+
+
+def _frame(src: Path, order: list[str], n: int, floats: dict[str, np.ndarray],
+           parts: dict[str, list[np.ndarray]]) -> pd.DataFrame:
+    """The table of the columns in ``order``: float arrays cut to ``n`` rows, others joined.
+
+    The arrays are handed over (popped), so the frame holds the only reference to each.
+    """
     cols: dict[str, np.ndarray] = {}
     for c in order:
         if c in floats:
