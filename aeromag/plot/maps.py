@@ -83,7 +83,8 @@ def plot_map(
         for sid in np.unique(seg[~kept]):
             j = np.flatnonzero((seg == sid) & ~kept)
             mid = j[len(j) // 2]
-            ax.annotate(f"line {name[mid]}" if "line" in data.columns else f"segment {sid}",
+            ax.annotate(f"line {_line_name(name[mid])}" if "line" in data.columns
+                        else f"segment {sid}",
                         (east[mid], north[mid]), fontsize=8, color="C3",
                         textcoords="offset points", xytext=(4, 4))
         ax.legend(loc="upper right", fontsize=8)
@@ -94,3 +95,12 @@ def plot_map(
     ax.set_title(f"Flight coloured by {column} (origin: first fix)")
     ax.grid(alpha=0.3)
     return _finish(fig, path)
+
+
+def _line_name(value: object) -> str:
+    """A line id as a surveyor writes it: ``4`` for 4.0 (float columns), text as it is."""
+    try:
+        f = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return str(value)
+    return f"{f:g}" if np.isfinite(f) else str(value)
