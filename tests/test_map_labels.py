@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import matplotlib
+import matplotlib.figure
 
 matplotlib.use("Agg")
 
@@ -23,3 +24,17 @@ def test_dropped_float_line_is_labelled_without_decimals():
     fig = plot_map(df)
     texts = [t.get_text() for t in fig.axes[0].texts]
     assert texts == ["line 4"], texts
+
+
+def test_masked_residual_is_not_drawn_across_the_samples_it_leaves_out():
+    from aeromag.plot._style import _line
+
+    fig = matplotlib.figure.Figure()
+    ax = fig.add_subplot()
+    t = np.arange(300.0)
+    y = np.where((t < 100) | (t >= 200), 1.0, np.nan)  # dropped, kept (masked), dropped
+    _line(ax, t, y, np.zeros(300, dtype=np.int64))
+    xs = ax.lines[0].get_xdata()
+    pieces = np.split(xs, np.flatnonzero(np.isnan(xs)))
+    spans = [(np.nanmin(p), np.nanmax(p)) for p in pieces if np.isfinite(p).any()]
+    assert spans == [(0.0, 99.0), (200.0, 299.0)], spans

@@ -264,8 +264,25 @@ def _subpixel_breaks_merged(x0: np.ndarray, x1: np.ndarray, seg: np.ndarray,
 
 def _line(ax: Axes, x: np.ndarray, y: np.ndarray, st: np.ndarray | None = None,
           **kw: Any) -> None:
-    ex, ey = envelope(x, y, breaks=st)
+    ex, ey = envelope(x, y, breaks=_valid_runs(y, st))
     ax.plot(ex, ey, **kw)
+
+
+def _valid_runs(y: np.ndarray, st: np.ndarray | None) -> np.ndarray:
+    """A label per sample that changes at every new stretch and after every missing sample.
+
+    A masked series (the dropped segments' residual, NaN on the kept ones) must not be drawn
+    as a straight line across the samples it leaves out; -1 (no line) outside stretches.
+    """
+    good = np.isfinite(np.asarray(y, dtype=np.float64))
+    start = good & ~np.r_[False, good[:-1]]
+    if st is not None:
+        lab = np.asarray(st)
+        start |= np.r_[True, lab[1:] != lab[:-1]]
+    runs = np.cumsum(start)
+    if st is not None:
+        runs[np.asarray(st) < 0] = -1
+    return runs
 
 
 def _report(obj: Any) -> dict[str, Any]:
