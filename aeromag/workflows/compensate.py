@@ -9,7 +9,6 @@ meet here, above both).
 from __future__ import annotations
 
 import dataclasses
-import functools
 import logging
 import os
 import time
@@ -127,16 +126,13 @@ def calibrate(
     warning.  The report's ``segmentation`` says which.
     """
     segmentation = None
-    early = None
     if "line" not in df.columns:
         df, segmentation = _segments_from_maneuvers(df, cfg, source)
-    elif cfg is not None and cfg.fom:
-        early = _detect_early(df, cfg)
     res = _run(_pipeline.calibrate(df, cfg, source=source))
     if segmentation is not None:
         res.report["segmentation"] = segmentation
         res.model.meta["segmentation"] = segmentation
-    _add_qc(res, maneuvers=_take_early(early, df, res))
+    _add_qc(res)
     if segmentation is not None and res.data is not None and "line" in res.data.columns:
         # The detected legs were the fit's 'line' column, but they are no flight lines:
         # segments are named by id and time span, never "line 9" (issue 15).
@@ -178,49 +174,6 @@ def _segments_from_maneuvers(df: pd.DataFrame, cfg: CompensationConfig | None,
 
 
 #: Columns :func:`aeromag.qc.detect_maneuvers` reads (besides ``df.attrs["source"]``).
-_DETECTION_COLUMNS = ("time", "heading", "pitch", "roll", *FLUX_COLUMNS, "line", "maneuver")
-
-
-def _detect_early(df: pd.DataFrame, cfg: CompensationConfig) -> tuple[Any, float | None]:
-    """Start the QC's manoeuvre detection on the filter pool while the model is fitted.
-
-    The detection reads only the log's own columns, which the fit does not change: started
-    before the fit it runs beside its single-threaded steps (preparation, screening, the
-    report), 0.1-0.15 s of wall time on 1e6 rows.  Returns the future and the gap it used.
-    """
-    from .._core.parallel import submit
-    from ..compensation.config import _resolve_gap
-    from ..qc import detect_maneuvers
-
-    gap = _resolve_gap(cfg, df).max_gap_s  # what the pipeline's result will carry
-    return submit(functools.partial(detect_maneuvers, df, max_gap_s=gap)), gap
-
-
-def _take_early(early: tuple[Any, float | None] | None, df: pd.DataFrame,
-                res: CompensationResult) -> Any:
-    """The early detection when it saw what the QC would see, else None (QC detects).
-
-    Same gap, same index and the same values in every column the detection reads; a
-    detection error is left to the QC to report, as without the early start.
-    """
-    if early is None:
-        return None
-    fut, gap = early
-    data = res.data
-    try:
-        man = fut.result()
-    except Exception:  # noqa: BLE001 - the QC runs the detection again and reports it
-        return None
-    if data is None or res.config.max_gap_s != gap or not data.index.equals(df.index):
-        return None
-    for c in _DETECTION_COLUMNS:
-        if (c in df.columns) != (c in data.columns):
-            return None
-        if c in df.columns and not df[c].equals(data[c]):
-            return None
-    return man
-
-
 @dataclass(repr=False)  # CompensationResult's short repr, not every field
 class CompensationRun(CompensationResult):
     """A :class:`~aeromag.compensation.result.CompensationResult` with figures, QC and report.
