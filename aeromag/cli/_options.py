@@ -187,9 +187,12 @@ OPTIONS: list[Option] = [
        "fit leaves it a residual above this times the median segment's.", _COMP,
        config="min_excess"),
     _o("min_excess_nt", "--min-excess-nt", float, 0.01, "... and by at least this much in nT, "
-       "and by 3 standard deviations of the in-band noise (the median residual of the "
-       "segments' own fits): an excess inside the sensor noise is kept.", _COMP,
-       config="min_excess_nT"),
+       "and by --noise-factor standard deviations of the in-band noise: an excess inside the "
+       "sensor noise is kept.", _COMP, config="min_excess_nT"),
+    _o("noise_factor", "--noise-factor", float, 3.0, "... and by at least K standard deviations "
+       "of the in-band noise (K dimensionless; the noise, nT, is the median residual the kept "
+       "segments' own fits leave): the floor is max(--min-excess-nt, K x noise); 0 turns the "
+       "noise floor off.", _COMP, metavar="K", config="noise_factor"),
     # stretches
     _o("max_gap", "--max-gap", float | None, None, "A time step longer than this starts a new "
        "stretch, s (default 5 dt).", _COMP, metavar="S", config="max_gap_s"),
