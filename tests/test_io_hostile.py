@@ -68,7 +68,7 @@ def test_truncated_last_row_is_an_error_or_dropped_when_allowed(tmp_path):
     p = tmp_path / "t.csv"
     p.write_bytes(b[: b.rfind(b"\n", 0, len(b) - 1) + 12])  # cut inside the last row
     with pytest.raises(InputError, match=r"t.csv: line 51: the last row has \d of the header's"
-                       r" 6 fields.*--allow-truncated"):
+                       r" 6 fields.*allow_truncated=True"):
         read_log(p)
     df = read_log(p, allow_truncated=True)
     assert len(df) == 49 and df["flux_z"].notna().all()

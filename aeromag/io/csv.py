@@ -87,8 +87,8 @@ def truncated_row_message(path: Path, line: int, fields: int, n_header: int, las
     if last:
         return (f"{clean(path)}: line {line}: the last row has {fields} of the header's"
                 f" {n_header} fields: the log is cut short in the middle of a row; restore the"
-                " complete file, or pass --allow-truncated to drop that row (a warning is"
-                " recorded in the report)")
+                " complete file, or read it with allow_truncated=True to drop that row (a"
+                " warning is recorded in the report)")
     return (f"{clean(path)}: line {line}: {fields} fields but the header names {n_header}"
             " columns; fix that row (or check the delimiter)")
 

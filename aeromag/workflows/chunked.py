@@ -127,7 +127,7 @@ def overlap_rows(fs_hz: float, cfg: CompensationConfig, *, eps: float = 1e-18) -
     cut = cfg.lowpass_hz if cfg.lowpass_hz is not None else cfg.band_hz[1]
     n = 0
     for sos in (butter_sos("bandpass", cfg.band_hz, fs_hz, cfg.order),
-                butter_sos("lowpass", cut, fs_hz, cfg.order, option="--lowpass")):
+                butter_sos("lowpass", cut, fs_hz, cfg.order, option="lowpass_hz")):
         r = max(float(np.max(np.abs(np.roots(s[3:])))) for s in sos)
         decay = math.ceil(math.log(eps) / math.log(r)) if 0 < r < 1 else 10_000
         n = max(n, int(1.5 * decay) + min_filter_length(sos))
@@ -172,10 +172,11 @@ def apply_model_chunked(
     check_input_file(src)  # a FIFO, folder or link loop: one line, never a hang
     check_outputs(src, out_path, json_path_for(Path(out_path)))
     if output_format(out_path) != "csv":
-        raise InputError(f"-o {out_path}: --chunk-rows writes CSV (streamed chunk by chunk);"
-                         " give -o OUT.csv, or run without --chunk-rows for Parquet or XYZ")
+        raise InputError(f"{out_path}: the chunked mode (chunk_rows=) writes CSV, streamed chunk"
+                         " by chunk; give an output ending in .csv, or apply the model without"
+                         " chunk_rows for Parquet or XYZ")
     if chunk_rows < 1:
-        raise InputError(f"--chunk-rows {chunk_rows}: must be positive")
+        raise InputError(f"chunk_rows={chunk_rows}: must be a positive row count")
     if not isinstance(model, TLModel):
         mpath = Path(model)
         model = TLModel.load(mpath)
@@ -198,7 +199,7 @@ def apply_model_chunked(
     missing = [c for c in ("time", *FLUX_COLUMNS) if c not in present]
     if missing:
         raise InputError(f"{source}: missing column(s) {', '.join(missing)}; map them with"
-                         " --col NAME=SOURCE")
+                         " columns={'NAME': 'SOURCE'}")
     has_mag = not total_field_from_fluxgate(first, cfg, source)
     check_total_field(model, not has_mag, source)
     has_line = "line" in present
@@ -296,7 +297,7 @@ def apply_model_chunked(
 
     # ---- pass 3: apply and write
     cut = cfg.lowpass_hz if cfg.lowpass_hz is not None else cfg.band_hz[1]
-    sos_low = butter_sos("lowpass", cut, fs, cfg.order, option="--lowpass")
+    sos_low = butter_sos("lowpass", cut, fs, cfg.order, option="lowpass_hz")
     sos_band = butter_sos("bandpass", cfg.band_hz, fs, cfg.order)
     trim = (0.5 / cfg.band_hz[0]) if cfg.trim_s is None else cfg.trim_s
     m_use, m_kept = StreamingMoments(), StreamingMoments()
