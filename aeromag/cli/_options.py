@@ -325,7 +325,8 @@ def _flag_text(value: Any) -> str:
 
 
 #: Library keywords that are no CompensationConfig field, and their flags.
-_KEYWORD_FLAGS = {"model": "--model", "chunk_rows": "--chunk-rows"}
+_KEYWORD_FLAGS = {"model": "--model", "chunk_rows": "--chunk-rows",
+                  "allow_truncated": "--allow-truncated"}
 #: Reading keywords (mappings) and their flags: ``columns={'K': 'V'}`` is ``--col K=V``.
 _DICT_FLAGS = {"columns": "--col", "units": "--units"}
 
@@ -334,7 +335,8 @@ def _as_flag(name: str, value: str = "") -> str:
     """``segment_seconds=120`` -> ``--segment-seconds 120``; ``screen=False`` -> ``--no-screen``."""
     opt = next((o for o in OPTIONS if o.config == name and o.flags), None)
     if opt is None:
-        return f"{_KEYWORD_FLAGS[name]} {value}" if value else _KEYWORD_FLAGS[name]
+        flag = _KEYWORD_FLAGS[name]  # a switch: allow_truncated=True is --allow-truncated
+        return f"{flag} {value}" if value not in ("", "True") else flag
     flag = opt.flags[-1]
     if opt.type is bool and value in ("True", "False"):
         on = opt.to_config(True) if opt.to_config else True
