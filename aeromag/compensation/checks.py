@@ -1,9 +1,9 @@
 """Checks of a compensation's headline metrics: one implementation for every command.
 
-``aeromag compensate`` and ``aeromag calibrate`` (in memory or chunked) log each finding as a
-warning, so that it is recorded in the report's ``warnings`` and ``--strict`` makes it an
-error; ``aeromag batch`` gives a file with a finding the status ``warn`` from the same words
-(:func:`metric_warnings`).
+``aeromag compensate`` and ``aeromag calibrate`` (in memory or chunked, and
+``compensate --online``) log each finding as a warning, so that it is recorded in the
+report's ``warnings`` and ``--strict`` makes it an error; ``aeromag batch`` gives a file with
+a finding the status ``warn`` from the same words (:func:`metric_warnings`).
 """
 
 from __future__ import annotations

@@ -3,7 +3,10 @@
 File in, files out, with the same columns as ``compensate`` (``mag_tl``, ``mag_comp``,
 ``segment``, ``segment_kept``) and the same report keys (``terms``, ``coef``, ``segments``,
 ``metrics``), plus the coefficient history at a coarse step.  No screening: every segment is
-kept (an online estimator has no second pass).
+kept (an online estimator has no second pass).  The headline metrics get the batch fit's
+checks (:func:`aeromag.compensation.checks.check_metrics`: an improvement ratio below 1, an
+implausible residual), logged as warnings, so that OUT.json records them and ``--strict``
+refuses the log before anything is written.
 """
 
 from __future__ import annotations
@@ -18,12 +21,14 @@ import pandas as pd
 from .. import __version__
 from .._core.filters import bandpass_stretches, lowpass_stretches
 from .._core.rls import check_forgetting
+from ..compensation.checks import check_metrics
 from ..compensation.config import CompensationConfig
 from ..compensation.fit import check_interference
 from ..compensation.metrics import compensation_metrics
 from ..compensation.online import LATENCY_SAMPLES, OnlineTL, OnlineTLResult
 from ..compensation.prepare import prepare
 from ..errors import FitError, InputError
+from ..io.outputs import output_set
 from ._frame_files import frame_to_files
 
 log = logging.getLogger(__name__)
@@ -100,6 +105,8 @@ def compensate_online_frame(df: pd.DataFrame, cfg: CompensationConfig | None = N
     out["segment"] = pd.arrays.IntegerArray(np.where(missing, 0, seg), missing)
     out["segment_kept"] = np.ones(len(seg), dtype=bool)
     metrics = compensation_metrics(prep.mag, comp_out, t, prep.stretch, cfg)
+    # The batch fit's checks, one implementation: warnings (OUT.json; an error with --strict).
+    check_metrics(metrics, source=src, fitted=True)
     comp_bp = bandpass_stretches(comp_out, t, prep.stretch, cfg.band_hz, cfg.order)
     segments = []
     for s in np.unique(seg[seg >= 0]):
@@ -154,10 +161,12 @@ def compensate_online_file(log_path: str | os.PathLike[str], out_path: str | os.
     Returns
     -------
     dict
-        The report.
+        The report; its ``warnings`` list every warning logged while the log was read and
+        compensated (the metric checks' among them).
     """
-    return frame_to_files(
-        log_path, out_path, forgetting,
-        lambda df: compensate_online_frame(df, cfg, forgetting=forgetting,
-                                           derivative=derivative, source=str(log_path)),
-        columns=columns, units=units, fmt=fmt)
+    with output_set():  # the warnings of the whole run go to OUT.json, from Python too
+        return frame_to_files(
+            log_path, out_path, forgetting,
+            lambda df: compensate_online_frame(df, cfg, forgetting=forgetting,
+                                               derivative=derivative, source=str(log_path)),
+            columns=columns, units=units, fmt=fmt)
