@@ -89,3 +89,63 @@ def test_chunked_cli_names_the_flags(files):
                             "100", "-o", str(d / "y.csv")])
     assert r.exit_code != 0
     assert "map them with --col NAME=SOURCE" in r.output and "columns={" not in r.output
+
+
+# --------------------------------------------------------------------------- the writer
+def _hostile_extra(n: int):
+    import numpy as np
+    import pandas as pd
+
+    rng = np.random.default_rng(7)
+    tl = rng.normal(size=n) * 30
+    tl[::97] = np.nan
+    tl[1::89] = 3.0  # integral: written 3.0, as pandas writes it
+    tl[2::83] = -0.0
+    tl[3::79] = np.inf
+    tl[4::73] = -np.inf
+    tl[5::71] = 5e-324
+    tl[6::67] = 1e22
+    seg = np.arange(n, dtype=np.int64) // 50 - 3
+    return pd.DataFrame({
+        "mag_tl": tl, "mag_comp": 50000 + rng.normal(size=n),
+        "segment": pd.arrays.IntegerArray(seg, np.arange(n) % 61 == 0),
+        "segment_kept": np.arange(n) % 7 != 0, "big": np.int64(2) ** 62 - np.arange(n)})
+
+
+@pytest.mark.parametrize("ending", [b"\n", b""])
+def test_passthrough_writes_what_the_csv_writer_writes(tmp_path, monkeypatch, ending):
+    """The lines copied with the added columns joined on (pyarrow's cast text, in blocks of
+    whole lines) are byte for byte the whole table written by write_csv."""
+    import pandas as pd
+
+    import aeromag.io.csv as csv_mod
+    from aeromag.io.csv_write import write_csv_passthrough
+
+    monkeypatch.setattr(csv_mod, "PASSTHROUGH_BLOCK_BYTES", 4096)  # many blocks
+    df = hand_flight(seed=5, n=3000)[0]
+    src = tmp_path / "src.csv"
+    write_csv(df, src)
+    if not ending:
+        src.write_bytes(src.read_bytes().rstrip(b"\n"))
+    extra = _hostile_extra(len(df))
+    out, ref = tmp_path / "out.csv", tmp_path / "ref.csv"
+    assert write_csv_passthrough(src, list(df.columns), extra, out)
+    write_csv(pd.concat([df, extra], axis=1), ref)
+    assert out.read_bytes() == ref.read_bytes()
+
+
+def test_passthrough_text_and_crlf(tmp_path):
+    """Text that needs quoting is refused (the caller writes it another way); CRLF lines are
+    joined without their CR, as before."""
+    import pandas as pd
+
+    from aeromag.io.csv_write import write_csv_passthrough
+
+    src = tmp_path / "src.csv"
+    src.write_bytes(b"time,mag\r\n0,1.5\r\n1,2.5\r\n")
+    extra = pd.DataFrame({"mag_tl": [0.5, float("nan")], "segment_kept": [True, False]})
+    out = tmp_path / "out.csv"
+    assert write_csv_passthrough(src, ["time", "mag"], extra, out)
+    assert out.read_bytes() == b"time,mag,mag_tl,segment_kept\n0,1.5,0.5,true\n1,2.5,,false\n"
+    note = pd.DataFrame({"note": ["a,b", "c"]})
+    assert not write_csv_passthrough(src, ["time", "mag"], note, tmp_path / "x.csv")
