@@ -37,6 +37,7 @@ from ..errors import AeromagError, InputError
 from ..io import atomic_path, json_path_for, write_json
 from ..plot import compensation as pc
 from ..qc import QCResult, compute_qc, kept_mask, segment_labels
+from ._report_html import _CSS, _fmt, _fom_rows, _headline_words, _table, _time
 from ._report_read import read_columns
 
 __all__ = ["FIGURES", "build_report", "load_compensated", "render_html", "write_report"]
@@ -364,6 +365,7 @@ def load_compensated(
     else:
         log.warning("%s: no report beside the log; default configuration assumed", rj)
     report.setdefault("source", str(src))
+    data.attrs["report_json"] = str(rj)  # named by the headline check (report_check)
     config = _config_from(report)
     model = None
     if report.get("coef"):
@@ -384,53 +386,6 @@ def _config_from(report: dict[str, Any]) -> CompensationConfig:
 
 
 # --------------------------------------------------------------------------- HTML
-_CSS = """
-body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:2em auto;
-max-width:1100px;color:#222;padding:0 1em}
-h1{font-size:1.5em}h2{font-size:1.2em;margin-top:1.6em;border-bottom:1px solid #ccc}
-table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;padding:.25em .6em;
-text-align:right}th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}
-tr.dropped td{background:#fdecea}
-figure{margin:1em 0}figure img{max-width:100%;border:1px solid #eee}
-figcaption{font-size:.9em;color:#555}.note{color:#a60}.na{color:#a60;font-weight:600}
-.small{font-size:.9em;color:#555}
-"""
-
-
-def _fmt(v: Any, digits: int = 4) -> str:
-    if v is None:
-        return "–"
-    if isinstance(v, bool):
-        return "yes" if v else "no"
-    if isinstance(v, int | np.integer):
-        return str(int(v))
-    if isinstance(v, float | np.floating):
-        if not np.isfinite(v):
-            return str(v)
-        return f"{v:.{digits}g}"
-    return html.escape(str(v))
-
-
-def _table(rows: list[list[Any]], header: list[str], classes: list[str] | None = None) -> str:
-    h = "".join(f"<th>{html.escape(c)}</th>" for c in header)
-    cls = classes or [""] * len(rows)
-    body = "".join((f"<tr class='{c}'>" if c else "<tr>")
-                   + "".join(f"<td>{_fmt(v)}</td>" for v in r) + "</tr>"
-                   for r, c in zip(rows, cls, strict=True))
-    return f"<table><thead><tr>{h}</tr></thead><tbody>{body}</tbody></table>"
-
-
-def _time(t: float | None) -> str:
-    """A time for the tables: UTC when epoch seconds, else seconds."""
-    if t is None or not np.isfinite(t):
-        return "–"
-    if 1e9 <= t < 4.1e9:
-        import datetime as dt
-
-        return dt.datetime.fromtimestamp(t, dt.UTC).strftime("%H:%M:%S")
-    return f"{t:.1f}"
-
-
 def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[str, Any],
                 *, title: str | None = None) -> str:
     """The self-contained HTML page: metrics tables and base64-embedded PNG figures.
@@ -462,18 +417,28 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
     fit = metrics.get("fit") or {}
     noise = metrics.get("noise") or {}
     alld = metrics.get("all_data") or {}
-    rows: list[list[Any]] = [
-        ["improvement ratio (band-passed mag / mag - mag_tl)",
-         metrics.get("improvement_ratio"), alld.get("improvement_ratio")],
-        ["residual (nT, band-passed mag - mag_tl)", metrics.get("residual_std_nT"),
-         alld.get("residual_std_nT")],
-        ["before (nT, band-passed mag)", metrics.get("std_before_nT"),
-         alld.get("std_before_nT")],
-        ["samples", metrics.get("n_samples"), alld.get("n_samples")],
-    ]
-    parts.append("<h2>Summary</h2>" + _table(rows, ["metric", "kept segments", "all data"]))
+    check = metrics.get("headline_check") or {}
+    rec = metrics.get("compensation_metrics") or {}
+    names = [("improvement ratio (band-passed mag / mag - mag_tl)", "improvement_ratio"),
+             ("residual (nT, band-passed mag - mag_tl)", "residual_std_nT"),
+             ("before (nT, band-passed mag)", "std_before_nT"),
+             ("samples", "n_samples")]
+    header = ["metric", "kept segments", "all data"]
+    rows: list[list[Any]] = [[label, metrics.get(k), alld.get(k)] for label, k in names]
+    if check.get("compared"):
+        header.append(f"recorded in {Path(check.get('recorded_in') or 'OUT.json').name}"
+                      " (kept / all)")
+        for r, (_, k) in zip(rows, names, strict=True):
+            r.append(f"{_fmt(rec.get(k))} / {_fmt(rec.get('all_' + k))}")
+    parts.append("<h2>Summary</h2>")
+    if check.get("warning"):
+        parts.append(f"<p class='warn' id='headline-warning'>Warning: "
+                     f"{html.escape(check['warning'])}</p>")
+    parts.append(_table(rows, header))
+    words = _headline_words(check)
     if metrics.get("definition"):
-        parts.append(f"<p class='small'>{html.escape(metrics['definition'])}.</p>")
+        words = f"{metrics['definition']}. {words}"
+    parts.append(f"<p class='small'>{html.escape(words)}</p>")
     more = [
         ["4th-difference noise before / after (nT)",
          f"{_fmt(noise.get('fourth_difference_before_nT'))} / "
@@ -491,15 +456,13 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
     # FOM: numbers only for complete calibration boxes.
     parts.append("<h2>Figure of Merit</h2>")
     if fom.get("applicable"):
-        frows = [["FOM before (nT)", fom.get("fom_before_nT")],
-                 ["FOM after (nT)", fom.get("fom_after_nT")],
-                 ["FOM reduction (before / after)", fom.get("fom_reduction")],
-                 ["FOM after, manoeuvres in kept segments only (nT)", fom.get("fom_kept_after_nT")],
-                 ["complete boxes", f"{len(fom.get('complete_boxes', []))} (box "
-                  + ", ".join(map(str, fom.get("complete_boxes", []))) + ")"]]
-        if fom.get("fom_truth_nT") is not None:
-            frows.insert(2, ["FOM of the true interference (nT)", fom.get("fom_truth_nT")])
-        parts.append(_table(frows, ["metric", "value"]))
+        parts.append(_table(_fom_rows(fom), ["metric", "manoeuvres in kept segments",
+                                             "all manoeuvres"]))
+        boxes = fom.get("complete_boxes", [])
+        parts.append(f"<p class='small'>Complete boxes: {len(boxes)} (box "
+                     f"{html.escape(', '.join(map(str, boxes)))}); manoeuvres in kept segments:"
+                     f" {_fmt(fom.get('n_maneuvers_kept'))} of {_fmt(fom.get('n_maneuvers'))}."
+                     f" {html.escape(fom.get('kept_definition') or '')}</p>")
         pm = fom.get("per_maneuver") or []
         if pm:
             keys = [k for k in ("ptp_before_nT", "ptp_after_nT", "ptp_truth_nT") if k in pm[0]]

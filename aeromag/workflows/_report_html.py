@@ -1,0 +1,91 @@
+"""Pieces of the report's HTML page (:func:`aeromag.workflows.report.render_html`).
+
+Style sheet, cell formatting, tables, table times, the FOM rows (manoeuvres in kept segments
+first) and the sentence saying where the headline comes from.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import html
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+_CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:2em auto;
+max-width:1100px;color:#222;padding:0 1em}
+h1{font-size:1.5em}h2{font-size:1.2em;margin-top:1.6em;border-bottom:1px solid #ccc}
+table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;padding:.25em .6em;
+text-align:right}th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}
+tr.dropped td{background:#fdecea}
+figure{margin:1em 0}figure img{max-width:100%;border:1px solid #eee}
+figcaption{font-size:.9em;color:#555}.note{color:#a60}.na{color:#a60;font-weight:600}
+.small{font-size:.9em;color:#555}
+.warn{color:#b00;font-weight:600;border-left:4px solid #b00;padding-left:.5em}
+"""
+
+
+def _fmt(v: Any, digits: int = 4) -> str:
+    if v is None:
+        return "–"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, int | np.integer):
+        return str(int(v))
+    if isinstance(v, float | np.floating):
+        if not np.isfinite(v):
+            return str(v)
+        return f"{v:.{digits}g}"
+    return html.escape(str(v))
+
+
+def _table(rows: list[list[Any]], header: list[str], classes: list[str] | None = None) -> str:
+    h = "".join(f"<th>{html.escape(c)}</th>" for c in header)
+    cls = classes or [""] * len(rows)
+    body = "".join((f"<tr class='{c}'>" if c else "<tr>")
+                   + "".join(f"<td>{_fmt(v)}</td>" for v in r) + "</tr>"
+                   for r, c in zip(rows, cls, strict=True))
+    return f"<table><thead><tr>{h}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def _time(t: float | None) -> str:
+    """A time for the tables: UTC when epoch seconds, else seconds."""
+    if t is None or not np.isfinite(t):
+        return "–"
+    if 1e9 <= t < 4.1e9:
+        return dt.datetime.fromtimestamp(t, dt.UTC).strftime("%H:%M:%S")
+    return f"{t:.1f}"
+
+
+def _fom_rows(fom: dict[str, Any]) -> list[list[Any]]:
+    """FOM table rows: the manoeuvres in kept segments first, all manoeuvres beside them."""
+    def reduction(before: Any, after: Any) -> float | None:
+        return float(before / after) if before is not None and after else None
+
+    kb, ka = fom.get("fom_kept_before_nT"), fom.get("fom_kept_after_nT")
+    rows: list[list[Any]] = [
+        ["FOM before (nT, sum of 12 p-p of band-passed mag)", kb, fom.get("fom_before_nT")],
+        ["FOM after (nT, sum of 12 p-p of band-passed mag - mag_tl)", ka,
+         fom.get("fom_after_nT")],
+        ["FOM reduction (before / after)", reduction(kb, ka), fom.get("fom_reduction")]]
+    if fom.get("fom_truth_nT") is not None:
+        rows.insert(2, ["FOM of the true interference (nT)", fom.get("fom_kept_truth_nT"),
+                        fom.get("fom_truth_nT")])
+    return rows
+
+
+def _headline_words(check: dict[str, Any]) -> str:
+    """Where the headline comes from and how it was checked, in one sentence."""
+    src = Path(check.get("recorded_in") or "OUT.json").name
+    if not check:
+        return "Headline as the compensation recorded it."
+    if not check.get("compared"):
+        return (f"Headline computed from this log's columns; {src} holds no metrics to"
+                " compare it with.")
+    verdict = ("agrees" if check.get("agree") else "DISAGREES")
+    return (f"Headline computed from this log's columns (mag, mag_tl, segment_kept); it"
+            f" {verdict} with {src} (largest relative difference"
+            f" {check.get('max_relative_difference', 0.0):.2g}, tolerance"
+            f" {check.get('relative_tolerance', 0.0):g}; sample counts compared exactly).")
