@@ -39,6 +39,7 @@ from ..plot import compensation as pc
 from ..qc import QCResult, compute_qc, kept_mask, segment_labels
 from ._report_html import _CSS, _fmt, _fom_rows, _headline_words, _table, _time
 from ._report_read import read_columns
+from .report_check import headline_from_data, headline_record
 
 __all__ = ["FIGURES", "build_report", "load_compensated", "render_html", "write_report"]
 
@@ -131,6 +132,7 @@ def write_report(
         raise TypeError("write_report(result, out_dir): too many positional arguments")
     if result.data is None:
         raise InputError("this result holds no compensated data (use compensate())")
+    result = headline_from_data(result, config)  # the headline of the data shown (issue 15)
     report = result.report
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -145,6 +147,7 @@ def write_report(
             progress(step, total, what)
 
     qc = compute_qc(result, config=config, **qc_kw)
+    qc.metrics.update(headline_record(report))
     _trim_heap()
     advance("quality metrics")
     band = tuple(qc.metrics["band_hz"])
