@@ -41,3 +41,83 @@ def test_calibrate_screens_on_one_blas_thread(monkeypatch: pytest.MonkeyPatch) -
     assert _blas_threads() == outside
     assert np.all(np.isfinite(res.model.coef))
 
+
+
+def _clip_reference(mid: np.ndarray, line: np.ndarray) -> tuple[np.ndarray, dict[int, tuple]]:
+    """The per-manoeuvre loop that clip_to_lines replaced: kept (start, stop) per manoeuvre."""
+    import pandas as pd
+
+    from aeromag._core.runs import run_bounds
+
+    codes = pd.factorize(pd.Series(line), use_na_sentinel=True)[0]
+    new = mid.copy()
+    spans = {}
+    a, b, ids = run_bounds(mid)
+    for s, e, i in zip(a, b, ids, strict=True):
+        c = codes[s:e]
+        if i < 0 or not (c != c[0]).any():
+            continue
+        cut = np.flatnonzero(np.r_[True, c[1:] != c[:-1], True])
+        k = int(np.argmax(np.diff(cut)))
+        ks, ke = s + cut[k], s + cut[k + 1]
+        new[s:ks] = -1
+        new[ke:e] = -1
+        spans[int(i)] = (ks, ke)
+    return new, spans
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("kind", ["float", "int", "str"])
+def test_clip_to_lines_vectorised_equals_the_loop(seed: int, kind: str) -> None:
+    # Manoeuvres crossing lines (missing lines too, ties of equal parts) clip as the loop did.
+    import pandas as pd
+
+    from aeromag.qc._lines import clip_to_lines
+    from aeromag.qc.maneuvers import MANEUVERS, ManeuverResult
+
+    rng = np.random.default_rng(seed)
+    n = 3000
+    t = np.arange(n) * 0.1
+    line = np.repeat(rng.integers(0, 4, n // 20), 20).astype(float)
+    line[rng.random(n) < 0.02] = np.nan
+    line[np.repeat(rng.random(n // 20) < 0.25, 20)] = np.nan  # whole lines missing
+    lengths = rng.integers(5, 60, n)
+    mid = np.full(n, -1)
+    i, j = 0, 0
+    while i < n:
+        L = int(lengths[i])
+        if rng.random() < 0.7:
+            mid[i:i + L] = j
+            j += 1
+        i += L + int(rng.integers(0, 3))
+    ids = np.unique(mid[mid >= 0])
+    if kind == "int":
+        line = np.nan_to_num(line, nan=-7).astype(np.int64)
+    elif kind == "str":
+        line = np.array([None if x != x else f"L{x:g}" for x in line], dtype=object)
+    lab = pd.DataFrame({"heading_leg": 0, "leg_id": 0, "box": 0, "maneuver_id": mid})
+    lab["maneuver"] = pd.Categorical.from_codes(np.where(mid >= 0, 1 + mid % 3, 0),
+                                                categories=["", *MANEUVERS])
+    first = np.array([np.flatnonzero(mid == k)[0] for k in ids])
+    last = np.array([np.flatnonzero(mid == k)[-1] for k in ids])
+    tab = pd.DataFrame({"id": ids[::-1], "t_start": t[first][::-1], "t_end": t[last][::-1],
+                        "n": (last - first + 1)[::-1], "duration_s": 0.0})
+    got = clip_to_lines(ManeuverResult(lab, tab, pd.DataFrame(), "fluxgate"), line, t, 10.0)
+    want_mid, spans = _clip_reference(mid, line)
+    assert spans  # the case clips something
+    np.testing.assert_array_equal(got.labels["maneuver_id"].to_numpy(), want_mid)
+    np.testing.assert_array_equal(got.labels["maneuver"].cat.codes.to_numpy() == 0,
+                                  want_mid < 0)
+    row = {int(k): r for r, k in enumerate(got.table["id"])}
+    for k, (ks, ke) in spans.items():
+        assert got.table["t_start"].iloc[row[k]] == t[ks]
+        assert got.table["t_end"].iloc[row[k]] == t[ke - 1]
+        assert got.table["n"].iloc[row[k]] == ke - ks
+
+
+def test_cross_is_numpys_bitwise() -> None:
+    from aeromag.qc.maneuvers import _cross
+
+    rng = np.random.default_rng(7)
+    a, b = rng.normal(size=(1000, 3)), 1e-3 * rng.normal(size=(1000, 3))
+    np.testing.assert_array_equal(_cross(a, b), np.cross(a, b))

@@ -236,6 +236,17 @@ def _best_of(share: np.ndarray) -> np.ndarray:
     return np.argmax(np.where(np.isnan(share), -1.0, share), axis=1)
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.cross(a, b)`` of (n, 3) arrays, bitwise, without its axis moves and temporaries."""
+    out = np.empty_like(a)
+    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
+    b0, b1, b2 = b[:, 0], b[:, 1], b[:, 2]
+    np.subtract(a1 * b2, a2 * b1, out=out[:, 0])
+    np.subtract(a2 * b0, a0 * b2, out=out[:, 1])
+    np.subtract(a0 * b1, a1 * b0, out=out[:, 2])
+    return out
+
+
 def _axis_energy(df: pd.DataFrame, stretch: np.ndarray, fs: float, highpass_hz: float,
                  half: int, use_attitude: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per sample: the axis (roll=x, pitch=y, yaw=z) with the largest energy share, that
@@ -266,25 +277,23 @@ def _axis_energy(df: pd.DataFrame, stretch: np.ndarray, fs: float, highpass_hz: 
     # A small rotation about body axis a moves the cosines along v_a = cb x e_a; the motion
     # dc projects on it as (cb x dc)_a / |v_a| (up to sign), with |v_a|^2 = |cb|^2 - cb_a^2.
     vn2 = np.maximum(np.einsum("nk,nk->n", cb, cb)[:, None] - cb * cb, 1e-24)
-    num = np.cross(cb, dc)
-    num2 = num * num
+    num2 = _cross(cb, dc)
+    np.square(num2, out=num2)
     stack = np.empty((n, 7))
     np.divide(num2, vn2, out=stack[:, :3])                 # proj^2
     np.divide(stack[:, :3], vn2, out=stack[:, 3:6])        # (proj / |v|)^2: angle^2 [rad^2]
     stack[:, 6] = np.einsum("nk,nk->n", dc, dc)
     mm = moving_mean(stack, stretch, half)
     share = mm[:, :3] / np.maximum(mm[:, 6:7], 1e-30)
-    best = _best_of(share)
     masked = np.where(np.isnan(share), -1.0, share)
-    np.put_along_axis(masked, best[:, None], -np.inf, axis=1)
+    best = np.argmax(masked, axis=1)  # _best_of(share)
+    rows = np.arange(n)
+    masked[rows, best] = -np.inf
     second = np.argmax(masked, axis=1)
-    rms = np.rad2deg(np.sqrt(np.take_along_axis(mm[:, 3:6], best[:, None], axis=1)[:, 0]))
+    rms = np.rad2deg(np.sqrt(mm[rows, 3 + best]))
     # cos between v_a and v_b (a != b): |cb_a cb_b| / (|v_a| |v_b|).
-    ca = np.take_along_axis(cb, best[:, None], axis=1)[:, 0]
-    cbb = np.take_along_axis(cb, second[:, None], axis=1)[:, 0]
-    va = np.take_along_axis(vn2, best[:, None], axis=1)[:, 0]
-    vb = np.take_along_axis(vn2, second[:, None], axis=1)[:, 0]
-    cos12 = np.abs(ca * cbb) / np.sqrt(va * vb)
+    cos12 = np.abs(cb[rows, best] * cb[rows, second]) / np.sqrt(vn2[rows, best]
+                                                                * vn2[rows, second])
     return best, np.nan_to_num(rms), cos12
 
 
