@@ -230,27 +230,18 @@ def write_csv_passthrough(
     import pyarrow.csv as pacsv
 
     try:
-        table = pa.Table.from_pandas(extra, preserve_index=False)
+        table = _floats_as_pandas_text(pa.Table.from_pandas(extra, preserve_index=False))
     except (pa.ArrowException, TypeError, ValueError):
         return False
     if any(pa.types.is_temporal(f.type) or pa.types.is_nested(f.type) for f in table.schema):
         return False
-    # Numbers and booleans never need quoting: their text (pyarrow's cast, the very text its
-    # CSV writer writes) is joined to the source lines directly (see _join_cast).
-    cast_join = all(_never_quoted(f.type) for f in table.schema)
-    table = _floats_as_pandas_text(table)
-    columns = [table.column(i).combine_chunks() for i in range(table.num_columns)]
     n = table.num_rows
     opts = pacsv.WriteOptions(include_header=False, quoting_style="none")
 
     def join(lines: bytes, row: int, k: int) -> Any:
         """One block: its k source lines, each followed by its row of ``table``."""
-        if b'"' in lines:
-            return None
         raw = np.frombuffer(lines, dtype=np.uint8)
         nl = np.flatnonzero(raw == 10)
-        if len(nl) != k:
-            return None
         starts = np.r_[0, nl[:-1] + 1]
         cr = raw[np.maximum(nl - 1, 0)] == 13
         if cr.any() and not cr.all():
@@ -258,8 +249,6 @@ def write_csv_passthrough(
         drop = 2 if cr.all() else 1
         if np.any(nl - starts < drop + 1):  # a blank line: the readers skip those
             return None
-        if cast_join and drop == 1:
-            return _join_cast(lines, nl, [c.slice(row, k) for c in columns])
         src_lines = pa.Array.from_buffers(
             pa.binary(), k, [None, pa.py_buffer(np.r_[0, nl + 1].astype(np.int32)),
                              pa.py_buffer(lines)])
@@ -276,7 +265,9 @@ def write_csv_passthrough(
             pa.binary(), k, [None, pa.py_buffer(np.r_[0, enl + 1].astype(np.int32)), ext])
         joined = pc.binary_join_element_wise(pc.binary_slice(src_lines, 0, -drop), ext_lines,
                                              b",")
-        return (_values_bytes(joined),)
+        off = np.frombuffer(joined.buffers()[1], dtype=np.int32, count=k + 1,
+                            offset=4 * joined.offset)
+        return memoryview(joined.buffers()[2])[off[0]:off[-1]]
 
     from collections import deque
     from concurrent.futures import ThreadPoolExecutor
@@ -298,65 +289,21 @@ def write_csv_passthrough(
         # Blocks are joined on the pool, written here in order, at most 2 per thread ahead.
         for lines in _line_blocks(fin):
             k = lines.count(b"\n")
-            if row + k > n:
+            if b'"' in lines or row + k > n:
                 return False
             pending.append(pool.submit(join, lines, row, k))
             row += k
             while len(pending) > 2 * threads:
-                if not _write_parts(fout, pending.popleft().result()):
+                out = pending.popleft().result()
+                if out is None:
                     return False
+                fout.write(out)
         while pending:
-            if not _write_parts(fout, pending.popleft().result()):
+            out = pending.popleft().result()
+            if out is None:
                 return False
+            fout.write(out)
     return row == n
-
-
-def _never_quoted(t: Any) -> bool:
-    """Whether an Arrow type's CSV text never needs quoting (float64, integers, booleans)."""
-    import pyarrow as pa
-
-    return pa.types.is_float64(t) or pa.types.is_integer(t) or pa.types.is_boolean(t)
-
-
-def _values_bytes(arr: Any) -> memoryview:
-    """The concatenated values of a binary Arrow array (its data buffer between its offsets)."""
-    off = np.frombuffer(arr.buffers()[1], dtype=np.int32, count=len(arr) + 1,
-                        offset=4 * arr.offset)
-    return memoryview(arr.buffers()[2])[off[0]:off[-1]]
-
-
-def _join_cast(lines: bytes, nl: np.ndarray, columns: Sequence[Any]) -> tuple[Any, ...]:
-    r"""LF-terminated source ``lines`` (newlines at ``nl``), each with its row of ``columns``.
-
-    Each source line is taken with the newline *before* it (``"\n" + line``; the first
-    without), so that one ``binary_join_element_wise`` with the columns' text gives the output
-    block as one buffer, less its final newline: no CSV writer pass, no slicing of the source
-    lines, no scan of the formatted text.  Missing values are empty, as the CSV writer writes
-    them; the text of every value is pyarrow's cast to string, which its CSV writer uses.
-    """
-    import pyarrow as pa
-    import pyarrow.compute as pc
-
-    k = len(nl)
-    offsets = np.empty(k + 1, dtype=np.int32)
-    offsets[0] = 0
-    offsets[1:] = nl
-    src = pa.Array.from_buffers(pa.binary(), k, [None, pa.py_buffer(offsets),
-                                                 pa.py_buffer(lines)])
-    text = [(c if pa.types.is_string(c.type) else pc.cast(c, pa.string())).cast(pa.binary())
-            for c in columns]
-    joined = pc.binary_join_element_wise(
-        src, *text, b",", options=pc.JoinOptions(null_handling="replace", null_replacement=""))
-    return _values_bytes(joined), b"\n"
-
-
-def _write_parts(fout: Any, parts: tuple[Any, ...] | None) -> bool:
-    """Write one joined block (False: the block could not be joined)."""
-    if parts is None:
-        return False
-    for part in parts:
-        fout.write(part)
-    return True
 
 
 def _write_csv_arrow(df: pd.DataFrame, dest: Path) -> bool:
