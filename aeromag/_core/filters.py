@@ -47,7 +47,7 @@ def sampling_rate(time_s: np.ndarray) -> float:
 
 def butter_sos(
     kind: str, cutoff_hz: float | tuple[float, float], fs_hz: float, order: int = 4,
-    *, source: str = "", option: str = "--band",
+    *, source: str = "", option: str = "band_hz",
 ) -> np.ndarray:
     """Design a Butterworth filter in second-order sections, validated against Nyquist.
 
@@ -64,7 +64,8 @@ def butter_sos(
     source : str
         File name quoted in errors.
     option : str
-        Option name quoted in errors.
+        Parameter name quoted in errors (a Python keyword such as ``band_hz`` or
+        ``lowpass_hz``; the command line shows its flag instead).
 
     Returns
     -------
@@ -358,7 +359,7 @@ def lowpass_stretches(
     """
     xv = np.asarray(x, dtype=np.float64)
     fs = sampling_rate(time_s) if fs_hz is None else fs_hz
-    sos = butter_sos("lowpass", cutoff_hz, fs, order, option="--lowpass")
+    sos = butter_sos("lowpass", cutoff_hz, fs, order, option="lowpass_hz")
     out = filter_stretches(xv[None, :], stretch, sos, axis=1)[0]
     # A stretch too short to filter keeps its unfiltered values rather than vanishing.
     fill = np.isnan(out) & (np.asarray(stretch) >= 0)
