@@ -47,7 +47,8 @@ def test_missing_column_names_file_and_column(tmp_path):
     p = _log(tmp_path, "time,mag\n0,1\n1,2\n")
     with pytest.raises(InputError) as e:
         read_log(p, required=("time", "flux_x"))
-    assert "log.csv" in str(e.value) and "flux_x" in str(e.value) and "--col" in str(e.value)
+    msg = str(e.value)
+    assert "log.csv" in msg and "flux_x" in msg and "columns={'NAME': 'SOURCE'}" in msg
     with pytest.raises(InputError, match="'nope'"):
         read_log(p, columns={"mag": "nope"})
 

@@ -326,9 +326,26 @@ def _flag_text(value: Any) -> str:
 
 #: Library keywords that are no CompensationConfig field, and their flags.
 _KEYWORD_FLAGS = {"model": "--model", "chunk_rows": "--chunk-rows",
-                  "allow_truncated": "--allow-truncated"}
+                  "allow_truncated": "--allow-truncated", "forgetting": "--forgetting",
+                  "earth_field": "--earth-field"}
 #: Reading keywords (mappings) and their flags: ``columns={'K': 'V'}`` is ``--col K=V``.
 _DICT_FLAGS = {"columns": "--col", "units": "--units"}
+#: Keywords given as a tuple: ``earth_field=(F, I, D)`` is ``--earth-field F I D``.
+_TUPLE_FLAGS = {"earth_field": "--earth-field", "origin": "--origin"}
+#: Keywords given as a string: ``date='2024-06-01'`` is ``--date 2024-06-01``.
+_STRING_FLAGS = {"date": "--date"}
+
+
+def _tuple_flag(name: str, values: str) -> str:
+    """``earth_field``, ``'54000.0, 57, -5'`` -> ``--earth-field 54000 57 -5``."""
+    parts = []
+    for v in values.split(","):
+        v = v.strip()
+        try:
+            parts.append(f"{float(v):g}")
+        except ValueError:
+            parts.append(v)  # a placeholder: F, I, D
+    return " ".join([_TUPLE_FLAGS[name], *parts])
 
 
 def _as_flag(name: str, value: str = "") -> str:
@@ -349,7 +366,10 @@ def flag_message(message: str) -> str:
 
     Library errors name the parameter a caller sets (``segment_seconds=...``); the command
     line says ``--segment-seconds ...``.  Keywords are rewritten in their ``name=value`` form
-    (and bare when the name has an underscore, which no English word has).
+    (and bare when the name has an underscore, which no English word has); mappings, tuples
+    and strings in their Python spelling: ``columns={'mag': 'mag_1_uc'}`` is ``--col
+    mag=mag_1_uc``, ``earth_field=(F, I, D)`` is ``--earth-field F I D``, ``origin=(LAT, LON,
+    ALT)`` is ``--origin LAT LON ALT`` and ``date='2024-06-01'`` is ``--date 2024-06-01``.
 
     Parameters
     ----------
@@ -367,6 +387,11 @@ def flag_message(message: str) -> str:
     message = re.sub(r"(?<![\w-])(columns|units)=(?:\{'([^']*)': '([^']*)'\}|\.\.\.)",
                      lambda m: _DICT_FLAGS[m[1]] + (f" {m[2]}={m[3]}" if m[2] is not None
                                                     else ""), message)
+    # The reference field and frame: earth_field=(F, I, D), origin=(...), date='YYYY-MM-DD'.
+    message = re.sub(rf"(?<![\w-])({'|'.join(_TUPLE_FLAGS)})=\(([^()]*)\)",
+                     lambda m: _tuple_flag(m[1], m[2]), message)
+    message = re.sub(rf"(?<![\w-])({'|'.join(_STRING_FLAGS)})='([^']*)'",
+                     lambda m: f"{_STRING_FLAGS[m[1]]} {m[2]}", message)
     message = re.sub(rf"(?<![\w-])({alt})=([^\s,;:)]*)", lambda m: _as_flag(*m.groups()),
                      message)
     bare = "|".join(re.escape(n) for n in names if "_" in n)

@@ -116,7 +116,7 @@ def read_log(
         avail = ", ".join(map(str, df.columns[:20]))
         raise InputError(
             f"{source}: missing column(s) {', '.join(missing)}; columns are: {avail};"
-            " map them with --col NAME=SOURCE"
+            " map them with columns={'NAME': 'SOURCE'}"
         )
     if len(df) < min_rows:
         raise InputError(f"{source}: only {len(df)} data row(s); need at least {min_rows}:"

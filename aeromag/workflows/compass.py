@@ -46,21 +46,21 @@ def reference_for(df: pd.DataFrame, src: str, *, date: str | None,
     """
     if earth_field is not None:
         if date is not None:
-            log.warning("--earth-field given: --date %s is not used", date)
+            log.warning("earth_field given: date=%r is not used", date)
         return explicit_field(*earth_field)
     missing = [c for c in ("lat", "lon", "alt") if c not in df.columns]
     if missing:
         raise InputError(f"{src}: no {', '.join(missing)} column(s) for the IGRF reference "
-                         "field; give --earth-field F I D (nT, degrees) or map the position "
-                         "columns with --col")
+                         "field; give earth_field=(F, I, D) (nT, degrees) or map the "
+                         "position columns with columns=...")
     if date is None:
         raise InputError(f"{src}: the IGRF reference field needs the flight's date: give "
-                         "--date YYYY-MM-DD, or --earth-field F I D")
+                         "date='YYYY-MM-DD', or earth_field=(F, I, D)")
     pos = df[["lat", "lon", "alt"]].to_numpy(dtype=np.float64)
     ok = np.isfinite(pos).all(axis=1)
     if not ok.any():
         raise InputError(f"{src}: columns lat, lon, alt hold no complete position; give "
-                         "--earth-field F I D")
+                         "earth_field=(F, I, D)")
     if not ok.all():
         # Rows without a fix (other sensors' rows): the position of the last fix (the field
         # changes by < 1 nT over hundreds of metres); rows before the first fix take it.
@@ -108,12 +108,12 @@ def compass_frame(df: pd.DataFrame, *, forgetting: float = 0.975, date: str | No
     missing = [c for c in _FLUX if c not in df.columns]
     if missing:
         raise InputError(f"{src}: missing column(s) {', '.join(missing)} (the vector "
-                         "magnetometer, nT); map them with --col NAME=SOURCE")
+                         "magnetometer, nT); map them with columns={'NAME': 'SOURCE'}")
     missing = [c for c in _ATTITUDE if c not in df.columns]
     if missing:
         raise InputError(f"{src}: missing attitude column(s) {', '.join(missing)} (degrees); "
                          "the calibration rotates the Earth field into body axes with them; "
-                         "map them with --col NAME=SOURCE")
+                         "map them with columns={'NAME': 'SOURCE'}")
     ref = reference_for(df, src, date=date, earth_field=earth_field)
     flux = df[list(_FLUX)].to_numpy(dtype=np.float64)
     hdg, pitch, roll = (df[c].to_numpy(dtype=np.float64) for c in _ATTITUDE)

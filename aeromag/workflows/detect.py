@@ -132,12 +132,12 @@ _GYRO_UNITS = {"rad/s": 1.0, "deg/s": float(np.pi / 180.0), "dps": float(np.pi /
 
 def _gyro_units(units: dict[str, str] | None,
                 source: str) -> tuple[dict[str, str] | None, float]:
-    """Take ``gyro=deg/s`` (or ``gyro_x/y/z=...``) out of ``--units``.
+    """Take ``units={'gyro': 'deg/s'}`` (or ``gyro_x/y/z``) out of ``units``.
 
     Parameters
     ----------
     units : dict or None
-        ``--units`` map (column or group -> unit).
+        Unit map (column or group -> unit).
     source : str
         File name quoted in errors.
 
@@ -154,8 +154,8 @@ def _gyro_units(units: dict[str, str] | None,
         if k in ("gyro", "gyro_x", "gyro_y", "gyro_z"):
             key = v.strip().lower().replace("°", "deg")
             if key not in _GYRO_UNITS:
-                raise InputError(f"{source}: --units {k}={v}: unknown gyro unit; use rad/s "
-                                 "or deg/s")
+                raise InputError(f"{source}: units={{'{k}': '{v}'}}: unknown gyro unit; use "
+                                 "rad/s or deg/s")
             scale = _GYRO_UNITS[key]
         else:
             rest[k] = v

@@ -21,7 +21,7 @@ from ..nav.pipeline import GPS_POS, GpsMode, NavigationResult, navigate, parse_g
 
 __all__ = ["NAV_UNITS", "navigate_file", "split_units"]
 
-#: Units ``--units`` converts for the navigation sensors: {group or column: {unit: factor}}.
+#: Units ``units=`` converts for the navigation sensors: {group or column: {unit: factor}}.
 _ANGULAR = {"rad/s": 1.0, "deg/s": np.pi / 180.0, "dps": np.pi / 180.0}
 _ACCEL = {"m/s2": 1.0, "m/s^2": 1.0, "g": 9.80665, "mg": 9.80665e-3}
 NAV_UNITS: dict[str, tuple[tuple[str, ...], dict[str, float]]] = {
@@ -35,7 +35,7 @@ for _g, (_cols, _u) in list(NAV_UNITS.items()):
 
 
 def split_units(units: Mapping[str, str] | None) -> tuple[dict[str, str], dict[str, str]]:
-    """Split ``--units`` into the navigation sensors' (gyro, flow, acc) and the field ones."""
+    """Split ``units`` into the navigation sensors' (gyro, flow, acc) and the field ones."""
     nav, rest = {}, {}
     for k, v in (units or {}).items():
         (nav if k in NAV_UNITS else rest)[k] = v
@@ -47,11 +47,12 @@ def _convert_nav_units(df: pd.DataFrame, units: Mapping[str, str], source: str) 
         cols, table = NAV_UNITS[key]
         u = unit.strip().lower().replace("°", "deg").replace("²", "2")
         if u not in table:
-            raise InputError(f"{source}: --units {key}={unit}: unknown unit; use one of "
+            raise InputError(f"{source}: units={{'{key}': '{unit}'}}: unknown unit; use one of "
                              f"{', '.join(table)}")
         present = [c for c in cols if c in df.columns]
         if not present:
-            raise InputError(f"{source}: --units {key}={unit}: no column {key!r} in the log")
+            raise InputError(f"{source}: units={{'{key}': '{unit}'}}: no column {key!r} in the "
+                             "log")
         for c in present:
             df[c] = pd.to_numeric(df[c], errors="coerce") * table[u]
 
@@ -108,7 +109,8 @@ def navigate_file(
     check_outputs(log_path, out, out_json)
     mode = parse_gps_mode(gps)
     if date is not None and earth_field is not None:
-        raise InputError("--date and --earth-field: give one magnetic reference, not both")
+        raise InputError("date='YYYY-MM-DD' and earth_field=(F, I, D) are both given: give one "
+                         "magnetic reference, not both")
     nav_units, field_units = split_units(units)
     df = read_log(log_path, columns=columns, units=field_units or None, required=("time",),
                   fmt=fmt)
@@ -129,8 +131,8 @@ def navigate_file(
             if ok.any():
                 where = tuple(llh[np.flatnonzero(ok)[0]])
         if where is None:
-            raise InputError(f"{source}: --date needs a position for IGRF: the log has no GNSS"
-                             " fix; give --origin LAT LON ALT (or --earth-field F I D)")
+            raise InputError(f"{source}: date={date!r} needs a position for IGRF: the log has no"
+                             " GNSS fix; give origin=(LAT, LON, ALT) (or earth_field=(F, I, D))")
         ref = igrf_field(where[0], where[1], where[2], date)
     ref_ned = None if ref is None else np.atleast_2d(ref.ned_nT)[0]
     res = navigate(df, gps=mode, origin=origin, mag_reference_ned_nT=ref_ned, config=config,

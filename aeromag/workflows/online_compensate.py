@@ -88,8 +88,9 @@ def compensate_online_frame(df: pd.DataFrame, cfg: CompensationConfig | None = N
         head = str(exc).split(": this flight")[0]
         raise FitError(f"{head}: the online fit is not determined by this flight (too few "
                        "headings or manoeuvres within its memory); give a longer memory "
-                       "(--forgetting closer to 1), or calibrate on a box flight and apply "
-                       "the model with --model (limit: --max-interference)") from None
+                       f"(a forgetting factor closer to 1 than forgetting={lam:g}), or "
+                       "calibrate on a box flight and apply that model (model=MODEL; limit: "
+                       "max_interference)") from None
     t = prep.time
     comp = prep.mag - res.mag_tl
     if cfg.filter_output:

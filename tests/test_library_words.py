@@ -1,0 +1,302 @@
+"""The library names Python parameters; the command line shows the flag (issue 15).
+
+The reader, the compass, detect, navigate, online-compensate and apply workflows word their
+errors and warnings for a Python caller (``columns={'NAME': 'SOURCE'}``,
+``earth_field=(F, I, D)``, ``date='YYYY-MM-DD'``, ``origin=(LAT, LON, ALT)``,
+``units={'gyro': 'deg/s'}``, ``forgetting=0.999``, ``band_hz``, ``lowpass_hz``); every
+command maps those words to its flags in one place
+(:func:`aeromag.cli._options.flag_message`): ``--col NAME=SOURCE``, ``--earth-field F I D``,
+``--date YYYY-MM-DD``, ``--origin LAT LON ALT``, ``--units gyro=deg/s``, ``--forgetting``,
+``--band``, ``--lowpass``.
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from aeromag.cli import app
+from aeromag.cli._options import flag_message
+from aeromag.errors import InputError
+from aeromag.io import write_csv
+
+ROOT = Path(__file__).resolve().parents[1]
+SAMPLES = ROOT / "data_samples"
+runner = CliRunner()
+FLAG = re.compile(r"(?<![\w-])--[a-z]")
+#: The modules of this change: none may name a command-line flag in a message.
+MODULES = ("aeromag/io/log.py", "aeromag/workflows/compass.py", "aeromag/workflows/detect.py",
+           "aeromag/workflows/navigate.py", "aeromag/workflows/online_compensate.py",
+           "aeromag/compensation/apply.py", "aeromag/compensation/checks.py")
+EF = ["--earth-field", "54000", "57", "-5"]
+
+
+def _error(r) -> str:
+    """The command's one ``error: ...`` line (exit 1, no traceback; warnings may precede)."""
+    assert r.exit_code == 1, r.output
+    lines = [ln for ln in r.output.splitlines() if ln.strip()]
+    assert all(ln.startswith("WARNING: ") for ln in lines[:-1]), r.output
+    assert lines[-1].startswith("error: "), r.output
+    return lines[-1]
+
+
+def _no_flag(msg: str) -> None:
+    assert not FLAG.search(msg), msg
+
+
+# -- the one mapping ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize(("library", "cli"), [
+    ("map them with columns={'NAME': 'SOURCE'}", "map them with --col NAME=SOURCE"),
+    ("or map the position columns with columns=...", "or map the position columns with --col"),
+    ("give earth_field=(F, I, D) (nT, degrees)", "give --earth-field F I D (nT, degrees)"),
+    ("earth_field=(54000.0, 57.0, -5.0)", "--earth-field 54000 57 -5"),
+    ("give date='YYYY-MM-DD', or earth_field=(F, I, D)",
+     "give --date YYYY-MM-DD, or --earth-field F I D"),
+    ("x: earth_field given: date='2017-07-01' is not used",
+     "x: --earth-field given: --date 2017-07-01 is not used"),
+    ("give origin=(LAT, LON, ALT) (or earth_field=(F, I, D))",
+     "give --origin LAT LON ALT (or --earth-field F I D)"),
+    ("x: units={'gyro': 'furlong'}: unknown gyro unit",
+     "x: --units gyro=furlong: unknown gyro unit"),
+    ("closer to 1 than forgetting=0.999), or (model=MODEL; limit: max_interference)",
+     "closer to 1 than --forgetting 0.999), or (--model MODEL; limit: --max-interference)"),
+    ("x: band_hz: 6 Hz is not below", "x: --band: 6 Hz is not below"),
+    ("lowpass_hz [-1.0]: need a positive frequency", "--lowpass [-1.0]: need a positive frequency"),
+])
+def test_flag_message_maps_the_library_words(library, cli):
+    assert flag_message(library) == cli
+
+
+def test_plain_words_are_left_alone():
+    """``date``, ``origin`` and ``forgetting`` are English words: only their Python forms map."""
+    text = "the date of the flight, the origin of the frame and a forgetting factor"
+    assert flag_message(text) == text
+
+
+@pytest.mark.parametrize("module", MODULES)
+def test_no_library_message_names_a_flag(module):
+    """No string of the module's code (docstrings aside) names a ``--flag``."""
+    tree = ast.parse((ROOT / module).read_text(encoding="utf-8"))
+    docs = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Module | ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+            body = node.body
+            if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value,
+                                                                     ast.Constant):
+                docs.add(id(body[0].value))
+    found = [(n.lineno, n.value) for n in ast.walk(tree)
+             if isinstance(n, ast.Constant) and isinstance(n.value, str)
+             and id(n) not in docs and FLAG.search(n.value)]
+    assert found == []
+
+
+# -- the reader --------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def no_flux(tmp_path_factory):
+    p = tmp_path_factory.mktemp("words") / "no_flux.csv"
+    pd.read_csv(SAMPLES / "survey.csv").drop(columns=["flux_x"]).to_csv(p, index=False)
+    return p
+
+
+def test_reader_missing_column(no_flux, tmp_path):
+    from aeromag.io import read_log
+
+    with pytest.raises(InputError) as e:
+        read_log(no_flux, required=("time", "flux_x"))
+    assert str(e.value).endswith("map them with columns={'NAME': 'SOURCE'}")
+    _no_flag(str(e.value))
+    line = _error(runner.invoke(app, ["compensate", str(no_flux), "-o", str(tmp_path / "o.csv")]))
+    assert "missing column(s) flux_x" in line and line.endswith("map them with --col NAME=SOURCE")
+
+
+# -- compass -----------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def compass_log():
+    from aeromag.synthetic.compass import simulate_compass
+
+    log, _ = simulate_compass(duration_s=4.0)
+    log["lat"], log["lon"], log["alt"] = 37.87, 112.55, 800.0
+    return log
+
+
+def _compass_cli(log, tmp_path, *args):
+    p = tmp_path / "c.csv"
+    write_csv(log, p)
+    out = tmp_path / "c_out.csv"
+    r = runner.invoke(app, ["compass", str(p), "-o", str(out), *args])
+    return r, out
+
+
+@pytest.mark.parametrize(("drop", "kw", "python", "cli"), [
+    (["flux_x"], {"earth_field": (54000.0, 57.0, -5.0)}, "map them with columns={'NAME': 'SOURCE'}",
+     "map them with --col NAME=SOURCE"),
+    (["roll"], {"earth_field": (54000.0, 57.0, -5.0)}, "map them with columns={'NAME': 'SOURCE'}",
+     "map them with --col NAME=SOURCE"),
+    (["lat", "lon", "alt"], {"date": "2017-07-01"},
+     "give earth_field=(F, I, D) (nT, degrees) or map the position columns with columns=...",
+     "give --earth-field F I D (nT, degrees) or map the position columns with --col"),
+    ([], {}, "needs the flight's date: give date='YYYY-MM-DD', or earth_field=(F, I, D)",
+     "needs the flight's date: give --date YYYY-MM-DD, or --earth-field F I D"),
+])
+def test_compass_errors(compass_log, tmp_path, drop, kw, python, cli):
+    from aeromag.workflows.compass import compass_frame
+
+    log = compass_log.drop(columns=drop)
+    with pytest.raises(InputError) as e:
+        compass_frame(log, source="c.csv", **kw)
+    assert python in str(e.value)
+    _no_flag(str(e.value))
+    args = [] if not kw else (EF if "earth_field" in kw else ["--date", kw["date"]])
+    r, out = _compass_cli(log, tmp_path, *args)
+    assert cli in _error(r) and not out.exists()
+
+
+def test_compass_no_complete_position(compass_log, tmp_path):
+    from aeromag.workflows.compass import compass_frame
+
+    log = compass_log.assign(lat=np.nan)
+    with pytest.raises(InputError, match=r"no complete position; give earth_field=\(F, I, D\)"):
+        compass_frame(log, date="2017-07-01")
+    r, _ = _compass_cli(log, tmp_path, "--date", "2017-07-01")
+    assert _error(r).endswith("no complete position; give --earth-field F I D")
+
+
+def test_compass_warning_date_not_used(compass_log, tmp_path, caplog):
+    from aeromag.workflows.compass import compass_frame
+
+    with caplog.at_level("WARNING", logger="aeromag"):
+        compass_frame(compass_log, earth_field=(54000.0, 57.0, -5.0), date="2017-07-01")
+    assert "earth_field given: date='2017-07-01' is not used" in caplog.text
+    _no_flag(caplog.text)
+    r, out = _compass_cli(compass_log, tmp_path, *EF, "--date", "2017-07-01")
+    assert r.exit_code == 0, r.output
+    assert "--earth-field given: --date 2017-07-01 is not used" in r.output
+    warned = json.loads(out.with_suffix(".json").read_text())["warnings"]
+    assert any("--earth-field given: --date 2017-07-01 is not used" in w for w in warned)
+
+
+# -- detect ------------------------------------------------------------------------------------
+
+def test_detect_unknown_gyro_unit(tmp_path):
+    from aeromag.workflows.detect import _gyro_units
+
+    with pytest.raises(InputError) as e:
+        _gyro_units({"gyro": "furlong"}, "m.csv")
+    assert str(e.value) == "m.csv: units={'gyro': 'furlong'}: unknown gyro unit; use rad/s or deg/s"
+    r = runner.invoke(app, ["detect", str(SAMPLES / "mission.csv"), "-o", str(tmp_path / "o.csv"),
+                            "--units", "gyro=furlong"])
+    assert _error(r).endswith("--units gyro=furlong: unknown gyro unit; use rad/s or deg/s")
+
+
+# -- navigate ----------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def nav_log(tmp_path_factory):
+    from aeromag.synthetic.quadrotor import simulate_quadrotor
+
+    d = tmp_path_factory.mktemp("nav_words")
+    flight = simulate_quadrotor("rectangle", seed=11, duration_s=6.0)
+    p, bare = d / "flight.csv", d / "no_gnss.csv"
+    write_csv(flight.log, p)
+    write_csv(flight.log.drop(columns=["lat", "lon", "alt", "vel_n", "vel_e", "vel_d"]), bare)
+    return p, bare
+
+
+@pytest.mark.parametrize(("which", "kw", "args", "python", "cli"), [
+    (0, {"units": {"gyro": "furlong"}}, ["--units", "gyro=furlong"],
+     "units={'gyro': 'furlong'}: unknown unit", "--units gyro=furlong: unknown unit"),
+    (0, {"date": "2024-06-01", "earth_field": (50000.0, 60.0, 2.0)},
+     ["--date", "2024-06-01", "--earth-field", "50000", "60", "2"],
+     "date='YYYY-MM-DD' and earth_field=(F, I, D) are both given",
+     "--date YYYY-MM-DD and --earth-field F I D are both given"),
+    (1, {"date": "2024-06-01"}, ["--date", "2024-06-01"],
+     "date='2024-06-01' needs a position for IGRF: the log has no GNSS fix; give "
+     "origin=(LAT, LON, ALT) (or earth_field=(F, I, D))",
+     "--date 2024-06-01 needs a position for IGRF: the log has no GNSS fix; give "
+     "--origin LAT LON ALT (or --earth-field F I D)"),
+])
+def test_navigate_errors(nav_log, tmp_path, which, kw, args, python, cli):
+    from aeromag.workflows.navigate import navigate_file
+
+    src = nav_log[which]
+    with pytest.raises(InputError) as e:
+        navigate_file(src, tmp_path / "api.csv", **kw)
+    assert python in str(e.value)
+    _no_flag(str(e.value))
+    out = tmp_path / "o.csv"
+    r = runner.invoke(app, ["navigate", str(src), "-o", str(out), *args])
+    assert cli in _error(r) and not out.exists()
+
+
+def test_navigate_units_for_a_missing_column(nav_log, tmp_path):
+    from aeromag.workflows.navigate import navigate_file
+
+    src = tmp_path / "no_flow.csv"
+    df = pd.read_csv(nav_log[0])
+    df.drop(columns=[c for c in df.columns if c.startswith("flow")]).to_csv(src, index=False)
+    with pytest.raises(InputError, match=r"units=\{'flow': 'deg/s'\}: no column 'flow'"):
+        navigate_file(src, tmp_path / "api.csv", units={"flow": "deg/s"})
+    r = runner.invoke(app, ["navigate", str(src), "-o", str(tmp_path / "o.csv"),
+                            "--units", "flow=deg/s"])
+    assert "--units flow=deg/s: no column 'flow' in the log" in _error(r)
+
+
+# -- compensate --online -----------------------------------------------------------------------
+
+def test_online_undetermined_fit(tmp_path):
+    from aeromag.errors import FitError
+    from aeromag.workflows.online_compensate import compensate_online_file
+
+    src = SAMPLES / "mission.csv"
+    with pytest.raises(FitError) as e:
+        compensate_online_file(src, tmp_path / "api.csv")
+    msg = str(e.value)
+    assert "forgetting=0.999" in msg and "model=MODEL" in msg and "max_interference" in msg
+    _no_flag(msg)
+    r = runner.invoke(app, ["compensate", "--online", str(src), "-o", str(tmp_path / "o.csv")])
+    line = _error(r)
+    assert "closer to 1 than --forgetting 0.999" in line
+    assert "--model MODEL" in line and "--max-interference" in line
+
+
+# -- applying a saved model --------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    from aeromag.workflows.compensate import calibrate_file
+
+    p = tmp_path_factory.mktemp("words_model") / "m.json"
+    calibrate_file(SAMPLES / "calibration.csv", p)
+    return p
+
+
+@pytest.mark.parametrize(("kw", "args", "python", "cli"), [
+    ({"band_hz": (0.1, 6.0)}, ["--band", "0.1", "6"], "band_hz: 6 Hz is not below the Nyquist",
+     "--band: 6 Hz is not below the Nyquist"),
+    ({"lowpass_hz": 6.0}, ["--lowpass", "6"], "lowpass_hz: 6 Hz is not below the Nyquist",
+     "--lowpass: 6 Hz is not below the Nyquist"),
+])
+def test_apply_filter_errors(model, tmp_path, kw, args, python, cli):
+    from aeromag.compensation import CompensationConfig
+    from aeromag.compensation.apply import apply_model
+    from aeromag.compensation.model import TLModel
+
+    df = pd.read_csv(SAMPLES / "survey.csv")
+    with pytest.raises(InputError) as e:
+        apply_model(df, TLModel.load(model), CompensationConfig(**kw))
+    assert python in str(e.value)
+    _no_flag(str(e.value))
+    out = tmp_path / "o.csv"
+    r = runner.invoke(app, ["compensate", str(SAMPLES / "survey.csv"), "--model", str(model),
+                            "-o", str(out), *args])
+    assert cli in _error(r) and not out.exists()
