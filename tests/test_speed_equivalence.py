@@ -121,3 +121,29 @@ def test_cross_is_numpys_bitwise() -> None:
     rng = np.random.default_rng(7)
     a, b = rng.normal(size=(1000, 3)), 1e-3 * rng.normal(size=(1000, 3))
     np.testing.assert_array_equal(_cross(a, b), np.cross(a, b))
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_block_means_with_non_finite_samples(bad: float) -> None:
+    # The block mean sums first and checks the sums: a block with a NaN or inf sample still
+    # gets the mean of its finite samples (NaN when it has none), as before.
+    import pandas as pd
+
+    from aeromag.qc.maneuvers import _block_means
+
+    rng = np.random.default_rng(1)
+    n, step = 1000, 5
+    t = np.arange(n) * 0.1
+    x = rng.normal(size=n)
+    x[[3, 4, 17]] = bad
+    x[40:45] = bad  # a whole block
+    df = pd.DataFrame({"time": t, "flux_x": x, "flux_y": x, "flux_z": x})
+    small, cnt = _block_means(df, t, step, 0.5)
+    blocks = x.reshape(-1, step)
+    fin = np.isfinite(blocks)
+    with np.errstate(invalid="ignore"):
+        want = np.where(fin.any(axis=1), np.where(fin, blocks, 0).sum(axis=1) / fin.sum(axis=1),
+                        np.nan)
+    assert (cnt == step).all()
+    np.testing.assert_allclose(small["flux_x"].to_numpy(), want, rtol=1e-12)
+    assert np.isnan(small["flux_x"].to_numpy()[8])

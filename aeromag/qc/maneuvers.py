@@ -400,9 +400,10 @@ def _block_means(df: pd.DataFrame, t: np.ndarray, step: int, max_gap_s: float
 
     def mean(x: np.ndarray) -> np.ndarray:
         # Summed in float64 from the column's own dtype (no float64 copy of a float32 column).
+        tot = np.add.reduceat(x, first, dtype=np.float64)
+        if np.isfinite(tot).all():  # then every sample is finite (NaN and inf propagate)
+            return tot / cnt
         fin = np.isfinite(x)
-        if fin.all():
-            return np.add.reduceat(x, first, dtype=np.float64) / cnt
         k = np.add.reduceat(fin, first, dtype=np.float64)
         with np.errstate(invalid="ignore", divide="ignore"):
             return np.where(k > 0, np.add.reduceat(np.where(fin, x, 0), first,
