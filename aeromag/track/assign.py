@@ -57,6 +57,27 @@ GATE_SIGMAS = 4.0
 #: Largest widening of the tolerances by the position error.
 MAX_TOLERANCE_FACTOR = 5.0
 
+#: The plan is searched for the flight's constant offset with this many times the tolerance.
+OFFSET_SEARCH_FACTOR = 5.0
+
+#: Samples flown along a leg needed to estimate the offset.
+OFFSET_MIN_SAMPLES = 50
+
+#: Share of the samples' normal "energy" a direction needs for the offset along it to be
+#: estimated (legs within about 13 degrees of each other constrain only across them).
+OFFSET_MIN_CONSTRAINT = 0.05
+
+#: A plan offset larger than this is decoded about the moved lines, m (below it the distance
+#: term and the gate centred on the offset keep the legs).
+OFFSET_DECODE_MIN_M = 2.0
+
+#: The moved legs must explain the samples this many times better (summed evidence) than the
+#: plan as given for the offset to be taken.
+OFFSET_SUPPORT_GAIN = 1.1
+
+#: Samples used for the offset (a longer log is thinned evenly).
+OFFSET_MAX_SAMPLES = 40000
+
 #: Smallest on-line gate, m: an autopilot holds its line to well within this on RTK.
 ON_LINE_GATE_M = 2.0
 
@@ -175,11 +196,120 @@ def drop_transit_runs(labels: np.ndarray, ned: np.ndarray, time_s: np.ndarray,
     return lab, dropped
 
 
-def _raw(ned: np.ndarray, vel: np.ndarray, t: np.ndarray, wps: np.ndarray, model: LegModel
-         ) -> tuple[np.ndarray, np.ndarray]:
-    """Labels against the plan and against it reversed (reversed plan numbering)."""
+def estimate_plan_offset(ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray,
+                         model: LegModel) -> tuple[np.ndarray, int]:
+    """Constant horizontal offset of the flight from a plan, found by motion, not distance.
+
+    Each sample is matched to the leg it flies along (speed and direction along the leg,
+    between its ends) with a tolerance :data:`OFFSET_SEARCH_FACTOR` times wider than the given
+    one, horizontally only; the samples whose evidence for their best leg is strong (above half
+    the bonus) give one equation each, ``n_k . offset = h`` (``n_k`` the leg's horizontal
+    normal, ``h`` the signed distance to its line), solved in the least absolute deviations
+    sense (iteratively reweighted; a direction the legs hardly constrain, e.g. along parallel
+    lines, stays at 0: :data:`OFFSET_MIN_CONSTRAINT`).  A flight several metres beside its
+    plan (beyond the tolerance, where the distance term alone loses it) is then decoded about
+    its own lines.
+
+    Parameters
+    ----------
+    ned : ndarray, shape (n, 3)
+        Positions, NED, m.
+    vel : ndarray, shape (n, 3)
+        Velocities, m/s.
+    waypoints : ndarray, shape (m, 3)
+        Plan waypoints, NED, m (in the direction to test).
+    model : LegModel
+        Parameters as given.
+
+    Returns
+    -------
+    offset_ne : ndarray, shape (2,)
+        North and east offset of the flight from the plan, m (zeros when fewer than
+        :data:`OFFSET_MIN_SAMPLES` samples qualify).
+    n : int
+        Samples used.
+    """
+    wide = dataclasses.replace(model, tolerance_m=OFFSET_SEARCH_FACTOR * model.tolerance_m,
+                               horizontal_only=True)
+    ev = leg_evidence(ned, vel, waypoints, wide, horizontal_only=True)
+    if ev.shape[1] == 0:
+        return np.zeros(2), 0
+    k = np.argmax(ev, axis=1)
+    idx = np.flatnonzero(ev[np.arange(len(ev)), k] > 0.5 * model.bonus)
+    if idx.size < OFFSET_MIN_SAMPLES:
+        return np.zeros(2), int(idx.size)
+    h = np.empty(idx.size)
+    nrm = np.empty((idx.size, 2))
+    for leg in np.unique(k[idx]):
+        sel = k[idx] == leg
+        _, h[sel], _, _ = cross_track(ned[idx[sel]], waypoints[leg], waypoints[leg + 1])
+        d = waypoints[leg + 1, :2] - waypoints[leg, :2]
+        ln = float(np.linalg.norm(d))
+        nrm[sel] = (-d[1] / ln, d[0] / ln) if ln > 0 else (0.0, 0.0)
+    # a direction the legs hardly constrain (near-parallel legs) stays at 0
+    evals, evecs = np.linalg.eigh(nrm.T @ nrm)
+    basis = evecs[:, evals > OFFSET_MIN_CONSTRAINT * float(evals.max())]
+    q = nrm @ basis
+    w = np.ones(idx.size)   # least squares first, then least absolute deviations
+    c = np.zeros(basis.shape[1])
+    for _ in range(20):
+        new = np.linalg.solve((q * w[:, None]).T @ q, (q * w[:, None]).T @ h)
+        done = float(np.max(np.abs(new - c))) < 1e-3
+        c = new
+        if done:
+            break
+        w = 1.0 / np.maximum(np.abs(q @ c - h), 0.05)
+    off = basis @ c
+    return off, int(idx.size)
+
+
+def _shifted(wps: np.ndarray, off_ne: np.ndarray) -> np.ndarray:
+    """The waypoints moved by a horizontal offset (north, east), m."""
+    return wps + np.r_[off_ne, 0.0]
+
+
+def _support(ned: np.ndarray, vel: np.ndarray, wps: np.ndarray, model: LegModel) -> float:
+    """How well the legs explain the samples: the sum of each sample's best positive evidence."""
+    ev = leg_evidence(ned, vel, wps, model)
+    return float(np.maximum(ev.max(axis=1), 0.0).sum()) if ev.shape[1] else 0.0
+
+
+def _offsets(ned: np.ndarray, vel: np.ndarray, wps: np.ndarray, model: LegModel
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """The decoding offset of the plan and of the plan reversed (zeros when not taken).
+
+    An offset is taken when it exceeds :data:`OFFSET_DECODE_MIN_M` and the moved legs explain
+    the samples clearly better (:data:`OFFSET_SUPPORT_GAIN` times the summed evidence): a
+    transit that runs beside a leg's direction (from a take-off point away from the plan) can
+    pull the estimate along a direction few legs constrain; it then explains nothing more.
+    """
+    step = max(1, len(ned) // OFFSET_MAX_SAMPLES)   # a long or fast log: every step-th sample
+    p, v = ned[::step], vel[::step]
     out = []
     for w in (wps, wps[::-1].copy()):
+        off, _ = estimate_plan_offset(p, v, w, model)
+        best, score = np.zeros(2), OFFSET_SUPPORT_GAIN * _support(p, v, w, model)
+        if float(np.hypot(*off)) > OFFSET_DECODE_MIN_M:
+            # the offset, and its parts along north and east alone (a part pulled by a
+            # transit along a direction few legs constrain explains nothing)
+            for cand in (off, np.array([off[0], 0.0]), np.array([0.0, off[1]])):
+                if float(np.hypot(*cand)) > OFFSET_DECODE_MIN_M:
+                    sc = _support(p, v, _shifted(w, cand), model)
+                    if sc > score:
+                        best, score = cand, sc
+        out.append(best)
+    return out[0], out[1]
+
+
+def _raw(ned: np.ndarray, vel: np.ndarray, t: np.ndarray, wps: np.ndarray, model: LegModel,
+         offs: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Labels against the plan and against it reversed (reversed plan numbering).
+
+    Each direction is decoded about its own lines (the waypoints moved by its offset).
+    """
+    out = []
+    for w, off in zip((wps, wps[::-1].copy()), offs, strict=True):
+        w = _shifted(w, off)
         out.append(continue_legs(decode_legs(leg_evidence(ned, vel, w, model), t, model),
                                  ned, vel, w, model))
     return out[0], out[1]
@@ -190,19 +320,32 @@ def _gate(sig_h: float) -> float:
 
 
 def _choose(ned: np.ndarray, t: np.ndarray, wps: np.ndarray, fwd: np.ndarray, rev: np.ndarray,
-            gate: tuple[float, np.ndarray] | None
+            offs: tuple[np.ndarray, np.ndarray], gate: float | None
             ) -> tuple[np.ndarray, bool, dict[str, int]]:
-    """The labelling (plan numbering) that explains more samples, transit runs dropped."""
+    """The labelling (plan numbering) that explains the flight best, transit runs dropped.
+
+    The direction whose decoding needed the smaller offset is the default (both below
+    :data:`OFFSET_DECODE_MIN_M`: the plan as given); the other is taken only when it explains
+    :data:`REVERSED_RATIO` times more samples.  With equal offsets (a flight half-way between
+    lines, as far from the plan as from the plan reversed) the larger count wins.
+    """
     d_f = d_r = 0
+    w_f, w_r = _shifted(wps, offs[0]), _shifted(wps[::-1].copy(), offs[1])
     if gate is not None:
-        fwd, d_f = drop_transit_runs(fwd, ned, t, wps, *gate)
-        # the reversed plan must be followed on its lines to be taken as flown (no offset:
-        # the transits of a flight beside its plan run along the reversed legs)
-        rev, d_r = drop_transit_runs(rev, ned, t, wps[::-1].copy(), gate[0])
+        # each centred on the flight's residual offset from its (moved) lines
+        fwd, d_f = drop_transit_runs(fwd, ned, t, w_f, gate, line_error_sigma_m(ned, fwd, w_f)[3])
+        rev, d_r = drop_transit_runs(rev, ned, t, w_r, gate, line_error_sigma_m(ned, rev, w_r)[3])
     n_f, n_r = int((fwd >= 0).sum()), int((rev >= 0).sum())
     margin = max(10, int(0.01 * np.isfinite(ned).all(axis=1).sum()))
     counts = {"n_forward": n_f, "n_reversed": n_r}
-    if n_r > REVERSED_RATIO * n_f and n_r - n_f > margin:
+    a_f, a_r = float(np.hypot(*offs[0])), float(np.hypot(*offs[1]))
+    if abs(a_f - a_r) < OFFSET_DECODE_MIN_M and max(a_f, a_r) > 0:
+        take_rev = n_r > n_f + margin
+    elif a_r < a_f:
+        take_rev = not (n_f > REVERSED_RATIO * n_r and n_f - n_r > margin)
+    else:
+        take_rev = n_r > REVERSED_RATIO * n_f and n_r - n_f > margin
+    if take_rev:
         counts["n_dropped_runs"] = d_r
         return np.where(rev >= 0, len(wps) - 2 - rev, -1), True, counts
     counts["n_dropped_runs"] = d_f
@@ -243,8 +386,9 @@ def assign_track_legs(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray,
     wps = np.asarray(waypoints, dtype=np.float64)
     used = model
     # the position error from a first decoding (no run dropped: the gate depends on it)
-    raw = _raw(ned, vel, t, wps, used)
-    lab, _, _ = _choose(ned, t, wps, *raw, None)
+    offs = _offsets(ned, vel, wps, used)
+    raw = _raw(ned, vel, t, wps, used, offs)
+    lab, _, _ = _choose(ned, t, wps, *raw, offs, None)
     sig_h, sig_v, _, off_ne = line_error_sigma_m(ned, lab, wps)
     for _ in range(2):
         if not np.isfinite(sig_h):
@@ -260,11 +404,13 @@ def assign_track_legs(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray,
         used = dataclasses.replace(used, tolerance_m=max(tol_h, used.tolerance_m),
                                    vertical_tolerance_m=max(tol_v, used.vertical_tolerance_m),
                                    end_margin_m=max(model.end_margin_m, sig_h))
-        raw = _raw(ned, vel, t, wps, used)
-        lab, _, _ = _choose(ned, t, wps, *raw, None)
+        raw = _raw(ned, vel, t, wps, used, offs)
+        lab, _, _ = _choose(ned, t, wps, *raw, offs, None)
         sig_h, sig_v, _, off_ne = line_error_sigma_m(ned, lab, wps)
     gate_h = _gate(sig_h)
-    lab, rev, counts = _choose(ned, t, wps, *raw, (gate_h, off_ne))
+    lab, rev, counts = _choose(ned, t, wps, *raw, offs, gate_h)
+    decode_off = offs[1] if rev else offs[0]
+    off_ne = line_error_sigma_m(ned, lab, wps)[3]   # of the labels kept
     warns: list[str] = []
     if used is not model:
         warns.append(
@@ -281,6 +427,7 @@ def assign_track_legs(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray,
         "sigma_h_m": None if not np.isfinite(sig_h) else sig_h,
         "sigma_v_m": None if not np.isfinite(sig_v) else sig_v,
         "gate_h_m": gate_h, "offset_ne_m": [float(x) for x in off_ne],
+        "decode_offset_ne_m": [float(x) for x in decode_off],
         "tolerance_m": used.tolerance_m, "vertical_tolerance_m": used.vertical_tolerance_m,
         **counts,
     }

@@ -61,7 +61,7 @@ from ..detection.heading import (
 )
 from ..errors import InputError
 from . import diagnose
-from .assign import assign_track_legs
+from .assign import OFFSET_DECODE_MIN_M, assign_track_legs
 from .deviation import leg_summary, track_alarm
 from .geometry import cross_track
 from .legs import LegModel, labels_from_column, leg_passes, velocity_for_legs
@@ -255,6 +255,7 @@ def check_track(
             warnings += diagnose.plan_warnings(ned, vel, t, wps, labels, model, plan_src,
                                                info=plan_check)
         plan_check["assignment"] = assign_info
+        warnings += _offset_warning(assign_info, plan_check, plan_src)
     labels[~ok] = -1
 
     xt, xh, xv, al = (np.full(n, np.nan) for _ in range(4))
@@ -332,6 +333,31 @@ def check_track(
     }
     log.info("%s: %d/%d legs flagged", src, report["n_flagged"], n_legs)
     return TrackResult(data=data, legs=legs, report=report, plan=plan)
+
+
+def _offset_warning(assign_info: dict[str, Any], plan_check: dict[str, Any], plan_src: str
+                    ) -> list[str]:
+    """Say so when the legs were decoded about lines moved sideways (a plan offset).
+
+    Sets ``plan_check["mismatch"]`` to ``"offset"`` (unless the plan was found reversed, which
+    stays the mismatch) and ``plan_check["offset_m"]`` (horizontal size of the offset, m).
+    """
+    dec = np.asarray(assign_info.get("decode_offset_ne_m", (0.0, 0.0)), dtype=np.float64)
+    if not float(np.hypot(*dec)) > 0:
+        return []
+    if plan_check.get("mismatch") == "offset":
+        return []   # already said by the plan diagnosis
+    total = np.asarray(assign_info.get("offset_ne_m", dec), dtype=np.float64)
+    size = float(np.hypot(*total))
+    if not size > OFFSET_DECODE_MIN_M:
+        return []
+    plan_check["offset_m"] = size
+    if plan_check.get("mismatch") is None:
+        plan_check["mismatch"] = "offset"
+    return [f"the flight runs a constant {size:.1f} m beside {plan_src} (north {total[0]:+.1f} m,"
+            f" east {total[1]:+.1f} m) along its legs: the legs are assigned about the moved"
+            " lines and checked against the plan as given (they alarm); the plan may be offset"
+            " or for another field (check the site and the plan's coordinates)"]
 
 
 def _offset_spec(spec: str | float) -> str | float:
