@@ -148,6 +148,9 @@ def write_report(
 
     qc = compute_qc(result, config=config, **qc_kw)
     qc.metrics.update(headline_record(report))
+    # Only the metrics, the FOM table and the band-passed fields are shown: the per-sample
+    # manoeuvre labels (~65 MB at 2e6 rows) go before the figures.
+    qc.maneuvers = None
     _trim_heap()
     advance("quality metrics")
     band = tuple(qc.metrics["band_hz"])
@@ -159,6 +162,8 @@ def write_report(
         except (AeromagError, KeyError) as exc:
             skipped[name] = str(exc)
             log.info("report: %s skipped: %s", name, exc)
+        if name == "residuals.png":
+            qc.residuals = None  # the band-passed fields (32 MB at 2e6 rows): drawn
         _trim_heap()
         advance(name)
     for name, data in pngs.items():
@@ -185,6 +190,9 @@ def one_heap_arena() -> bool:
     was 950 MB with the default arenas and 861 MB with one, at the same CPU time.  Meant for
     a command's process (``aeromag report`` calls it first); a no-op off glibc.
 
+    (A fixed mmap threshold, so that every freed full-length array is unmapped, lowered the
+    peak by another 70 MB but cost 3.5-4.5 s more CPU on 2e6 rows, in page faults: not set.)
+
     Returns
     -------
     bool
@@ -199,33 +207,27 @@ _M_ARENA_MAX = -8
 
 
 def _libc() -> Any:
-    """The C library (glibc) through ctypes, or False where it is not available."""
-    global _LIBC
-    if _LIBC is None:
-        try:
-            import ctypes
+    """The C library (glibc) with ``mallopt`` and ``malloc_trim``, or None."""
+    from .._core.libc import libc
 
-            _LIBC = ctypes.CDLL("libc.so.6")
-            _LIBC.malloc_trim.argtypes = [ctypes.c_size_t]
-            _LIBC.mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
-        except (OSError, AttributeError):
-            _LIBC = False
-    return _LIBC
+    lib = libc()
+    return lib if lib is not None and hasattr(lib, "mallopt") \
+        and hasattr(lib, "malloc_trim") else None
 
 
 def _trim_heap() -> None:
-    """Give the C heap's free pages back to the system (glibc ``malloc_trim``; else nothing).
+    """Collect the figures' reference cycles and give the C heap's free pages back.
 
-    The QC's and the figures' full-length temporaries are freed, but glibc keeps much of
-    them in its arenas (the filter threads have their own): on a 2e6-row log 145 MB stay
-    resident after the QC, and the next figure's temporaries then set the peak on top.
+    A matplotlib figure is a web of reference cycles: its Agg renderer (and the rasteriser's
+    cells, tens of MB for a long line) lives until the cyclic collector runs, so it is
+    run here; then glibc's ``malloc_trim`` returns the heap's free pages (else nothing).
     """
+    import gc
+
+    gc.collect()
     libc = _libc()
     if libc:
         libc.malloc_trim(0)
-
-
-_LIBC: Any = None
 
 
 def segment_rows(result: CompensationResult, qc: QCResult) -> list[dict[str, Any]]:
