@@ -32,8 +32,8 @@ forgetting factor (:mod:`aeromag._core.rls`), the same terms and term order as t
 
 Only the final low-pass of ``mag_comp`` (the pipeline's zero-phase filter, off with
 ``--no-filter``) and the reported band-pass metrics (the batch pipeline's zero-phase
-definition, for comparison with it) look at both sides of a sample; neither feeds the
-estimate.
+definition on ``mag - mag_tl``, for comparison with it) look at both sides of a sample;
+neither feeds the estimate.
 """
 
 from __future__ import annotations
