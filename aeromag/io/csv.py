@@ -450,6 +450,34 @@ def _arrow_numeric_frame(table: Any) -> pd.DataFrame | None:
 PASSTHROUGH_BLOCK_BYTES = 2 << 20
 
 
+def _line_arrays(fin: Any, block_bytes: int | None = None) -> Iterator[np.ndarray]:
+    """Blocks of whole lines of a binary file as uint8 arrays, read without copying.
+
+    As :func:`_line_blocks` (about ``block_bytes`` per block, a ``\\n`` added to a last line
+    without one), but each block is read straight into its own buffer after the previous
+    block's partial line: no concatenation and no slicing copy of the block (two 2 MB copies
+    per block, 0.1-0.4 s CPU per 1e6 rows of a 9-column log, on the writer's main thread).
+    """
+    size = int(block_bytes or PASSTHROUGH_BLOCK_BYTES)
+    carry = b""
+    while True:
+        buf = bytearray(len(carry) + size)
+        buf[: len(carry)] = carry
+        got = fin.readinto(memoryview(buf)[len(carry):])
+        end = len(carry) + (got or 0)
+        if not got:
+            if carry:
+                yield np.frombuffer(carry if carry.endswith(b"\n") else carry + b"\n",
+                                    dtype=np.uint8)
+            return
+        cut = buf.rfind(b"\n", 0, end)
+        if cut < 0:
+            carry = bytes(buf[:end])
+            continue
+        carry = bytes(buf[cut + 1: end])
+        yield np.frombuffer(buf, dtype=np.uint8, count=cut + 1)
+
+
 def _line_blocks(fin: Any) -> Iterator[bytes]:
     """Blocks of whole lines (about :data:`PASSTHROUGH_BLOCK_BYTES` each) of a binary file; the
     last line gets a ``\\n`` when the file does not end with one."""

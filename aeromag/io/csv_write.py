@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
-from .csv import _line_blocks
+from .csv import _line_arrays
 from .messages import clean
 from .outputs import atomic_path, display_path
 
@@ -238,9 +238,10 @@ def write_csv_passthrough(
     n = table.num_rows
     opts = pacsv.WriteOptions(include_header=False, quoting_style="none")
 
-    def join(lines: bytes, row: int, k: int) -> Any:
-        """One block: its k source lines, each followed by its row of ``table``."""
-        raw = np.frombuffer(lines, dtype=np.uint8)
+    def join(raw: np.ndarray, row: int, k: int) -> Any:
+        """One block (uint8 array of k whole lines), each line followed by its row of ``table``."""
+        if np.any(raw == 34):  # a quote: the lines are not plain
+            return None
         nl = np.flatnonzero(raw == 10)
         starts = np.r_[0, nl[:-1] + 1]
         cr = raw[np.maximum(nl - 1, 0)] == 13
@@ -251,7 +252,7 @@ def write_csv_passthrough(
             return None
         src_lines = pa.Array.from_buffers(
             pa.binary(), k, [None, pa.py_buffer(np.r_[0, nl + 1].astype(np.int32)),
-                             pa.py_buffer(lines)])
+                             pa.py_buffer(raw)])
         sink = pa.BufferOutputStream()
         try:
             pacsv.write_csv(table.slice(row, k), sink, opts)
@@ -287,11 +288,11 @@ def write_csv_passthrough(
         fout.write(head + b"," + _csv_header(extra.columns).encode("utf-8"))
         pending: deque = deque()
         # Blocks are joined on the pool, written here in order, at most 2 per thread ahead.
-        for lines in _line_blocks(fin):
-            k = lines.count(b"\n")
-            if b'"' in lines or row + k > n:
+        for raw in _line_arrays(fin):
+            k = int(np.count_nonzero(raw == 10))  # (numpy: 3-4x faster than bytes.count)
+            if row + k > n:
                 return False
-            pending.append(pool.submit(join, lines, row, k))
+            pending.append(pool.submit(join, raw, row, k))
             row += k
             while len(pending) > 2 * threads:
                 out = pending.popleft().result()
