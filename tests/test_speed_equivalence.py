@@ -147,3 +147,43 @@ def test_block_means_with_non_finite_samples(bad: float) -> None:
     assert (cnt == step).all()
     np.testing.assert_allclose(small["flux_x"].to_numpy(), want, rtol=1e-12)
     assert np.isnan(small["flux_x"].to_numpy()[8])
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_moving_mean_writes_every_sample(seed: int) -> None:
+    # moving_mean fills an uninitialised array: every sample must still get its window mean
+    # (or NaN outside a stretch), stretch ends and array ends included.
+    from aeromag.qc._windows import moving_mean
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 120))
+    h = int(rng.integers(0, 9))
+    lab = np.repeat(np.arange(n), rng.integers(1, 12, n))[:n]
+    lab[rng.random(n) < 0.15] = -1
+    x = rng.normal(size=(n, 2))
+    got = moving_mean(x, lab, h)
+    want = np.full((n, 2), np.nan)
+    for i in np.flatnonzero(lab >= 0):
+        a, b = i, i + 1
+        while a > 0 and lab[a - 1] == lab[i]:
+            a -= 1
+        while b < n and lab[b] == lab[i]:
+            b += 1
+        want[i] = x[max(a, i - h):min(b, i + h + 1)].mean(axis=0)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+
+
+def test_leg_mean_heading_up_to_the_last_sample() -> None:
+    # The legs' circular mean headings come from one reduceat over [start, stop) pairs; a leg
+    # that ends on the log's last sample is summed to its end.
+    import pandas as pd
+
+    from aeromag.qc.maneuvers import detect_heading_legs
+
+    t = np.arange(2400) * 0.1
+    heading = np.where(t < 120, 88.0, 181.0) + 1.5 * np.sin(t)
+    labels, legs, _ = detect_heading_legs(pd.DataFrame({"time": t, "heading": heading}))
+    assert legs["heading"].tolist() == ["E", "S"] and legs["t_end"].iloc[-1] == t[-1]
+    for _, leg in legs.iterrows():
+        sel = labels["leg_id"].to_numpy() == leg["leg_id"]
+        assert 0 < leg["mean_heading_deg"] - heading[sel].mean() + 0.5 < 1.0  # smoothed

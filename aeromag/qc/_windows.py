@@ -34,10 +34,14 @@ def moving_mean(x: np.ndarray, stretch: np.ndarray, half_width: int) -> np.ndarr
     n, m = x2.shape
     lab = np.asarray(stretch)
     h = int(half_width)
-    out = np.full((n, m), np.nan)
     starts, stops, _ = run_bounds(lab)
     if len(starts) == 0:
+        out = np.full((n, m), np.nan)
         return out if xv.ndim == 2 else out[:, 0]
+    # Every element is written below (no NaN fill first): the full windows, the ``h`` samples
+    # at either end of every stretch (all that lie within ``h`` of the array's ends), and NaN
+    # outside the stretches.
+    out = np.empty((n, m))
     cs = np.empty((n + 1, m))
     cs[0] = 0.0
     fin = np.isfinite(x2)
