@@ -35,6 +35,7 @@ from ..io import (
     write_json,
 )
 from ..io.formats import output_format, write_table
+from ..io.outputs import output_set
 
 log = logging.getLogger(__name__)
 
@@ -322,27 +323,28 @@ def compensate_file(
     -------
     CompensationResult
     """
-    cfg = cfg or CompensationConfig()
-    check_outputs(path, out_path, json_path_for(Path(out_path)))
-    output_format(out_path)
-    if model is not None and not isinstance(model, TLModel):
-        mpath = Path(model)
-        model = TLModel.load(mpath)
-        model.meta["path"] = str(mpath)
-    t0 = time.perf_counter()
-    df = read_log(path, columns=columns, units=units, required=("time", *FLUX_COLUMNS), fmt=fmt)
-    t1 = time.perf_counter()
-    log.info("%s: read %d rows in %.2f s", path, len(df), t1 - t0)
-    res = compensate(df, cfg, model=model, source=str(path))
-    if model is None and self_check:
-        res.report["self_calibration"] = _self_calibration(df, cfg, str(path))
-    t2 = time.perf_counter()
-    log.info("%s: %s in %.2f s", path, "model applied" if model is not None else
-             "fitted, screened and applied", t2 - t1)
-    out = Path(out_path)
-    write_outputs(res.data, res.report, out, passthrough=df.attrs.get("passthrough_csv"))
-    log.info("%s: wrote %s in %.2f s", path, out, time.perf_counter() - t2)
-    return res
+    with output_set():  # the run's warnings go to OUT.json, from Python as from the CLI
+        cfg = cfg or CompensationConfig()
+        check_outputs(path, out_path, json_path_for(Path(out_path)))
+        output_format(out_path)
+        if model is not None and not isinstance(model, TLModel):
+            mpath = Path(model)
+            model = TLModel.load(mpath)
+            model.meta["path"] = str(mpath)
+        t0 = time.perf_counter()
+        df = read_log(path, columns=columns, units=units, required=("time", *FLUX_COLUMNS), fmt=fmt)
+        t1 = time.perf_counter()
+        log.info("%s: read %d rows in %.2f s", path, len(df), t1 - t0)
+        res = compensate(df, cfg, model=model, source=str(path))
+        if model is None and self_check:
+            res.report["self_calibration"] = _self_calibration(df, cfg, str(path))
+        t2 = time.perf_counter()
+        log.info("%s: %s in %.2f s", path, "model applied" if model is not None else
+                 "fitted, screened and applied", t2 - t1)
+        out = Path(out_path)
+        write_outputs(res.data, res.report, out, passthrough=df.attrs.get("passthrough_csv"))
+        log.info("%s: wrote %s in %.2f s", path, out, time.perf_counter() - t2)
+        return res
 
 
 def write_outputs(data: pd.DataFrame, report: dict[str, Any], out_csv: Path, *,
@@ -396,14 +398,15 @@ def calibrate_file(
     CompensationResult
         ``data`` is the calibration log with the model applied (not written).
     """
-    cfg = cfg or CompensationConfig()
-    check_outputs(path, model_path)
-    if Path(model_path).suffix.lower() != ".json":
-        raise InputError(f"-o {model_path}: the model is written as JSON; give it a .json name,"
-                         f" e.g. -o {Path(model_path).with_suffix('.json').name}")
-    if cfg.fom is None:
-        cfg = dataclasses.replace(cfg, fom=True)
-    df = read_log(path, columns=columns, units=units, required=("time", *FLUX_COLUMNS), fmt=fmt)
-    res = calibrate(df, cfg, source=str(path))
-    write_json(res.report, model_path)
-    return res
+    with output_set():  # the fit's warnings go to the model file, from Python as from the CLI
+        cfg = cfg or CompensationConfig()
+        check_outputs(path, model_path)
+        if Path(model_path).suffix.lower() != ".json":
+            raise InputError(f"-o {model_path}: the model is written as JSON; give it a .json name,"
+                             f" e.g. -o {Path(model_path).with_suffix('.json').name}")
+        if cfg.fom is None:
+            cfg = dataclasses.replace(cfg, fom=True)
+        df = read_log(path, columns=columns, units=units, required=("time", *FLUX_COLUMNS), fmt=fmt)
+        res = calibrate(df, cfg, source=str(path))
+        write_json(res.report, model_path)
+        return res
