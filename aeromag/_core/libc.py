@@ -9,7 +9,7 @@ from __future__ import annotations
 import sys
 from typing import Any
 
-__all__ = ["libc"]
+__all__ = ["libc", "trim_heap"]
 
 _LIBC: Any = None
 
@@ -47,3 +47,14 @@ def libc() -> Any:
                         fn.restype = ctypes.c_int
                 _LIBC = lib
     return _LIBC or None
+
+
+def trim_heap() -> None:
+    """Give the C heap's free pages back to the system (glibc ``malloc_trim``; else nothing).
+
+    Between the steps of a long computation: glibc keeps freed blocks resident, and the next
+    step's temporaries then come on top of them.
+    """
+    lib = libc()
+    if lib is not None and hasattr(lib, "malloc_trim"):
+        lib.malloc_trim(0)

@@ -146,15 +146,21 @@ def piece_residuals(
     PieceResiduals
     """
     t = np.asarray(time_s, dtype=np.float64)
-    x = np.vstack([np.asarray(mag, dtype=np.float64),
-                   np.asarray(mag, dtype=np.float64) - np.asarray(mag_tl, dtype=np.float64)])
+    # The two rows written in place (no full-length temporary of mag - mag_tl); every
+    # full-length array is let go as soon as it is used (2e6 rows: 16 MB each).
+    x = np.empty((2, len(t)))
+    x[0] = np.asarray(mag, dtype=np.float64)
+    np.subtract(x[0], np.asarray(mag_tl, dtype=np.float64), out=x[1])
     seg = np.asarray(segment, dtype=np.int64)
     lab = piece_labels(t, np.isfinite(x).all(axis=0), seg, max_gap_s)
     fs = sampling_rate(t) if fs_hz is None else fs_hz
     sos = butter_sos("bandpass", band_hz, fs, order)
     xf = filter_stretches(x, lab, sos, axis=1)
+    del x
     trim = 0.25 / band_hz[0] if trim_s is None else float(trim_s)
-    use = trim_mask(lab, t, trim) & np.isfinite(xf).all(axis=0)
+    use = trim_mask(lab, t, trim)
+    del lab
+    use &= np.isfinite(xf).all(axis=0)
     xf[:, ~use] = np.nan
     before, after = xf
     ok = use & (seg >= 0)
@@ -162,11 +168,23 @@ def piece_residuals(
     n_by: dict[int, int] = {}
     if ok.any():
         s = seg[ok]
-        ids, inv = np.unique(s, return_inverse=True)
-        cnt = np.bincount(inv)
-        ss = np.bincount(inv, after[ok] ** 2)
+        top = int(s.max())
+        if top <= 4 * s.size + 1024:
+            # Small non-negative ids: histograms, no sort.  np.bincount adds the weights in
+            # sample order per bin either way, so the sums are bitwise those of np.unique's
+            # inverse labels.
+            cnt_all = np.bincount(s, minlength=top + 1)
+            ids = np.flatnonzero(cnt_all)
+            ss = np.bincount(s, after[ok] ** 2, minlength=top + 1)[ids]
+            cnt = cnt_all[ids]
+        else:
+            ids, inv = np.unique(s, return_inverse=True)
+            cnt = np.bincount(inv)
+            ss = np.bincount(inv, after[ok] ** 2)
+        del s
         by_seg = {int(i): float(np.sqrt(v / c)) for i, v, c in zip(ids, ss, cnt, strict=True)}
         n_by = {int(i): int(c) for i, c in zip(ids, cnt, strict=True)}
+    del ok
     k = np.asarray(kept, dtype=bool) & (seg >= 0) if (seg >= 0).any() \
         else np.asarray(kept, dtype=bool)
     return PieceResiduals(before, after, by_seg, n_by, _summary(before, after, use & k),
