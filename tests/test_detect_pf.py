@@ -340,7 +340,7 @@ def test_gyro_in_deg_per_s_warns_and_units_converts(tmp_path, caplog):
     d.to_csv(src, index=False)
     with caplog.at_level("WARNING"):
         prepare_pf_inputs(d, source="degs.csv")
-    assert "--units gyro=deg/s" in caplog.text
+    assert "units={'gyro': 'deg/s'}" in caplog.text  # the CLI: --units gyro=deg/s
     caplog.clear()
     with caplog.at_level("WARNING"):
         prepare_pf_inputs(df, source="rads.csv")

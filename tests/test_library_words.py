@@ -34,7 +34,11 @@ FLAG = re.compile(r"(?<![\w-])--[a-z]")
 #: The modules of this change: none may name a command-line flag in a message.
 MODULES = ("aeromag/io/log.py", "aeromag/workflows/compass.py", "aeromag/workflows/detect.py",
            "aeromag/workflows/navigate.py", "aeromag/workflows/online_compensate.py",
-           "aeromag/compensation/apply.py", "aeromag/compensation/checks.py")
+           "aeromag/compensation/apply.py", "aeromag/compensation/checks.py",
+           "aeromag/compensation/online.py", "aeromag/workflows/batch.py",
+           "aeromag/workflows/batch_inputs.py", "aeromag/workflows/batch_engines.py",
+           *sorted(str(p.relative_to(ROOT)) for d in ("nav", "detection", "compass")
+                   for p in (ROOT / "aeromag" / d).glob("*.py")))
 EF = ["--earth-field", "54000", "57", "-5"]
 
 
@@ -70,6 +74,35 @@ def _no_flag(msg: str) -> None:
      "closer to 1 than --forgetting 0.999), or (--model MODEL; limit: --max-interference)"),
     ("x: band_hz: 6 Hz is not below", "x: --band: 6 Hz is not below"),
     ("lowpass_hz [-1.0]: need a positive frequency", "--lowpass [-1.0]: need a positive frequency"),
+    # the detectors, navigate, compass reference and batch (calm_window, gps: T0:T1 on the CLI)
+    ("calm_window='30:x': expected seconds", "--calm-window 30:x: expected seconds"),
+    ("calm_window=(10, 5): the end must be after the start",
+     "--calm-window 10:5: the end must be after the start"),
+    ("calm_window=-3.0: the window length", "--calm-window -3.0: the window length"),
+    ("x: only 3 usable sample(s); choose another calm_window",
+     "x: only 3 usable sample(s); choose another --calm-window"),
+    ("sigmas=0.0: must be a positive number", "--heading-sigmas 0.0: must be a positive number"),
+    ("sigma_floor_deg=-1.0: must be >= 0", "--heading-sigma-floor -1.0: must be >= 0"),
+    ("n_particles=1: need at least 2; window=0: need",
+     "--particles 1: need at least 2; --window 0: need"),
+    ("choose a longer calm_window or give threshold=X",
+     "choose a longer --calm-window or give --threshold X"),
+    ("gps='30:x': write 'use', 'none' or 'T0:T1' (e.g. gps='30:60')",
+     "--gps 30:x: write 'use', 'none' or 'T0:T1' (e.g. --gps 30:60)"),
+    ("gps=(60.0, 30.0): the outage needs T1 > T0", "--gps 60:30: the outage needs T1 > T0"),
+    ("x: origin=(37.0, 112.0, 800.0) ignored", "x: --origin 37 112 800 ignored"),
+    ("scheduler=ADDRESS needs Dask distributed", "--scheduler ADDRESS needs Dask distributed"),
+    ("scheduler='tcp://h:8786': cannot connect", "--scheduler tcp://h:8786: cannot connect"),
+    ("date='17/07/2017': not a date; write YYYY-MM-DD, e.g. date='2024-06-15'",
+     "--date 17/07/2017: not a date; write YYYY-MM-DD, e.g. --date 2024-06-15"),
+    ("earth_field: intensity must be a positive number of nT",
+     "--earth-field: intensity must be a positive number of nT"),
+    ("(in g? use units={'acc': 'g'})", "(in g? use --units acc=g)"),
+    ("check the IMU units (units=...) and", "check the IMU units (--units) and"),
+    ("give date='YYYY-MM-DD' or earth_field=(F, I, D) for a true yaw",
+     "give --date YYYY-MM-DD or --earth-field F I D for a true yaw"),
+    ("map the rangefinder with columns={'range_m': 'SOURCE'}",
+     "map the rangefinder with --col range_m=SOURCE"),
 ])
 def test_flag_message_maps_the_library_words(library, cli):
     assert flag_message(library) == cli
@@ -77,7 +110,8 @@ def test_flag_message_maps_the_library_words(library, cli):
 
 def test_plain_words_are_left_alone():
     """``date``, ``origin`` and ``forgetting`` are English words: only their Python forms map."""
-    text = "the date of the flight, the origin of the frame and a forgetting factor"
+    text = ("the date of the flight, the origin of the frame and a forgetting factor; the calm"
+            " window, a threshold, the gps and the scheduler; walk_deg has no flag")
     assert flag_message(text) == text
 
 
@@ -300,3 +334,109 @@ def test_apply_filter_errors(model, tmp_path, kw, args, python, cli):
     r = runner.invoke(app, ["compensate", str(SAMPLES / "survey.csv"), "--model", str(model),
                             "-o", str(out), *args])
     assert cli in _error(r) and not out.exists()
+
+
+# -- the detectors, navigate's GNSS mode and origin, the compass reference (issue 15) ----------
+
+@pytest.mark.parametrize(("kw", "args", "python", "cli"), [
+    ({"calm_window": "30:x"}, ["--calm-window", "30:x"],
+     "calm_window='30:x': expected seconds", "--calm-window 30:x: expected seconds"),
+    ({"calm_window": "40:10"}, ["--calm-window", "40:10"],
+     "calm_window=(40, 10): the end must be after the start",
+     "--calm-window 40:10: the end must be after the start"),
+    ({"n_particles": 1}, ["--particles", "1"], "n_particles=1: need at least 2 particles",
+     "--particles 1: need at least 2 particles"),
+    ({"window": 0}, ["--window", "0"], "window=0: need at least 1 sample",
+     "--window 0: need at least 1 sample"),
+])
+def test_detect_errors(tmp_path, kw, args, python, cli):
+    from aeromag.workflows.detect import detect_file
+
+    src = SAMPLES / "mission.csv"
+    with pytest.raises(InputError) as e:
+        detect_file(src, tmp_path / "api.csv", **kw)
+    assert python in str(e.value)
+    _no_flag(str(e.value))
+    out = tmp_path / "o.csv"
+    r = runner.invoke(app, ["detect", str(src), "-o", str(out), *args])
+    assert cli in _error(r) and not out.exists()
+
+
+@pytest.mark.parametrize(("kw", "args", "python", "cli"), [
+    ({"heading_sigmas": 0.0}, ["--heading-sigmas", "0"], "sigmas=0.0: must be a positive",
+     "--heading-sigmas 0.0: must be a positive"),
+    ({"heading_sigma_floor_deg": -1.0}, ["--heading-sigma-floor", "-1"],
+     "sigma_floor_deg=-1.0: must be >= 0 degrees", "--heading-sigma-floor -1.0: must be >= 0"),
+])
+def test_heading_detector_errors_through_track(tmp_path, kw, args, python, cli):
+    from aeromag.workflows.track import track_file
+
+    src, plan = SAMPLES / "mission.csv", SAMPLES / "mission_plan.csv"
+    with pytest.raises(InputError) as e:
+        track_file(src, plan, tmp_path / "api.csv", **kw)
+    assert python in str(e.value)
+    _no_flag(str(e.value))
+    out = tmp_path / "o.csv"
+    r = runner.invoke(app, ["track", str(src), "--plan", str(plan), "-o", str(out), *args])
+    assert cli in _error(r) and not out.exists()
+
+
+@pytest.mark.parametrize(("gps", "python", "cli"), [
+    ("30:x", "gps='30:x': write 'use', 'none' or 'T0:T1'", "--gps 30:x: write 'use', 'none'"),
+    ("60:30", "gps='60:30': the outage needs T1 > T0", "--gps 60:30: the outage needs T1 > T0"),
+])
+def test_navigate_gps_mode(nav_log, tmp_path, gps, python, cli):
+    from aeromag.workflows.navigate import navigate_file
+
+    with pytest.raises(InputError) as e:
+        navigate_file(nav_log[0], tmp_path / "api.csv", gps=gps)
+    assert python in str(e.value)
+    _no_flag(str(e.value))
+    out = tmp_path / "o.csv"
+    r = runner.invoke(app, ["navigate", str(nav_log[0]), "-o", str(out), "--gps", gps])
+    assert cli in _error(r) and not out.exists()
+
+
+def test_navigate_origin_ignored_warning(nav_log, tmp_path, caplog):
+    from aeromag.workflows.navigate import navigate_file
+
+    with caplog.at_level("WARNING", logger="aeromag"):
+        res = navigate_file(nav_log[0], tmp_path / "api.csv", origin=(37.0, 112.0, 800.0))
+    assert "origin=(37.0, 112.0, 800.0) ignored" in caplog.text
+    assert all(not FLAG.search(w) for w in res.report["warnings"]), res.report["warnings"]
+    assert res.report["gps"]["origin_from"] == "first GNSS fix"
+    out = tmp_path / "o.csv"
+    r = runner.invoke(app, ["navigate", str(nav_log[0]), "-o", str(out),
+                            "--origin", "37", "112", "800"])
+    assert r.exit_code == 0, r.output
+    assert "--origin 37 112 800 ignored" in r.output
+    warned = json.loads(out.with_suffix(".json").read_text())["warnings"]
+    assert any("--origin 37 112 800 ignored" in w for w in warned)
+
+
+@pytest.mark.parametrize(("kw", "args", "python", "cli"), [
+    ({"date": "1850-01-01"}, ["--date", "1850-01-01"],
+     "date='1850-01-01' is outside IGRF-14 (1900-2030); give the field with earth_field=(F, I, D)",
+     "--date 1850-01-01 is outside IGRF-14 (1900-2030); give the field with --earth-field F I D"),
+    ({"earth_field": (-1.0, 57.0, -5.0)}, ["--earth-field", "-1", "57", "-5"],
+     "earth_field: intensity must be a positive number of nT",
+     "--earth-field: intensity must be a positive number of nT"),
+])
+def test_compass_reference_errors(compass_log, tmp_path, kw, args, python, cli):
+    from aeromag.workflows.compass import compass_frame
+
+    with pytest.raises(InputError) as e:
+        compass_frame(compass_log, source="c.csv", **kw)
+    assert python in str(e.value)
+    _no_flag(str(e.value))
+    r, out = _compass_cli(compass_log, tmp_path, *args)
+    assert cli in _error(r) and not out.exists()
+
+
+def test_igrf_field_names_its_date_parameter():
+    from aeromag.compass.reference import igrf_field
+
+    with pytest.raises(InputError) as e:
+        igrf_field([37.0], [112.0], 0.0, "17/07/2017")
+    assert str(e.value).startswith("date='17/07/2017': not a date")
+    _no_flag(str(e.value))

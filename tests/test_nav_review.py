@@ -54,7 +54,7 @@ def test_gyro_in_deg_per_s_in_a_hover_warns_with_the_units_remedy():
         log[c] = np.degrees(log[c])
     assert np.nanmax(np.abs(log[["gyro_x", "gyro_y", "gyro_z"]].to_numpy())) < 34.9
     res = navigate(log, gps="none", mag_reference_ned_nT=REF, source="sim")
-    assert any("--units gyro=deg/s" in w for w in res.report["warnings"])
+    assert any("units={'gyro': 'deg/s'}" in w for w in res.report["warnings"])
     for scenario in ("hover", "rectangle"):            # rad/s: no false warning
         ok = navigate(simulate_quadrotor(scenario, seed=2, duration_s=20.0).log, gps="none",
                       mag_reference_ned_nT=REF, source="sim")

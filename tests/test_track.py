@@ -185,7 +185,7 @@ def test_heading_sigma_floor_stops_alarm_storms_on_clean_lines():
     hd = res.report["heading_detector"]
     assert hd["sigma_floor_deg"] == 0.5 and hd["sigma_deg"] == 0.5 and hd["floored"]
     assert not res.data["heading_alarm"].any() and res.report["flagged_legs"] == []
-    with pytest.raises(InputError, match="--heading-sigma-floor"):
+    with pytest.raises(InputError, match="sigma_floor_deg="):  # the CLI: --heading-sigma-floor
         check_track(df, plan, heading_sigma_floor_deg=-1.0)
 
 

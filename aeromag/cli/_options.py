@@ -324,16 +324,28 @@ def _flag_text(value: Any) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
-#: Library keywords that are no CompensationConfig field, and their flags.
+#: Library keywords that are no CompensationConfig field, and their flags (the detectors'
+#: own parameter names too: ``heading_detector(sigmas=...)`` is ``track --heading-sigmas``).
 _KEYWORD_FLAGS = {"model": "--model", "chunk_rows": "--chunk-rows",
                   "allow_truncated": "--allow-truncated", "forgetting": "--forgetting",
-                  "earth_field": "--earth-field"}
+                  "earth_field": "--earth-field", "calm_window": "--calm-window",
+                  "sigmas": "--heading-sigmas", "heading_sigmas": "--heading-sigmas",
+                  "sigma_floor_deg": "--heading-sigma-floor",
+                  "heading_sigma_floor_deg": "--heading-sigma-floor",
+                  "n_particles": "--particles", "window": "--window",
+                  "threshold": "--threshold", "scheduler": "--scheduler",
+                  "gps": "--gps"}
 #: Reading keywords (mappings) and their flags: ``columns={'K': 'V'}`` is ``--col K=V``.
 _DICT_FLAGS = {"columns": "--col", "units": "--units"}
-#: Keywords given as a tuple: ``earth_field=(F, I, D)`` is ``--earth-field F I D``.
-_TUPLE_FLAGS = {"earth_field": "--earth-field", "origin": "--origin"}
+#: Keywords given as a tuple: ``earth_field=(F, I, D)`` is ``--earth-field F I D``;
+#: ``calm_window=(10, 40)`` is ``--calm-window 10:40`` (:data:`_TUPLE_JOIN`).
+_TUPLE_FLAGS = {"earth_field": "--earth-field", "origin": "--origin",
+                "calm_window": "--calm-window", "gps": "--gps"}
+#: How a tuple's values are written after its flag (default: separate words).
+_TUPLE_JOIN = {"calm_window": ":", "gps": ":"}
 #: Keywords given as a string: ``date='2024-06-01'`` is ``--date 2024-06-01``.
-_STRING_FLAGS = {"date": "--date"}
+_STRING_FLAGS = {"date": "--date", "calm_window": "--calm-window", "gps": "--gps",
+                 "scheduler": "--scheduler"}
 
 
 def _tuple_flag(name: str, values: str) -> str:
@@ -345,7 +357,9 @@ def _tuple_flag(name: str, values: str) -> str:
             parts.append(f"{float(v):g}")
         except ValueError:
             parts.append(v)  # a placeholder: F, I, D
-    return " ".join([_TUPLE_FLAGS[name], *parts])
+    join = _TUPLE_JOIN.get(name)
+    return " ".join([_TUPLE_FLAGS[name], *parts]) if join is None else (
+        f"{_TUPLE_FLAGS[name]} {join.join(parts)}")
 
 
 def _as_flag(name: str, value: str = "") -> str:

@@ -78,11 +78,11 @@ def explicit_field(intensity_nT: float, inclination_deg: float, declination_deg:
     """
     f, i, d = (float(x) for x in (intensity_nT, inclination_deg, declination_deg))
     if not (np.isfinite(f) and f > 0):
-        raise InputError(f"--earth-field: intensity must be a positive number of nT, got {f}")
+        raise InputError(f"earth_field: intensity must be a positive number of nT, got {f}")
     if not (np.isfinite(i) and -90 <= i <= 90):
-        raise InputError(f"--earth-field: inclination must be in [-90, 90] degrees, got {i}")
+        raise InputError(f"earth_field: inclination must be in [-90, 90] degrees, got {i}")
     if not np.isfinite(d):
-        raise InputError(f"--earth-field: declination must be a number of degrees, got {d}")
+        raise InputError(f"earth_field: declination must be a number of degrees, got {d}")
     ir, dr = np.deg2rad(i), np.deg2rad(d)
     ned = f * np.array([np.cos(ir) * np.cos(dr), np.cos(ir) * np.sin(dr), np.sin(ir)])
     return ReferenceField(ned, {"source": "explicit", "intensity_nT": f,
@@ -97,8 +97,8 @@ def _parse_date(date: str | _dt.date | _dt.datetime) -> _dt.datetime:
     try:
         return _dt.datetime.strptime(str(date).strip(), "%Y-%m-%d")
     except ValueError:
-        raise InputError(f"--date: {date!r} is not a date; write YYYY-MM-DD, e.g. 2024-06-15"
-                         ) from None
+        raise InputError(f"date={str(date)!r}: not a date; write YYYY-MM-DD, e.g."
+                         " date='2024-06-15'") from None
 
 
 def igrf_field(lat_deg: np.ndarray, lon_deg: np.ndarray, alt_m: np.ndarray | float,
@@ -128,13 +128,13 @@ def igrf_field(lat_deg: np.ndarray, lon_deg: np.ndarray, alt_m: np.ndarray | flo
     when = _parse_date(date)
     year = when.year + (when.timetuple().tm_yday - 1) / 365.25
     if not (IGRF_RANGE[0] <= year < IGRF_RANGE[1]):
-        raise InputError(f"--date: {when.date()} is outside IGRF-14 ({IGRF_RANGE[0]:.0f}-"
-                         f"{IGRF_RANGE[1]:.0f}); give the field with --earth-field F I D")
+        raise InputError(f"date='{when.date()}' is outside IGRF-14 ({IGRF_RANGE[0]:.0f}-"
+                         f"{IGRF_RANGE[1]:.0f}); give the field with earth_field=(F, I, D)")
     try:
         import ppigrf
     except ImportError:
         raise InputError("the IGRF reference needs the ppigrf package: pip install "
-                         "'aeromag[igrf]', or give the field with --earth-field F I D"
+                         "'aeromag[igrf]', or give the field with earth_field=(F, I, D)"
                          ) from None
     lat = np.atleast_1d(np.asarray(lat_deg, dtype=np.float64))
     lon = np.atleast_1d(np.asarray(lon_deg, dtype=np.float64))

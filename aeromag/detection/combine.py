@@ -59,7 +59,7 @@ def combine_alarms(
     """
     how = str(how).lower()
     if how not in COMBINE_RULES:
-        raise InputError(f"--combine {how!r}: use 'or' or 'and'")
+        raise InputError(f"how={how!r}: use 'or' or 'and'")
     g = np.asarray(groups)
     on = g >= 0
     masks = [alarm_mask(a) for a in alarms if a is not None]

@@ -140,21 +140,21 @@ def parse_calm_window(spec: CalmWindow) -> float | tuple[float, float]:
                 sec = float(text)
         except ValueError:
             raise InputError(
-                f"--calm-window {spec!r}: expected seconds (e.g. 30) or a time range T0:T1"
+                f"calm_window={spec!r}: expected seconds (e.g. 30) or a time range T0:T1"
             ) from None
         if rng is None:
             return parse_calm_window(sec)
         return parse_calm_window(rng)
     if isinstance(spec, Sequence):
         if len(spec) != 2:
-            raise InputError(f"--calm-window {spec!r}: a time range needs two values T0:T1")
+            raise InputError(f"calm_window={tuple(spec)!r}: a time range needs two values T0:T1")
         t0, t1 = float(spec[0]), float(spec[1])
         if not (np.isfinite(t0) and np.isfinite(t1)) or t1 <= t0:
-            raise InputError(f"--calm-window {t0:g}:{t1:g}: the end must be after the start")
+            raise InputError(f"calm_window=({t0:g}, {t1:g}): the end must be after the start")
         return (t0, t1)
     sec = float(spec)
     if not np.isfinite(sec) or sec <= 0:
-        raise InputError(f"--calm-window {spec!r}: the window length must be positive seconds")
+        raise InputError(f"calm_window={spec!r}: the window length must be positive seconds")
     return sec
 
 
@@ -265,14 +265,14 @@ def heading_detector(
     HeadingResult
     """
     if not np.isfinite(sigmas) or sigmas <= 0:
-        raise InputError(f"--heading-sigmas {sigmas!r}: must be a positive number")
+        raise InputError(f"sigmas={sigmas!r}: must be a positive number")
     if not np.isfinite(sigma_floor_deg) or sigma_floor_deg < 0:
-        raise InputError(f"--heading-sigma-floor {sigma_floor_deg!r}: must be >= 0 degrees")
+        raise InputError(f"sigma_floor_deg={sigma_floor_deg!r}: must be >= 0 degrees")
     kind = heading_columns_available(df)
     if kind is None:
         raise InputError(
             f"{source}: the heading detector needs 'heading' and 'mag_heading' (or flux_x/y/z,"
-            " pitch and roll); map them with --col"
+            " pitch and roll); map them with columns={'NAME': 'SOURCE'}"
         )
     if kind == "mag_heading":
         mh = df["mag_heading"].to_numpy(dtype=np.float64)
@@ -286,7 +286,7 @@ def heading_detector(
     if n_calm < MIN_CALM_SAMPLES:
         raise InputError(
             f"{source}: only {n_calm} usable sample(s) in the calm window {calm_window!r}"
-            f" (need {MIN_CALM_SAMPLES}); choose another --calm-window"
+            f" (need {MIN_CALM_SAMPLES}); choose another calm_window"
         )
     ref = diff[calm]
     # Circular-safe mean: centre on the median before averaging, so a reference near +-180

@@ -188,7 +188,7 @@ def prepare_pf_inputs(df: pd.DataFrame, *, declination_deg: float = 0.0,
         raise InputError(
             f"{source}: the particle-filter detector needs a gyro (gyro_z, or gyro_x/y/z with "
             "pitch and roll; or an attitude 'heading') and a compass ('mag_heading', or "
-            "flux_x/y/z with pitch and roll); map them with --col"
+            "flux_x/y/z with pitch and roll); map them with columns={'NAME': 'SOURCE'}"
         )
     rate_src, comp_src = kinds
     t = df["time"].to_numpy(dtype=np.float64)
@@ -410,15 +410,15 @@ def particle_detector(
     """
     t_start = _time.perf_counter()
     if int(n_particles) < 2:
-        raise InputError(f"--particles {n_particles!r}: need at least 2 particles")
+        raise InputError(f"n_particles={n_particles!r}: need at least 2 particles")
     if int(window) < 1:
-        raise InputError(f"--window {window!r}: need at least 1 sample")
+        raise InputError(f"window={window!r}: need at least 1 sample")
     if threshold is not None and not np.isfinite(threshold):
-        raise InputError(f"--threshold {threshold!r}: must be a finite number")
+        raise InputError(f"threshold={threshold!r}: must be a finite number")
     if not (np.isfinite(walk_deg) and walk_deg > 0):
-        raise InputError(f"--walk {walk_deg!r}: the heading random walk must be positive")
+        raise InputError(f"walk_deg={walk_deg!r}: the heading random walk must be positive")
     if not (np.isfinite(bias_walk_deg) and bias_walk_deg >= 0):
-        raise InputError(f"bias_walk_deg {bias_walk_deg!r}: must be zero or positive")
+        raise InputError(f"bias_walk_deg={bias_walk_deg!r}: must be zero or positive")
     inp = prepare_pf_inputs(df, declination_deg=declination_deg, gap_s=gap_s, source=source)
     t = inp.time_s
     calm = calm_mask(t, calm_window)
@@ -542,7 +542,7 @@ def particle_detector(
             raise InputError(
                 f"{source}: only {int(calm_ok.sum())} sample(s) with a full window in the calm"
                 f" window {calm_window!r} (need {MIN_CALM_STATS}; the window is {window} compass"
-                " samples); choose a longer --calm-window or give --threshold"
+                " samples); choose a longer calm_window or give threshold=X"
             )
         w = int(window)
         fin = np.isfinite(stat)

@@ -89,5 +89,5 @@ def check_gyro_unit(t: np.ndarray, ang: np.ndarray, mh_deg: np.ndarray | None,
     if mg > 10.0 * max(mc, np.deg2rad(0.05)):
         log.warning("%s: the gyro turns the heading %.0f times more than the compass does "
                     "(median per second %.3g rad against %.3g rad): is the gyro in deg/s? "
-                    "The interface wants rad/s; convert with --units gyro=deg/s",
+                    "The interface wants rad/s; convert with units={'gyro': 'deg/s'}",
                     source, mg / max(mc, 1e-12), mg, mc)

@@ -164,7 +164,7 @@ class NavFilter(StartupMixin, FusionMixin):
         if ps > self.config.max_position_std_m or np.linalg.norm(x[3:6]) > 500.0:
             raise DivergenceError(
                 f"navigation filter diverged at {where}: position sigma {ps:.3g} m, speed "
-                f"{np.linalg.norm(x[3:6]):.3g} m/s; check the IMU units (--units) and the "
+                f"{np.linalg.norm(x[3:6]):.3g} m/s; check the IMU units (units=...) and the "
                 "noise settings, or give GNSS")
 
     # ------------------------------------------------------------------ online
@@ -342,10 +342,12 @@ class NavFilter(StartupMixin, FusionMixin):
                 self.mag_ref = ref
                 self._warn("no reference field given: strength and inclination from the log's"
                            f" first minute ({n_used} calm samples), declination unknown (yaw"
-                           " is magnetic); give --date or --earth-field for a true yaw")
+                           " is magnetic); give date='YYYY-MM-DD' or earth_field=(F, I, D)"
+                           " for a true yaw")
             else:
                 self._warn("no calm samples in the first minute to find the Earth field: the"
-                           " magnetometer is not used; give --date or --earth-field")
+                           " magnetometer is not used; give date='YYYY-MM-DD' or"
+                           " earth_field=(F, I, D)")
         win = imu_rows[t[imu_rows] <= t[i0] + c.init_seconds]
         acc0 = acc[win].mean(axis=0)
         flux0 = None

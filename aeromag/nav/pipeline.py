@@ -88,10 +88,10 @@ def parse_gps_mode(gps: GpsMode) -> GpsMode:
                 raise ValueError
             t0, t1 = float(parts[0]), float(parts[1])
         except ValueError:
-            raise InputError(f"--gps {gps}: write use, none or T0:T1 (an outage between T0 and "
-                             "T1 seconds of the log's time, e.g. --gps 30:60)") from None
+            raise InputError(f"gps={gps!r}: write 'use', 'none' or 'T0:T1' (an outage between T0"
+                             " and T1 seconds of the log's time, e.g. gps='30:60')") from None
     if not (np.isfinite(t0) and np.isfinite(t1) and t1 > t0):
-        raise InputError(f"--gps {gps}: the outage needs T1 > T0 (seconds of the log's time)")
+        raise InputError(f"gps={gps!r}: the outage needs T1 > T0 (seconds of the log's time)")
     return (t0, t1)
 
 
@@ -125,7 +125,7 @@ def _group(df: pd.DataFrame, names: Sequence[str], source: str) -> np.ndarray | 
         missing = [n for n, p in zip(names, present, strict=True) if not p]
         raise InputError(f"{source}: column(s) {', '.join(missing)} missing beside "
                          f"{', '.join(n for n, p in zip(names, present, strict=True) if p)};"
-                         " a sensor needs all its axes (map them with --col NAME=SOURCE)")
+                         " a sensor needs all its axes (map them with columns={'NAME': 'SOURCE'})")
     return np.column_stack([_col(df, n, source) for n in names])
 
 
@@ -140,12 +140,12 @@ def _check_imu(t: np.ndarray, gyro: np.ndarray, acc: np.ndarray, source: str,
     if big > MAX_RATE_RADS:
         msg = (f"{source}: gyro magnitudes reach {big:.3g} rad/s, beyond any plausible body "
                f"rate ({MAX_RATE_RADS} rad/s is 2000 °/s): the gyro is probably in deg/s;"
-               " convert it with --units gyro=deg/s")
+               " convert it with units={'gyro': 'deg/s'}")
         warnings.append(msg)
         log.warning("%s", msg)
     f = float(np.median(np.linalg.norm(acc[imu], axis=1)))
     if not 5.0 < f < 15.0:
-        hint = " (in g? use --units acc=g)" if 0.5 < f < 1.5 else ""
+        hint = " (in g? use units={'acc': 'g'})" if 0.5 < f < 1.5 else ""
         msg = (f"{source}: the median specific force is {f:.3g}, not about 9.81 m/s²: check"
                f" the accelerometer's unit{hint}")
         warnings.append(msg)
@@ -211,7 +211,7 @@ def _check_gyro_against_mag(t: np.ndarray, gyro: np.ndarray, flux: np.ndarray | 
     if rp > 5.0 * ro:
         msg = (f"{source}: the gyro turns the body {rp / max(ro, 1e-12):.0f} times as far as"
                " the magnetometer sees: the gyro is probably in deg/s; convert it with"
-               " --units gyro=deg/s")
+               " units={'gyro': 'deg/s'}")
         warnings.append(msg)
         log.warning("%s", msg)
 
@@ -262,7 +262,7 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
     if missing:
         raise InputError(f"{src}: missing column(s) {', '.join(missing)}; navigate needs time, "
                          "the gyro (gyro_x..z, rad/s) and the accelerometer (acc_x..z, m/s²);"
-                         " map them with --col NAME=SOURCE")
+                         " map them with columns={'NAME': 'SOURCE'}")
     t = _col(df, "time", src)
     if not np.isfinite(t).all() or (np.diff(t) <= 0).any():
         k = int(np.flatnonzero(~np.isfinite(t) | np.r_[False, np.diff(t) <= 0])[0])
@@ -278,7 +278,8 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
     has_range = rng is not None and np.isfinite(rng).any()
     if has_flow and not has_range and "flow" in use:
         msg = (f"{src}: flow_x/flow_y without range_m: optical flow needs the height above"
-               " ground, so it is not used (map the rangefinder with --col range_m=SOURCE)")
+               " ground, so it is not used (map the rangefinder with"
+               " columns={'range_m': 'SOURCE'})")
         warnings.append(msg)
         log.warning("%s", msg)
         use.remove("flow")
@@ -292,7 +293,8 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
     if fix.any():
         i_fix = int(np.flatnonzero(fix)[0])
         if origin is not None:
-            msg = f"{src}: --origin ignored: the local frame's origin is the log's first GNSS fix"
+            msg = (f"{src}: origin={tuple(origin)!r} ignored: the local frame's origin is the"
+                   " log's first GNSS fix")
             warnings.append(msg)
             log.warning("%s", msg)
         org = tuple(float(v) for v in llh[i_fix])
@@ -355,7 +357,7 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
         "gps": {"mode": mode if isinstance(mode, str) else {"outage_s": list(mode)},
                 "origin": None if org is None else list(org),
                 "origin_from": "first GNSS fix" if fix.any() else (
-                    "--origin" if org is not None else None),
+                    "given origin" if org is not None else None),
                 "intervals": intervals,
                 "n_fixes_in_log": int(fix.sum()),
                 "n_fixes_used": int((gps_use & fix).sum()) if gps_use is not None else 0,
@@ -426,7 +428,8 @@ def track_inputs(df: pd.DataFrame, *, mag_reference_ned_nT: np.ndarray | None = 
     src = source or str(df.attrs.get("source", "<log>"))
     if not all(c in df.columns for c in GPS_POS):
         raise InputError(f"{src}: navigating for the track check needs the GNSS columns lat, "
-                         "lon, alt (at least one fix); map them with --col NAME=SOURCE")
+                         "lon, alt (at least one fix); map them with"
+                         " columns={'NAME': 'SOURCE'}")
     res = navigate(df, gps="use", mag_reference_ned_nT=mag_reference_ned_nT, config=config,
                    source=src)
     d = res.data

@@ -134,12 +134,12 @@ def run_dask(jobs: list[dict[str, Any]], scheduler: Any, fn: Callable[[dict[str,
         from distributed import as_completed as dask_completed
     except ImportError:
         raise InputError(
-            "--scheduler needs Dask distributed: pip install 'aeromag[dask]'") from None
+            "scheduler=ADDRESS needs Dask distributed: pip install 'aeromag[dask]'") from None
     own = not isinstance(scheduler, Client)
     try:
         client = Client(scheduler) if own else scheduler
     except (OSError, TimeoutError, ValueError) as exc:
-        raise InputError(f"--scheduler {scheduler}: cannot connect ({exc}); is the Dask"
+        raise InputError(f"scheduler={scheduler!r}: cannot connect ({exc}); is the Dask"
                          " scheduler running at that address?") from None
     try:
         futs = client.map(fn, jobs, pure=False, key=[
