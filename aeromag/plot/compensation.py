@@ -441,7 +441,7 @@ def term_contributions(data: pd.DataFrame, terms: Any, coef: Any,
         A[sel] = design_matrix(flux[sel], t[lo:hi][sel], terms, stretch=st[lo:hi][sel])
         for g, j in idx.items():
             out[g][a:b] = (A[:, j] @ c[j])[a - lo:b - lo]
-    return pd.DataFrame(out, index=data.index)
+    return pd.DataFrame(out, index=data.index, copy=False)  # the arrays, not a copy
 
 
 def plot_term_contributions(
