@@ -219,7 +219,7 @@ def test_xyz_truncated_last_row(tmp_path):
     body = "\n".join(f"{i} 50000 1 2 3" for i in range(20)) + "\n20 500"
     p = tmp_path / "t.xyz"
     p.write_text("/ time mag flux_x flux_y flux_z\nLine 1\n" + body)
-    with pytest.raises(InputError, match=r"line 23: 2 values but 5 channels .*--allow-truncated"):
+    with pytest.raises(InputError, match=r"line 23: 2 values but 5 channels.*allow_truncated=True"):
         read_log(p)
     assert len(read_log(p, allow_truncated=True)) == 20
 

@@ -37,6 +37,8 @@ MODULES = ("aeromag/io/log.py", "aeromag/workflows/compass.py", "aeromag/workflo
            "aeromag/compensation/apply.py", "aeromag/compensation/checks.py",
            "aeromag/compensation/online.py", "aeromag/workflows/batch.py",
            "aeromag/workflows/batch_inputs.py", "aeromag/workflows/batch_engines.py",
+           "aeromag/_core/lstsq.py", "aeromag/_core/rls.py", "aeromag/io/units.py",
+           "aeromag/io/plans.py", "aeromag/io/formats/magdrone.py", "aeromag/io/formats/xyz.py",
            *sorted(str(p.relative_to(ROOT)) for d in ("nav", "detection", "compass")
                    for p in (ROOT / "aeromag" / d).glob("*.py")))
 EF = ["--earth-field", "54000", "57", "-5"]
@@ -103,6 +105,20 @@ def _no_flag(msg: str) -> None:
      "give --date YYYY-MM-DD or --earth-field F I D for a true yaw"),
     ("map the rangefinder with columns={'range_m': 'SOURCE'}",
      "map the rangefinder with --col range_m=SOURCE"),
+    # the readers and the least-squares kernels
+    ("fix the value or map another column with columns={'NAME': 'SOURCE'}",
+     "fix the value or map another column with --col NAME=SOURCE"),
+    ("x: column 'm1' (mapped to 'mag') not found; fix the map (columns={'mag': 'SOURCE'})",
+     "x: column 'm1' (mapped to 'mag') not found; fix the map (--col mag=SOURCE)"),
+    ("not a MagDrone R3 log (give fmt=FORMAT if it is another format)",
+     "not a MagDrone R3 log (give --format FORMAT if it is another format)"),
+    ("(the last row: the file is cut short? allow_truncated=True drops it)",
+     "(the last row: the file is cut short? --allow-truncated drops it)"),
+    ("forgetting=0.0: a forgetting factor must be in (0, 1]",
+     "--forgetting 0.0: a forgetting factor must be in (0, 1]"),
+    ("widen band_hz or choose a smaller term set (terms=...)",
+     "widen --band or choose a smaller term set (--terms ...)"),
+    ("add maneuvers, use ridge=1e-3, or", "add maneuvers, use --ridge 1e-3, or"),
 ])
 def test_flag_message_maps_the_library_words(library, cli):
     assert flag_message(library) == cli
@@ -440,3 +456,27 @@ def test_igrf_field_names_its_date_parameter():
         igrf_field([37.0], [112.0], 0.0, "17/07/2017")
     assert str(e.value).startswith("date='17/07/2017': not a date")
     _no_flag(str(e.value))
+
+
+def test_forgetting_factor_python_and_cli(compass_log, tmp_path):
+    from aeromag.workflows.compass import compass_frame
+
+    with pytest.raises(InputError) as e:
+        compass_frame(compass_log, earth_field=(54000.0, 57.0, -5.0), forgetting=0.0)
+    assert "forgetting=0.0: a forgetting factor must be in (0, 1]" in str(e.value)
+    _no_flag(str(e.value))
+    r, out = _compass_cli(compass_log, tmp_path, *EF, "--forgetting", "0")
+    assert "--forgetting 0.0: a forgetting factor must be in (0, 1]" in _error(r)
+    assert not out.exists()
+
+
+def test_missing_mapped_column_python_and_cli(tmp_path):
+    from aeromag.io import read_log
+
+    with pytest.raises(InputError) as e:
+        read_log(SAMPLES / "survey.csv", columns={"mag": "m1"})
+    assert "fix the map (columns={'mag': 'SOURCE'})" in str(e.value)
+    _no_flag(str(e.value))
+    line = _error(runner.invoke(app, ["compensate", str(SAMPLES / "survey.csv"), "--col",
+                                      "mag=m1", "-o", str(tmp_path / "o.csv")]))
+    assert "fix the map (--col mag=SOURCE)" in line

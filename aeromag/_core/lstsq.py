@@ -50,7 +50,7 @@ def solve_normal(
     if np.any(d <= 0):
         raise FitError(
             "a model term never varies in the fitting band (constant fluxgate or no maneuvers);"
-            " fly maneuvers, widen --band or choose fewer --terms"
+            " fly maneuvers, widen band_hz or choose a smaller term set (terms=...)"
         )
     ev = np.linalg.eigvalsh(gram)
     cond = float(np.sqrt(ev[-1] / ev[0])) if ev[0] > 0 else float("inf")
@@ -61,13 +61,13 @@ def solve_normal(
     if ridge <= 0 and not (evs[0] > 1e-14 * evs[-1]):
         raise FitError(
             f"the fit is ill-conditioned (scaled condition number {cond_s:.3g}); the terms are"
-            " collinear: add maneuvers, use --ridge 1e-3, or choose fewer --terms"
+            " collinear: add maneuvers, use ridge=1e-3, or choose a smaller term set (terms=...)"
         )
     g = gs + ridge * np.eye(len(d))
     try:
         z = np.linalg.solve(g, rhs * inv)
     except np.linalg.LinAlgError:
-        raise FitError("the fit matrix is singular; add maneuvers or use --ridge") from None
+        raise FitError("the fit matrix is singular; add maneuvers or use ridge=1e-3") from None
     return z * inv, cond, cond_s
 
 

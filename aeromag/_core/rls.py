@@ -58,7 +58,7 @@ __all__ = ["RLSResult", "RecursiveLeastSquares", "check_forgetting"]
 BLOCK = 8192
 
 
-def check_forgetting(forgetting: float, *, option: str = "--forgetting") -> float:
+def check_forgetting(forgetting: float, *, option: str = "forgetting") -> float:
     """Validate a forgetting factor.
 
     Parameters
@@ -66,7 +66,8 @@ def check_forgetting(forgetting: float, *, option: str = "--forgetting") -> floa
     forgetting : float
         Forgetting factor lambda [dimensionless].
     option : str
-        Option name used in the error message.
+        Parameter name used in the error message (``forgetting=0.0: ...``; the command
+        line shows its flag).
 
     Returns
     -------
@@ -80,8 +81,8 @@ def check_forgetting(forgetting: float, *, option: str = "--forgetting") -> floa
     """
     lam = float(forgetting)
     if not (np.isfinite(lam) and 0.0 < lam <= 1.0):
-        raise InputError(f"{option}: forgetting factor must be in (0, 1] (1: plain recursive "
-                         f"least squares), got {forgetting!r}; use e.g. 0.975")
+        raise InputError(f"{option}={forgetting!r}: a forgetting factor must be in (0, 1] (1:"
+                         " plain recursive least squares); use e.g. 0.975")
     return lam
 
 

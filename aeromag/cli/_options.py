@@ -334,7 +334,7 @@ _KEYWORD_FLAGS = {"model": "--model", "chunk_rows": "--chunk-rows",
                   "heading_sigma_floor_deg": "--heading-sigma-floor",
                   "n_particles": "--particles", "window": "--window",
                   "threshold": "--threshold", "scheduler": "--scheduler",
-                  "gps": "--gps"}
+                  "gps": "--gps", "fmt": "--format"}
 #: Reading keywords (mappings) and their flags: ``columns={'K': 'V'}`` is ``--col K=V``.
 _DICT_FLAGS = {"columns": "--col", "units": "--units"}
 #: Keywords given as a tuple: ``earth_field=(F, I, D)`` is ``--earth-field F I D``;

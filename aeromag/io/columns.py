@@ -134,8 +134,12 @@ def _boolean_cells(s: pd.Series) -> np.ndarray | None:
     return mask if mask.any() else None
 
 
+#: What :func:`numeric_values` tells a caller to do by default.
+_REMAP = "fix the value or map another column with columns={'NAME': 'SOURCE'}"
+
+
 def numeric_values(s: pd.Series, source: str, column: str, rows: Mapping[str, Any] | None,
-                   remedy: str = "fix the value or map another column with --col") -> np.ndarray:
+                   remedy: str = _REMAP) -> np.ndarray:
     """float64 values of a column; empty cells are NaN, any other unparseable cell an error.
 
     Parameters
@@ -199,7 +203,7 @@ def check_unique_names(names: Sequence[str], source: str, *, what: str = "header
             raise InputError(
                 f"{source}: column {name!r} appears twice in the {what} (columns {seen[name] + 1}"
                 f" and {j + 1}); rename one of them (e.g. {name}_2) so that each column has its"
-                " own name, then pick one with --col if needed")
+                " own name, then pick one with columns={'NAME': 'SOURCE'} if needed")
         seen[name] = j
 
 
@@ -242,7 +246,7 @@ def apply_column_map(
             avail = ", ".join(map(str, df.columns[:20]))
             raise InputError(
                 f"{clean(source)}: column {clean(src)!r} (mapped to {name!r}) not found; fix the"
-                f" map (--col {name}=SOURCE); columns are: {clean(avail)}"
+                f" map (columns={{'{name}': 'SOURCE'}}); columns are: {clean(avail)}"
             )
         rename[src] = name
     # A canonical name that is also an existing, unmapped column would collide: drop the old one.

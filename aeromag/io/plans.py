@@ -72,10 +72,10 @@ def _read_text(p: Path) -> str:
     try:
         if p.stat().st_size > MAX_PLAN_BYTES:
             raise InputError(f"{p}: {p.stat().st_size} bytes is too large for a mission file"
-                             f" (at most {MAX_PLAN_BYTES >> 20} MB); check the --plan path")
+                             f" (at most {MAX_PLAN_BYTES >> 20} MB); check the plan's path")
         raw = p.read_bytes()
     except OSError as exc:
-        raise InputError(f"{p}: cannot read the plan ({exc.strerror}); check the --plan path"
+        raise InputError(f"{p}: cannot read the plan ({exc.strerror}); check the plan's path"
                          ) from None
     try:
         return raw.decode("utf-8-sig")
@@ -281,7 +281,7 @@ def read_plan(path: str | os.PathLike[str]) -> pd.DataFrame:
     """
     p = Path(path)
     if not p.is_file():
-        raise InputError(f"{p}: plan file not found (or not a file); check the --plan path")
+        raise InputError(f"{p}: plan file not found (or not a file); check the plan's path")
     register_input(p, "plan")  # no output of the command may overwrite it (issue 16)
     fmt = PLAN_SUFFIXES.get(p.suffix.lower())
     if _blank_file(p):

@@ -40,7 +40,7 @@ UNIT_GROUPS: dict[str, tuple[str, ...]] = {
 }
 
 
-def unit_factor(unit: str, *, what: str = "--units") -> float:
+def unit_factor(unit: str, *, what: str = "units") -> float:
     """Return the factor that converts a field unit to nT.
 
     Parameters

@@ -69,7 +69,7 @@ def _magdrone_header(p: Path) -> tuple[list[str], int, list[str]]:
     except OSError as exc:
         raise InputError(f"{p}: cannot read ({exc.strerror or exc})") from None
     raise InputError(f"{p}: no 'Timestamp [ms];...' header line in the first 500 lines: not a"
-                     " MagDrone R3 log (give --format if it is another format)")
+                     " MagDrone R3 log (give fmt=FORMAT if it is another format)")
 
 
 #: Largest spread [s] of (GPS UTC - logger clock) over the fixes for the clock to be trusted.

@@ -257,7 +257,7 @@ def read_xyz(path: str | os.PathLike[str], *, allow_truncated: bool = False) -> 
         wrong = wrong[:0]
     if wrong.size:
         i = int(wrong[0])
-        last = " (the last row: the file is cut short? --allow-truncated drops it)" if (
+        last = " (the last row: the file is cut short? allow_truncated=True drops it)" if (
             i == n_rows - 1 and counts[i] < len(names)) else ""
         raise InputError(
             f"{p}: {row_location(rows, i)}: {int(counts[i])} values but {len(names)} channels"
