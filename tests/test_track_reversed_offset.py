@@ -199,9 +199,9 @@ def test_estimate_plan_offset_ignores_a_transit_along_an_unconstrained_direction
     o = tuple(float(plan[c].iloc[0]) for c in ("lat", "lon", "alt"))
     ned = geodetic_to_ned(log["lat"], log["lon"], log["alt"], o)
     wps = geodetic_to_ned(plan["lat"], plan["lon"], plan["alt"], o)
-    off, n = estimate_plan_offset(ned, motion_velocity(log["time"].to_numpy(), ned), wps,
+    off, n, n_legs = estimate_plan_offset(ned, motion_velocity(log["time"].to_numpy(), ned), wps,
                                   LegModel())
-    assert n > 1000
+    assert n > 1000 and n_legs == 9   # the lines and the ferries along the cross legs
     assert off == pytest.approx([0.0, 7.0], abs=0.2)
 
 
@@ -248,3 +248,44 @@ def test_cli_track_on_a_reversed_offset_flight(tmp_path):
     assert rep["plan_check"]["assignment"]["direction"] == "reversed"
     assert rep["n_on_leg"] > 0.95 * int((truth >= 0).sum())
     assert "10.0 m beside" in r.output
+
+
+def test_a_datum_difference_is_found_on_a_reversed_flight_beside_its_plan():
+    # heights above mean sea level (geoid 23 m) against an ellipsoidal plan, flight reversed
+    # and 10 m beside: the datum is removed and the lines are checked
+    log, plan, truth, phase = flight(reverse_order=True, reverse_direction=True, offset_m=10.0,
+                                     seed=6)
+    res = check_track(log.assign(alt=log["alt"] - 23.0), plan)
+    assert res.report["altitude_offset"]["applied_m"] == pytest.approx(-23.0, abs=0.2)
+    _check(res, truth, phase, 10.0)
+
+
+def test_a_stationary_log_says_nothing_was_checked():
+    # before: "0/1 legs flagged" and a warning to check the plan, as if the flight were clean
+    n = 40
+    log = pd.DataFrame({"time": np.arange(n) * 0.005, "lat": np.full(n, 56.8624),
+                        "lon": np.full(n, 24.11321), "alt": np.full(n, 30.0)})
+    plan = pd.DataFrame({"lat": [56.8624, 56.86285], "lon": [24.11321] * 2, "alt": [30.0] * 2})
+    res = check_track(log, plan)
+    assert res.report["n_legs_checked"] == 0 and res.report["flagged_legs"] == []
+    assert res.legs[0]["checked"] is False
+    assert any("nothing was checked" in w and "stationary or too short" in w
+               for w in res.report["warnings"])
+
+
+def test_checked_legs_are_counted(mission):
+    df, plan, _ = mission
+    res = check_track(df, plan)
+    assert res.report["n_legs_checked"] == len(plan) - 1
+    assert all(row["checked"] for row in res.legs)
+    assert not any("nothing was checked" in w for w in res.report["warnings"])
+
+
+def test_cli_a_log_with_a_height_above_mean_sea_level_only_is_told_how(tmp_path):
+    log, plan, _, _ = flight(reverse_order=False, reverse_direction=False, seed=7)
+    log.rename(columns={"alt": "alt_msl"}).to_csv(tmp_path / "log.csv", index=False)
+    plan.to_csv(tmp_path / "plan.csv", index=False)
+    r = CliRunner().invoke(app, ["track", str(tmp_path / "log.csv"), "--plan",
+                                 str(tmp_path / "plan.csv"), "-o", str(tmp_path / "o.csv")])
+    assert r.exit_code != 0
+    assert "alt_msl, above mean sea level" in r.output and "--col alt=alt_msl" in r.output

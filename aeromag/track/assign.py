@@ -10,6 +10,14 @@ asks three more questions, answered here in :func:`assign_track_legs`:
   is leg ``K - 1 - j`` of the plan).  A leg flown backwards is on its line: it is checked.  The
   transits stay off plan as they do for a mission flown as planned (the mission order, motion
   and progress terms of the HMM apply to the reversed plan).
+* **Is the flight beside its plan?**  A flight a constant few metres beside its plan must be
+  checked and flagged, not lost, and distance cannot tell its direction (a lawn-mower flown
+  backwards 5 m east of its plan is also the plan flown 15 m west, line by line against the
+  neighbouring line).  Each direction is decoded about its own offset, found by motion
+  (:func:`estimate_plan_offset`) and taken when above :data:`OFFSET_DECODE_MIN_M` and the
+  moved legs explain the samples better; the direction that needed the smaller offset is the
+  default and the other must explain :data:`REVERSED_RATIO` times more samples (equal
+  offsets: the larger count).  The labels are then checked against the plan as given.
 * **How good is the position?**  Plain GNSS wanders by metres with correlation times of minutes
   (a random walk or Gauss-Markov error); with the default 10 m tolerance whole stretches of a
   leg then fall off it, unchecked.  The robust scatter of the assigned samples about their
@@ -67,6 +75,9 @@ OFFSET_MIN_SAMPLES = 50
 #: estimated (legs within about 13 degrees of each other constrain only across them).
 OFFSET_MIN_CONSTRAINT = 0.05
 
+#: Share of the plan's legs (and at least 2) flown at the offset for it to be taken.
+OFFSET_MIN_LEG_FRACTION = 1.0 / 3.0
+
 #: A plan offset larger than this is decoded about the moved lines, m (below it the distance
 #: term and the gate centred on the offset keep the legs).
 OFFSET_DECODE_MIN_M = 2.0
@@ -76,7 +87,7 @@ OFFSET_DECODE_MIN_M = 2.0
 OFFSET_SUPPORT_GAIN = 1.1
 
 #: Samples used for the offset (a longer log is thinned evenly).
-OFFSET_MAX_SAMPLES = 40000
+OFFSET_MAX_SAMPLES = 10000
 
 #: Smallest on-line gate, m: an autopilot holds its line to well within this on RTK.
 ON_LINE_GATE_M = 2.0
@@ -197,7 +208,7 @@ def drop_transit_runs(labels: np.ndarray, ned: np.ndarray, time_s: np.ndarray,
 
 
 def estimate_plan_offset(ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray,
-                         model: LegModel) -> tuple[np.ndarray, int]:
+                         model: LegModel) -> tuple[np.ndarray, int, int]:
     """Constant horizontal offset of the flight from a plan, found by motion, not distance.
 
     Each sample is matched to the leg it flies along (speed and direction along the leg,
@@ -228,16 +239,19 @@ def estimate_plan_offset(ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray
         :data:`OFFSET_MIN_SAMPLES` samples qualify).
     n : int
         Samples used.
+    n_legs : int
+        Legs with at least ``OFFSET_MIN_SAMPLES // 5`` samples flown at that offset (within
+        ``max(OFFSET_DECODE_MIN_M, 0.25 |offset|)`` of it).
     """
     wide = dataclasses.replace(model, tolerance_m=OFFSET_SEARCH_FACTOR * model.tolerance_m,
                                horizontal_only=True)
     ev = leg_evidence(ned, vel, waypoints, wide, horizontal_only=True)
     if ev.shape[1] == 0:
-        return np.zeros(2), 0
+        return np.zeros(2), 0, 0
     k = np.argmax(ev, axis=1)
     idx = np.flatnonzero(ev[np.arange(len(ev)), k] > 0.5 * model.bonus)
     if idx.size < OFFSET_MIN_SAMPLES:
-        return np.zeros(2), int(idx.size)
+        return np.zeros(2), int(idx.size), 0
     h = np.empty(idx.size)
     nrm = np.empty((idx.size, 2))
     for leg in np.unique(k[idx]):
@@ -260,7 +274,11 @@ def estimate_plan_offset(ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray
             break
         w = 1.0 / np.maximum(np.abs(q @ c - h), 0.05)
     off = basis @ c
-    return off, int(idx.size)
+    # the legs flown at that offset (a pattern that meets one or two legs by chance, e.g. a
+    # calibration flight over a survey plan, is no plan offset)
+    inl = np.abs(nrm @ off - h) < max(OFFSET_DECODE_MIN_M, 0.25 * float(np.hypot(*off)))
+    _, counts = np.unique(k[idx][inl], return_counts=True)
+    return off, int(idx.size), int((counts >= OFFSET_MIN_SAMPLES // 5).sum())
 
 
 def _shifted(wps: np.ndarray, off_ne: np.ndarray) -> np.ndarray:
@@ -287,12 +305,15 @@ def _offsets(ned: np.ndarray, vel: np.ndarray, wps: np.ndarray, model: LegModel
     p, v = ned[::step], vel[::step]
     out = []
     for w in (wps, wps[::-1].copy()):
-        off, _ = estimate_plan_offset(p, v, w, model)
+        off, _, n_legs = estimate_plan_offset(p, v, w, model)
         best, score = np.zeros(2), OFFSET_SUPPORT_GAIN * _support(p, v, w, model)
-        if float(np.hypot(*off)) > OFFSET_DECODE_MIN_M:
+        enough = n_legs >= max(2, OFFSET_MIN_LEG_FRACTION * (len(w) - 1))
+        if enough and float(np.hypot(*off)) > OFFSET_DECODE_MIN_M:
             # the offset, and its parts along north and east alone (a part pulled by a
             # transit along a direction few legs constrain explains nothing)
-            for cand in (off, np.array([off[0], 0.0]), np.array([0.0, off[1]])):
+            cands = [off] + [c for c in (np.array([off[0], 0.0]), np.array([0.0, off[1]]))
+                             if float(np.hypot(*(c - off))) > 0.5]
+            for cand in cands:
                 if float(np.hypot(*cand)) > OFFSET_DECODE_MIN_M:
                     sc = _support(p, v, _shifted(w, cand), model)
                     if sc > score:

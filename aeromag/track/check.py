@@ -184,9 +184,17 @@ def check_track(
     need = ("time",) if position is not None else ("time", "lat", "lon", "alt")
     missing = [c for c in need if c not in log_df.columns]
     if missing:
+        hint = ""
+        if "alt" in missing and "alt_msl" in log_df.columns:
+            # the reader names a height above mean sea level alt_msl, never alt (ellipsoidal)
+            hint = ("; the log's height is alt_msl, above mean sea level, not the ellipsoid:"
+                    " map it with --col alt=alt_msl (a constant datum difference over 3 m is"
+                    " detected on the legs and removed, see altitude_offset in OUT.json), or"
+                    " check horizontally with --horizontal")
         raise InputError(
             f"{src}: missing column(s) {', '.join(missing)}; the track check needs time, lat, lon"
-            " and alt (DGPS position); map them with --col NAME=SOURCE"
+            f" and alt (DGPS position); columns are: {', '.join(map(str, log_df.columns[:30]))};"
+            f" map them with --col NAME=SOURCE{hint}"
         )
     plan_src = str(plan.attrs.get("source", "<plan>"))
     plan = validate_plan(plan, plan_src)
@@ -304,6 +312,7 @@ def check_track(
     data["alarm"] = combine_alarms(list(dets.values()), pass_id, combine)
 
     legs = leg_summary(data, n_legs, threshold_m, dets, pass_id)
+    warnings += _unchecked_warning(ned, t, labels, src)
     for msg in warnings:
         log.warning("%s", msg)
     report = {
@@ -328,11 +337,38 @@ def check_track(
                       for name, a in dets.items()],
         "n_samples": n,
         "n_on_leg": int((labels >= 0).sum()),
+        "n_legs_checked": sum(1 for row in legs if row["checked"]),
         "plan_check": plan_check,
         "warnings": warnings,
     }
-    log.info("%s: %d/%d legs flagged", src, report["n_flagged"], n_legs)
+    log.info("%s: %d/%d legs flagged (%d checked)", src, report["n_flagged"], n_legs,
+             report["n_legs_checked"])
     return TrackResult(data=data, legs=legs, report=report, plan=plan)
+
+
+#: A log whose positions span less than this (horizontally, m) or this long (s) is not a flight.
+STATIONARY_SPAN_M = 2.0
+STATIONARY_SPAN_S = 1.0
+
+
+def _unchecked_warning(ned: np.ndarray, t: np.ndarray, labels: np.ndarray, src: str
+                       ) -> list[str]:
+    """Say plainly that nothing was checked when no row is on a leg.
+
+    Says why when the log is not a flight (a stationary or very short log).
+    """
+    if (labels >= 0).any():
+        return []
+    fin = np.isfinite(ned).all(axis=1)
+    p = ned[fin, :2]
+    span_m = float(np.linalg.norm(p.max(axis=0) - p.min(axis=0))) if p.size else 0.0
+    span_s = float(t[fin].max() - t[fin].min()) if fin.any() else 0.0
+    why = ""
+    if span_m < STATIONARY_SPAN_M or span_s < STATIONARY_SPAN_S:
+        why = (f": its {int(fin.sum())} positioned row(s) span {span_s:.3g} s and"
+               f" {span_m:.3g} m, which is no flight along a leg (a stationary or too short log)")
+    return [f"{src}: no row is on a leg of the plan, so nothing was checked{why}; no leg"
+            " flagged means no check here, not a clean flight"]
 
 
 def _offset_warning(assign_info: dict[str, Any], plan_check: dict[str, Any], plan_src: str

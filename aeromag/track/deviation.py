@@ -101,7 +101,8 @@ def _summary(t: np.ndarray, dt: np.ndarray, m: np.ndarray, cols: dict[str, np.nd
              det: dict[str, np.ndarray | None], threshold_m: float) -> dict[str, Any]:
     """Summary of the samples ``m`` (a leg or one pass over it)."""
     x, h, v, al = cols["x"], cols["h"], cols["v"], cols["alarm"]
-    row: dict[str, Any] = {"n_samples": int(m.sum())}
+    # a leg without samples was not checked: "flagged": false then means nothing
+    row: dict[str, Any] = {"n_samples": int(m.sum()), "checked": bool(m.any())}
     if not m.any():
         row.update(t_start=None, t_end=None, max_xtrack_m=None, max_abs_xtrack_h_m=None,
                    max_abs_xtrack_v_m=None, first_alarm_time=None)

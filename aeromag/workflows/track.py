@@ -90,8 +90,9 @@ def track_file(
     check_outputs(log_path, out, out_json)  # not OUT.json, never over the log or the plan
     check_outputs(plan_path, out, out_json, kind="plan")
     plan = read_plan(plan_path)
-    df = read_log(log_path, columns=columns, units=units,
-                  required=("time", "lat", "lon", "alt"), fmt=fmt)
+    # alt is checked by check_track, which knows what a log without it holds (alt_msl)
+    df = read_log(log_path, columns=columns, units=units, required=("time", "lat", "lon"),
+                  fmt=fmt)
     detectors = [make(df) for make in extra_detectors]
     nav = None
     if navigated:
