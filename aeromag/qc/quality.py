@@ -38,6 +38,7 @@ from .labels import kept_mask, segment_labels
 from .maneuvers import CARDINALS, ManeuverResult, detect_maneuvers
 from .noise import fourth_difference_noise, grouped_std
 from .residuals import PieceResiduals, piece_residuals
+from .total_field import fluxgate_is_total_field, prepared_total_field
 
 __all__ = ["QCResult", "compute_qc", "headline_metrics", "quality_metrics"]
 
@@ -248,11 +249,12 @@ def _compute(
     t = data["time"].to_numpy(dtype=np.float64)
     if "mag_comp" not in data.columns:
         raise InputError("the log has no 'mag_comp' column; run `aeromag compensate` first")
-    if "mag" in data.columns:
-        mag = data["mag"].to_numpy(dtype=np.float64)
+    if fluxgate_is_total_field(data, report):
+        # The compensation's total field (OUT.json mag_from_fluxgate): not the log's 'mag',
+        # which the compensation did not use.
+        mag = prepared_total_field(data, report, cfg)
     else:
-        mag = np.linalg.norm(data[["flux_x", "flux_y", "flux_z"]].to_numpy(dtype=np.float64),
-                             axis=1)
+        mag = data["mag"].to_numpy(dtype=np.float64)
     comp = data["mag_comp"].to_numpy(dtype=np.float64)
     band = cfg.band_hz
     seg = segment_labels(data)
