@@ -32,10 +32,11 @@ noisy (non-RTK) position, and runs not flown on their line (ferries between legs
 A constant vertical offset (a different altitude datum) is detected, reported and removed
 (:mod:`aeromag.track.diagnose`); ``horizontal=True`` uses the horizontal distance only.
 
-Per-leg summary: ``leg``, ``n_samples``, ``t_start``/``t_end`` [s], ``max_xtrack_m``,
-``max_abs_xtrack_h_m``, ``max_abs_xtrack_v_m``, ``first_alarm_time`` (combined verdict; null
-when none), ``first_track_alarm_time``, ``first_heading_alarm_time``, ``time_above_threshold_s``,
-``flagged``, ``first_detector`` (``"track"``, ``"heading"``, ``"both"`` or null), ``n_passes``
+Per-leg summary: ``leg``, ``n_samples``, ``checked`` (any sample), ``t_start``/``t_end`` [s],
+``max_xtrack_m``, ``max_abs_xtrack_h_m``, ``max_abs_xtrack_v_m``, ``first_alarm_time`` (combined
+verdict; null when none), ``first_track_alarm_time``, ``first_heading_alarm_time``,
+``time_above_threshold_s``, ``flagged``, ``first_detector`` (``"track"``, ``"heading"``,
+``"both"`` or null), ``n_passes``
 and ``passes`` (the same keys per pass, with its own start and end).
 """
 
