@@ -289,3 +289,15 @@ def test_cli_a_log_with_a_height_above_mean_sea_level_only_is_told_how(tmp_path)
                                  str(tmp_path / "plan.csv"), "-o", str(tmp_path / "o.csv")])
     assert r.exit_code != 0
     assert "alt_msl, above mean sea level" in r.output and "--col alt=alt_msl" in r.output
+
+
+def test_the_map_of_an_unchecked_log_says_no_leg_was_checked():
+    pytest.importorskip("matplotlib")
+    from aeromag.plot.track import plot_track_map
+
+    n = 40
+    log = pd.DataFrame({"time": np.arange(n) * 0.005, "lat": np.full(n, 56.8624),
+                        "lon": np.full(n, 24.11321), "alt": np.full(n, 30.0)})
+    plan = pd.DataFrame({"lat": [56.8624, 56.86285], "lon": [24.11321] * 2, "alt": [30.0] * 2})
+    fig = plot_track_map(check_track(log, plan))
+    assert "no leg checked" in fig.axes[0].get_title()

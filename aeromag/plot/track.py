@@ -89,7 +89,11 @@ def plot_track_map(result: TrackResult, plan: pd.DataFrame | None = None, *,
     ax.set_aspect("equal", adjustable="datalim")
     ax.legend(loc="best", fontsize=8)
     flagged = result.report.get("flagged_legs", [])
-    ax.set_title(f"Planned vs flown track: legs flagged {flagged if flagged else 'none'}")
+    checked = result.report.get("n_legs_checked")
+    if checked == 0:   # no row on a leg: "none flagged" would read as a clean flight
+        ax.set_title("Planned vs flown track: no leg checked (no sample on any leg)")
+    else:
+        ax.set_title(f"Planned vs flown track: legs flagged {flagged if flagged else 'none'}")
     return _finish(fig, path)
 
 
