@@ -119,7 +119,7 @@ def _self_calibration(df: pd.DataFrame, cfg: CompensationConfig | None,
         log.warning("%s: fitted on itself without a calibration box (%s): the heading-dependent"
                     " level of mag_tl is not determined, and the improvement ratio is in-sample"
                     " and flattering; fly a box, run 'aeromag calibrate' on it and apply it with"
-                    " --model", source, why)
+                    " model=MODEL", source, why)
     return out
 
 
@@ -186,7 +186,7 @@ def _segments_from_maneuvers(df: pd.DataFrame, cfg: CompensationConfig | None,
     else:
         log.warning("%s: the log has no 'line' column and %s: fitting %g-s time windows, which"
                     " cut across maneuvers (a faulty maneuver then spoils clean ones); give the"
-                    " flight's lines with --col line=SOURCE", src, why, seconds)
+                    " flight's lines with columns={'line': 'SOURCE'}", src, why, seconds)
         return df, {"method": "time windows", "segment_seconds": seconds, "reason": why}
     line[line < 0] = np.nan
     n = int(np.unique(line[np.isfinite(line)]).size)
