@@ -60,6 +60,13 @@ CARDINALS: tuple[str, ...] = ("N", "E", "S", "W")
 #: pitch = body y, roll = body x, yaw = body z).
 MANEUVERS: tuple[str, ...] = ("pitch", "roll", "yaw")
 _AXIS_OF = {"pitch": 1, "roll": 0, "yaw": 2}
+#: dtypes of the per-sample labels (:attr:`ManeuverResult.labels`): -1 to 3 for the cardinal,
+#: run and visit numbers far below 2**31 (a 2e6-row log has ~2,700 legs): 28 bytes a row
+#: fewer than int64 (66 -> 28 MB at 2e6 rows).
+LABEL_DTYPES: dict[str, Any] = {"heading_leg": np.int8, "leg_id": np.int32, "box": np.int32,
+                                "maneuver_id": np.int32}
+#: Samples per chunk of the block means' passes over the full-rate log.
+_CHUNK = 1 << 18
 
 
 @dataclass
@@ -69,9 +76,10 @@ class ManeuverResult:
     Attributes
     ----------
     labels : DataFrame
-        One row per input sample (same index): ``heading_leg`` (0-3, -1 outside legs),
-        ``leg_id`` (run number, -1), ``box`` (visit number of that heading, -1),
-        ``maneuver`` ("pitch"/"roll"/"yaw" or ""), ``maneuver_id`` (row of ``table``, -1).
+        One row per input sample (same index): ``heading_leg`` (0-3, -1 outside legs;
+        int8), ``leg_id`` (run number, -1; int32), ``box`` (visit number of that heading, -1;
+        int32), ``maneuver`` ("pitch"/"roll"/"yaw" or ""; categorical), ``maneuver_id`` (row
+        of ``table``, -1; int32) (:data:`LABEL_DTYPES`).
     table : DataFrame
         One row per manoeuvre: ``id``, ``box``, ``heading_leg``, ``heading`` (N/E/S/W),
         ``maneuver``, ``t_start``/``t_end`` [s], ``duration_s`` [s], ``n`` (samples),
@@ -377,13 +385,37 @@ def detect_maneuvers(
     fs = sampling_rate(t) if fs_hz is None else fs_hz
     step = int(fs // rate_hz) if rate_hz else 1
     if step < 2 or maneuver_column is not None or leg_column is not None:
-        res = _detect_full(df, max_gap_s=max_gap_s, **kw)
+        res = _narrow(_detect_full(df, max_gap_s=max_gap_s, **kw))
     else:
         small, cnt = _block_means(df, t, step, 5.0 / fs if max_gap_s is None else max_gap_s)
-        res = (_detect_full(df, max_gap_s=max_gap_s, **kw) if len(small) < 10 else
+        res = (_narrow(_detect_full(df, max_gap_s=max_gap_s, **kw)) if len(small) < 10 else
                _expand(_detect_full(small, max_gap_s=None, **kw), df, t, fs, cnt))
+        del small
     # a manoeuvre never spans two lines (its tail would sample a neighbour, maybe a fault)
     return clip_to_lines(res, df["line"], t, fs) if "line" in df.columns else res
+
+
+def _narrow(res: ManeuverResult) -> ManeuverResult:
+    """``res`` with its labels in :data:`LABEL_DTYPES` (as :func:`_expand` builds them)."""
+    res.labels = res.labels.astype(LABEL_DTYPES)
+    return res
+
+
+def _gap_runs(t: np.ndarray, max_gap_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """``run_bounds(find_stretches(t, None, max_gap_s))[:2]`` a chunk of steps at a time.
+
+    The same runs (a new one after every step not ``<= max_gap_s``, NaN steps included)
+    without the full-length step and label arrays (36 MB peak at 2e6 rows).
+    """
+    n = len(t)
+    if n == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    brk = [np.zeros(1, dtype=np.int64)]
+    for s in range(0, max(n - 1, 0), _CHUNK):
+        dt = np.diff(t[s: s + _CHUNK + 1])
+        brk.append(np.flatnonzero(~(dt <= max_gap_s)) + (s + 1))
+    s0 = np.concatenate(brk)
+    return s0, np.r_[s0[1:], n].astype(np.int64)
 
 
 def _block_means(df: pd.DataFrame, t: np.ndarray, step: int, max_gap_s: float
@@ -395,37 +427,61 @@ def _block_means(df: pd.DataFrame, t: np.ndarray, step: int, max_gap_s: float
     means about the block's first heading) and the number of samples in each block.
     """
     n = len(t)
-    s0, s1, _ = run_bounds(find_stretches(t, None, max_gap_s))
+    s0, s1 = _gap_runs(t, max_gap_s)
     nb = -(-(s1 - s0) // step)
     sid = np.repeat(np.arange(len(s0)), nb)
     off = np.cumsum(nb) - nb
     first = s0[sid] + step * (np.arange(int(nb.sum())) - off[sid])
     cnt = np.diff(np.r_[first, n])
 
-    def mean(x: np.ndarray) -> np.ndarray:
-        # Summed in float64 from the column's own dtype (no float64 copy of a float32 column).
-        tot = np.add.reduceat(x, first, dtype=np.float64)
-        if np.isfinite(tot).all():  # then every sample is finite (NaN and inf propagate)
-            return tot / cnt
-        fin = np.isfinite(x)
-        k = np.add.reduceat(fin, first, dtype=np.float64)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return np.where(k > 0, np.add.reduceat(np.where(fin, x, 0), first,
-                                                   dtype=np.float64) / k, np.nan)
+    nb_all = len(first)
+    ends = np.r_[first[1:], n]
+    # Blocks of blocks (about _CHUNK samples each): the heading's and the time's full-length
+    # float64 temporaries (five of 16 MB at 2e6 rows: 132 MB peak) are made a chunk at a time.
+    # Each block's sum is one reduceat segment whatever the chunk, so the means are the same.
+    k_bounds = np.r_[0:nb_all:max(1, _CHUNK // max(step, 1)), nb_all]
 
-    out = {"time": mean(t - t[0]) + t[0] + 1e6 * sid}
+    def mean(get: Any) -> np.ndarray:
+        """Block means of ``get(s, e)`` (samples ``[s, e)``, any float dtype) in float64."""
+        res = np.empty(nb_all)
+        for k0, k1 in zip(k_bounds[:-1], k_bounds[1:], strict=True):
+            s, e = int(first[k0]), int(ends[k1 - 1])
+            x = get(s, e)
+            idx = first[k0:k1] - s
+            # Summed in float64 from the column's own dtype (no float64 copy of float32).
+            tot = np.add.reduceat(x, idx, dtype=np.float64)
+            c = cnt[k0:k1]
+            if np.isfinite(tot).all():  # then every sample is finite (NaN and inf propagate)
+                res[k0:k1] = tot / c
+                continue
+            fin = np.isfinite(x)
+            k = np.add.reduceat(fin, idx, dtype=np.float64)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                res[k0:k1] = np.where(k > 0, np.add.reduceat(np.where(fin, x, 0), idx,
+                                                             dtype=np.float64) / k, np.nan)
+        return res
+
+    out = {"time": mean(lambda s, e: t[s:e] - t[0]) + t[0] + 1e6 * sid}
     for c in ("pitch", "roll", "flux_x", "flux_y", "flux_z"):
         if c in df.columns:
             x = df[c].to_numpy()
-            out[c] = mean(x if x.dtype.kind == "f" else x.astype(np.float64))
+            xf = x if x.dtype.kind == "f" else x.astype(np.float64)
+            out[c] = mean(lambda s, e, xf=xf: xf[s:e])
     if "heading" in df.columns:
-        h = df["heading"].to_numpy(dtype=np.float64)
-        h0 = np.repeat(h[first], cnt)
-        ref = np.where(np.isfinite(h0), h0, 0.0)
-        d = h - ref
-        d -= 360.0 * np.rint(d / 360.0)  # about the block's first heading, in [-180, 180]
-        out["heading"] = (mean(d) + ref[first]) % 360.0
-    small = pd.DataFrame(out)
+        hcol = df["heading"].to_numpy()
+        h_first = hcol[first].astype(np.float64)
+        ref_first = np.where(np.isfinite(h_first), h_first, 0.0)
+
+        def about_first(s: int, e: int) -> np.ndarray:
+            k0 = int(np.searchsorted(first, s))
+            k1 = int(np.searchsorted(first, e))
+            d = hcol[s:e].astype(np.float64)
+            d -= np.repeat(ref_first[k0:k1], cnt[k0:k1])
+            d -= 360.0 * np.rint(d / 360.0)  # about the block's first heading, [-180, 180]
+            return d
+
+        out["heading"] = (mean(about_first) + ref_first) % 360.0
+    small = pd.DataFrame(out, copy=False)  # no consolidated copy of the columns
     small.attrs = dict(df.attrs)
     return small, cnt
 
@@ -434,13 +490,17 @@ def _expand(res: ManeuverResult, df: pd.DataFrame, t: np.ndarray, fs: float,
             cnt: np.ndarray) -> ManeuverResult:
     """Labels and tables of a block-rate detection on every sample of the log."""
     lab = res.labels
-    cols: dict[str, Any] = {c: np.repeat(lab[c].to_numpy(), cnt)
+    # Each label repeated once, straight into its own narrow dtype (LABEL_DTYPES), and handed
+    # to the frame without the copy into one consolidated int64 block: the four int64 columns
+    # and their copy peaked at +140 MB at 2e6 rows, the labels now hold 28 MB.
+    cols: dict[str, Any] = {c: np.repeat(lab[c].to_numpy().astype(LABEL_DTYPES[c]), cnt)
                             for c in ("heading_leg", "leg_id", "box")}
     cols["maneuver"] = pd.Categorical.from_codes(
         np.repeat(np.asarray(lab["maneuver"].cat.codes), cnt),
         categories=lab["maneuver"].cat.categories)
-    cols["maneuver_id"] = np.repeat(lab["maneuver_id"].to_numpy(), cnt)
-    labels = pd.DataFrame(cols, index=df.index)  # one construction, not three block copies
+    cols["maneuver_id"] = np.repeat(
+        lab["maneuver_id"].to_numpy().astype(LABEL_DTYPES["maneuver_id"]), cnt)
+    labels = pd.DataFrame(cols, index=df.index, copy=False)
     first = np.r_[0, np.cumsum(cnt)]  # block k spans samples first[k]:first[k + 1]
     legs = res.legs.copy()
     table = res.table.copy()
