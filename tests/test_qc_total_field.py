@@ -72,3 +72,22 @@ def test_prepared_total_field_follows_the_report():
     np.testing.assert_array_equal(prepared_total_field(d, {"mag_from_fluxgate": True}, cfg),
                                   np.full(5, 5.0))
     np.testing.assert_array_equal(prepared_total_field(d, {}, cfg), [1.0, 2.0, 3.0, 4.0, 5.0])
+
+
+def test_qc_fom_is_of_the_fluxgate_magnitude(fluxgate_result):
+    from aeromag.qc.fom import fom_table
+
+    res = fluxgate_result
+    data, cfg = res.data, res.config
+    qc = compute_qc(res, fit=False, fom=True)
+    assert qc.fom is not None and len(qc.fom)
+    flux = data[["flux_x", "flux_y", "flux_z"]].to_numpy(dtype=np.float64)
+    bt = np.sqrt(np.einsum("ij,ij->i", flux, flux))
+    kw = dict(band_hz=cfg.band_hz, order=cfg.order, max_gap_s=cfg.max_gap_s)
+    want = fom_table(data, qc.maneuvers, total_field=bt, **kw)
+    for c in ("ptp_before_nT", "ptp_after_nT"):
+        np.testing.assert_allclose(qc.fom[c].to_numpy(), want[c].to_numpy(), rtol=1e-9)
+    assert qc.fom.attrs["fields"]["before"] == "|flux|"
+    on_mag = fom_table(data, qc.maneuvers, **kw)  # what the QC measured before
+    assert not np.allclose(on_mag["ptp_after_nT"].to_numpy(), want["ptp_after_nT"].to_numpy(),
+                           rtol=1e-3)

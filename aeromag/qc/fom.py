@@ -9,6 +9,7 @@ See ``docs/qc.md``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -35,6 +36,8 @@ def fom_table(
     truth: str | None = "truth_mag_tl",
     max_gap_s: float | None = None,
     fs_hz: float | None = None,
+    total_field: np.ndarray | None = None,
+    total_field_name: str = "|flux|",
     **detect_kw: Any,
 ) -> pd.DataFrame:
     """Peak-to-peak amplitude of the band-passed field in every manoeuvre, before and after.
@@ -63,6 +66,12 @@ def fom_table(
         Longest time step inside a stretch [s].
     fs_hz : float, optional
         Sampling rate [Hz] when the caller knows it (default: from ``time``).
+    total_field : ndarray, shape (n,), optional
+        The uncompensated field per row [nT] instead of the ``before`` column: the total
+        field the compensation used (e.g. the fluxgate magnitude,
+        :func:`aeromag.qc.total_field.prepared_total_field`).
+    total_field_name : str
+        Its name in ``attrs["fields"]``.
 
     Returns
     -------
@@ -78,27 +87,35 @@ def fom_table(
         maneuvers = detect_maneuvers(data, max_gap_s=max_gap_s, **detect_kw)
     t = data["time"].to_numpy(dtype=np.float64)
     fs = sampling_rate(t) if fs_hz is None else fs_hz  # once for the two or three fields
-    if before in data.columns:
+    if total_field is not None:
+        b = np.asarray(total_field, dtype=np.float64)
+        if b.shape != t.shape:
+            raise InputError(f"total_field has {b.size} values for {len(t)} rows")
+    elif before in data.columns:
         b = data[before].to_numpy(dtype=np.float64)
     elif {"flux_x", "flux_y", "flux_z"} <= set(data.columns):
         b = np.linalg.norm(data[["flux_x", "flux_y", "flux_z"]].to_numpy(dtype=np.float64),
                            axis=1)
     else:
         raise InputError(f"FOM needs a {before!r} column (or the fluxgate)")
-    b_name = before if before in data.columns else "|flux|"
+    b_name = (total_field_name if total_field is not None
+              else before if before in data.columns else "|flux|")
+    # Each field made when it is filtered and let go after (a full-length array each).
+    cols: dict[str, Callable[[], np.ndarray]] = {"before": lambda: b_field}
+    b_field = b
     if after is None and "mag_tl" in data.columns:
-        after_x = b - data["mag_tl"].to_numpy(dtype=np.float64)
+        cols["after"] = lambda: b_field - data["mag_tl"].to_numpy(dtype=np.float64)
         a_name = f"{b_name} - mag_tl"
     else:
         a_name = "mag_comp" if after is None else after
         if a_name not in data.columns:
             raise InputError(f"FOM needs a {a_name!r} column; run 'aeromag compensate' first")
-        after_x = data[a_name].to_numpy(dtype=np.float64)
-    cols = {"before": b, "after": after_x}
+        cols["after"] = lambda: data[a_name].to_numpy(dtype=np.float64)
     fields = {"before": b_name, "after": a_name}
     if truth and truth in data.columns:
-        cols["truth"] = data[truth].to_numpy(dtype=np.float64)
+        cols["truth"] = lambda: data[truth].to_numpy(dtype=np.float64)
         fields["truth"] = truth
+    del b
     mid = maneuvers.labels["maneuver_id"].to_numpy()
     tab = maneuvers.table[["id", "box", "heading_leg", "heading", "maneuver", "t_start",
                            "t_end"]].copy()
@@ -107,20 +124,25 @@ def fom_table(
     found = (pos < len(ids)) & (ids[np.minimum(pos, max(len(ids) - 1, 0))] ==
                                 tab["id"].to_numpy()) if len(ids) else np.zeros(len(tab), bool)
     ab = np.column_stack([a, b]).ravel()  # [a, b) of each run: reduceat, even entries
+    ab_in = ab[:-1] if len(ab) and ab[-1] == len(t) else ab
     keep = kept_mask(data)
     seg = segment_labels(data)
-    dropped = np.where((seg >= 0) & ~keep, seg, -1)  # each dropped segment filtered alone
-    for name, x in cols.items():
-        xf = band_passed(x, t, band_hz, order, max_gap_s, split=dropped, fs_hz=fs)
+    # each dropped segment filtered alone (int32 labels: band_passed only looks for changes)
+    dropped = seg.astype(np.int32)
+    dropped[(seg < 0) | keep] = -1
+    for name, make in cols.items():
+        xf = band_passed(make(), t, band_hz, order, max_gap_s, split=dropped, fs_hz=fs)
         ptp = np.full(len(tab), np.nan)
         if len(ids):
-            # [a, b) of each run only (reduceat over a alone ran on to the next start)
-            xe = np.r_[xf, np.nan]
+            # [a, b) of each run only (reduceat over a alone ran on to the next start); a
+            # last run ending at the log's end needs no stop index (reduceat runs to the end):
+            # no NaN-padded copy of the field (16 MB at 2e6 rows).
             with np.errstate(invalid="ignore"):
-                hi = np.fmax.reduceat(xe, ab)[::2]  # NaN (filter edges) ignored, as pandas
-                lo = np.fmin.reduceat(xe, ab)[::2]
+                hi = np.fmax.reduceat(xf, ab_in)[::2]  # NaN (filter edges) ignored, as pandas
+                lo = np.fmin.reduceat(xf, ab_in)[::2]
             ptp[found] = (hi - lo)[pos[found]]
         tab[f"ptp_{name}_nT"] = ptp
+        del xf
     allk = np.ones(len(tab), dtype=bool)
     if len(ids):
         allk[found] = np.logical_and.reduceat(np.r_[keep, True], ab)[::2][pos[found]]

@@ -249,7 +249,8 @@ def _compute(
     t = data["time"].to_numpy(dtype=np.float64)
     if "mag_comp" not in data.columns:
         raise InputError("the log has no 'mag_comp' column; run `aeromag compensate` first")
-    if fluxgate_is_total_field(data, report):
+    flux_total = fluxgate_is_total_field(data, report)
+    if flux_total:
         # The compensation's total field (OUT.json mag_from_fluxgate): not the log's 'mag',
         # which the compensation did not use.
         mag = prepared_total_field(data, report, cfg)
@@ -295,7 +296,8 @@ def _compute(
     fom_tab = None
     if maneuvers is not None and len(maneuvers.table):
         fom_tab = fom_table(data, maneuvers, band_hz=band, order=cfg.order,
-                            max_gap_s=cfg.max_gap_s, fs_hz=fs)
+                            max_gap_s=cfg.max_gap_s, fs_hz=fs,
+                            total_field=mag if flux_total else None)
     trim_heap()
     kept = kept_mask(data)
     pieces = piece_residuals(t, mag, tl, seg, kept, band, cfg.order, trim_s=cfg.trim_s,
