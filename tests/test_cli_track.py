@@ -174,3 +174,19 @@ def test_cli_reversed_plan_warns(mission, tmp_path):
     # checked along the reversed legs: the disturbed legs 2, 4, 6, 8 are legs 8, 6, 4, 2
     assert "reversed" in r.stderr and "4/11 legs flagged (2, 4, 6, 8)" in r.stdout
     assert "warning(s)" in r.stdout
+
+
+def test_cli_summary_says_how_many_legs_were_checked(tmp_path):
+    # The calibration box against the survey's 19-leg plan: one leg has flown rows.  "0/19 legs
+    # flagged" alone read as a clean survey of 19 legs.
+    from pathlib import Path
+
+    samples = Path(__file__).resolve().parents[1] / "data_samples"
+    out = tmp_path / "t.csv"
+    r = runner.invoke(app, ["track", str(samples / "calibration.csv"), "--plan",
+                            str(samples / "plan.csv"), "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    rep = json.loads(out.with_suffix(".json").read_text())
+    n, checked = rep["n_legs"], rep["n_legs_checked"]
+    assert checked < n
+    assert f"0/{n} legs flagged; only {checked} of {n} legs checked" in r.output

@@ -217,7 +217,7 @@ def test_altitude_relative_to_home_is_found_and_removed(small_mission):
     high = check_track(df.assign(alt=df["alt"] + 2.0), plan)
     assert high.report["altitude_offset"]["applied_m"] == 0.0
     assert high.report["flagged_legs"] == [0, 1, 2]
-    with pytest.raises(InputError, match="--altitude-offset"):
+    with pytest.raises(InputError, match="altitude_offset="):
         check_track(df, plan, altitude_offset="ellipsoid")
 
 

@@ -107,6 +107,10 @@ def track(
             " legs flagged")
     if flagged:
         line += f" ({', '.join(map(str, flagged))})"
+    n_legs, checked = rep.get("n_legs", 0), rep.get("n_legs_checked")
+    if checked is not None and checked < n_legs:  # "0/19 flagged" must not read as 19 clean
+        line += (f"; only {checked} of {n_legs} legs checked (the others have no flown rows"
+                 f" on them: see {json_path_for(output).name}, legs[].checked)")
     if not rep.get("heading_detector", {}).get("available"):
         line += "; heading detector skipped (no heading columns)"
     mismatch = (rep.get("plan_check") or {}).get("mismatch")

@@ -176,11 +176,11 @@ def check_track(
     del waypoint_radius_m
     src = source or str(log_df.attrs.get("source", "<log>"))
     if not np.isfinite(threshold_m) or threshold_m <= 0:
-        raise InputError(f"--threshold {threshold_m!r}: must be a positive number of metres")
+        raise InputError(f"threshold_m={threshold_m!r}: must be a positive number of metres")
     if not np.isfinite(min_duration_s) or min_duration_s < 0:
-        raise InputError(f"--min-duration {min_duration_s!r}: must be >= 0 seconds")
+        raise InputError(f"min_duration_s={min_duration_s!r}: must be >= 0 seconds")
     if str(combine).lower() not in ("or", "and"):
-        raise InputError(f"--combine {combine!r}: use 'or' or 'and'")
+        raise InputError(f"combine={combine!r}: use 'or' or 'and'")
     offset_spec = _offset_spec(altitude_offset)
     need = ("time",) if position is not None else ("time", "lat", "lon", "alt")
     missing = [c for c in need if c not in log_df.columns]
@@ -189,13 +189,13 @@ def check_track(
         if "alt" in missing and "alt_msl" in log_df.columns:
             # the reader names a height above mean sea level alt_msl, never alt (ellipsoidal)
             hint = ("; the log's height is alt_msl, above mean sea level, not the ellipsoid:"
-                    " map it with --col alt=alt_msl (a constant datum difference over 3 m is"
-                    " detected on the legs and removed, see altitude_offset in OUT.json), or"
-                    " check horizontally with --horizontal")
+                    " map it with columns={'alt': 'alt_msl'} (a constant datum difference over"
+                    " 3 m is detected on the legs and removed, see the altitude offset in"
+                    " OUT.json), or check horizontally with horizontal=True")
         raise InputError(
             f"{src}: missing column(s) {', '.join(missing)}; the track check needs time, lat, lon"
             f" and alt (DGPS position); columns are: {', '.join(map(str, log_df.columns[:30]))};"
-            f" map them with --col NAME=SOURCE{hint}"
+            f" map them with columns={{'NAME': 'SOURCE'}}{hint}"
         )
     plan_src = str(plan.attrs.get("source", "<plan>"))
     plan = validate_plan(plan, plan_src)
@@ -398,15 +398,15 @@ def _offset_warning(assign_info: dict[str, Any], plan_check: dict[str, Any], pla
 
 
 def _offset_spec(spec: str | float) -> str | float:
-    """Check an ``--altitude-offset`` value: auto, none or a number of metres."""
+    """Check an ``altitude_offset`` value: auto, none or a number of metres."""
     text = str(spec).strip().lower()
     if text in ("auto", "none"):
         return text
     try:
         val = float(text)
     except ValueError:
-        raise InputError(f"--altitude-offset {spec!r}: use auto, none or metres (the log's"
+        raise InputError(f"altitude_offset={spec!r}: use auto, none or metres (the log's"
                          " height above the plan)") from None
     if not np.isfinite(val):
-        raise InputError(f"--altitude-offset {spec!r}: must be a finite number of metres")
+        raise InputError(f"altitude_offset={spec!r}: must be a finite number of metres")
     return "none" if val == 0 else val

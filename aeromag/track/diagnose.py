@@ -82,7 +82,7 @@ def altitude_offset(ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray, mod
             f"the log's altitude is a constant {abs(est):.1f} m {where} the plan on the legs"
             f" (spread {spread:.2f} m over {n} samples): a different altitude reference (altitude"
             " relative to home, or above mean sea level against an ellipsoidal plan?); removed"
-            " before the check. Give --altitude-offset none to keep it, or --horizontal")
+            " before the check. Give altitude_offset='none' to keep it, or horizontal=True")
     return info["applied_m"], info, warns
 
 
@@ -230,7 +230,7 @@ def plan_warnings(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray, waypoint
                 warns.append(
                     f"{n_hor} sample(s) follow the legs of {plan_name} horizontally but not at"
                     " the planned altitude: check the altitude reference (relative to home,"
-                    " mean sea level or ellipsoid), or use --horizontal")
+                    " mean sea level or ellipsoid), or use horizontal=True")
                 return warns
         info["mismatch"] = "few"
         warns.append(
