@@ -480,3 +480,57 @@ def test_missing_mapped_column_python_and_cli(tmp_path):
     line = _error(runner.invoke(app, ["compensate", str(SAMPLES / "survey.csv"), "--col",
                                       "mag=m1", "-o", str(tmp_path / "o.csv")]))
     assert "fix the map (--col mag=SOURCE)" in line
+
+
+def test_track_messages_name_parameters_and_the_cli_flags(tmp_path):
+    # check_track's value errors and its datum hints: Python names the keyword, the CLI the flag.
+    import pandas as pd
+    from typer.testing import CliRunner
+
+    from aeromag.cli import app
+    from aeromag.errors import InputError
+    from aeromag.track.check import check_track
+
+    log = pd.DataFrame({"time": [0.0, 1.0], "lat": [56.0, 56.0001], "lon": [24.0, 24.0],
+                        "alt": [30.0, 30.0]})
+    plan = pd.DataFrame({"lat": [56.0, 56.001], "lon": [24.0, 24.0], "alt": [30.0, 30.0]})
+    for kw, word in (({"threshold_m": -1.0}, "threshold_m=-1.0"),
+                     ({"min_duration_s": -2.0}, "min_duration_s=-2.0"),
+                     ({"combine": "xor"}, "combine='xor'"),
+                     ({"altitude_offset": "sea"}, "altitude_offset='sea'")):
+        with pytest.raises(InputError) as err:
+            check_track(log, plan, **kw)
+        assert word in str(err.value) and "--" not in str(err.value)
+    p_log, p_plan = tmp_path / "log.csv", tmp_path / "plan.csv"
+    log.to_csv(p_log, index=False)
+    plan.to_csv(p_plan, index=False)
+    for extra, flag in ((["--threshold", "-1"], "--threshold -1"),
+                        (["--combine", "xor"], "--combine xor"),
+                        (["--altitude-offset", "sea"], "--altitude-offset sea")):
+        r = CliRunner().invoke(app, ["track", str(p_log), "--plan", str(p_plan), "-o",
+                                     str(tmp_path / "o.csv"), *extra])
+        assert r.exit_code != 0 and flag in r.output, r.output
+
+
+def test_a_warning_is_listed_once_in_out_json(tmp_path):
+    # A report's own warning (library words) and the same warning logged (spelt with flags on
+    # the command line) were both listed in OUT.json.
+    import json
+
+    import pandas as pd
+    from typer.testing import CliRunner
+
+    from aeromag.cli import app
+    from aeromag.workflows.mission import write_mission_files
+
+    m = write_mission_files(tmp_path / "m", seed=1, small=True)
+    src, plan = pd.read_csv(m["mission"]), pd.read_csv(m["plan"])
+    rel = tmp_path / "rel.csv"
+    src.assign(alt=src["alt"] - plan["alt"][0] + 40.0).to_csv(rel, index=False)
+    out = tmp_path / "o.csv"
+    r = CliRunner().invoke(app, ["track", str(rel), "--plan", str(m["plan"]), "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    warns = json.loads(out.with_suffix(".json").read_text())["warnings"]
+    datum = [w for w in warns if "constant" in w and "altitude" in w]
+    assert len(datum) == 1, warns
+    assert "--altitude-offset none" in datum[0] and "--horizontal" in datum[0]

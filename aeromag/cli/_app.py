@@ -57,11 +57,11 @@ def user_errors() -> Iterator[None]:
     """
     from ..io.messages import clean
     from ..io.outputs import output_set
-    from ._options import config_errors, flag_messages
+    from ._options import config_errors, flag_message, flag_messages
 
     try:
         # all outputs of the command appear together, or none does
-        with output_set(), flag_messages(), config_errors():
+        with output_set(rewrite=flag_message), flag_messages(), config_errors():
             yield
     except AeromagError as exc:
         typer.echo(f"error: {clean(exc)}", err=True)

@@ -334,7 +334,9 @@ _KEYWORD_FLAGS = {"model": "--model", "chunk_rows": "--chunk-rows",
                   "heading_sigma_floor_deg": "--heading-sigma-floor",
                   "n_particles": "--particles", "window": "--window",
                   "threshold": "--threshold", "scheduler": "--scheduler",
-                  "gps": "--gps", "fmt": "--format"}
+                  "gps": "--gps", "fmt": "--format", "threshold_m": "--threshold",
+                  "min_duration_s": "--min-duration", "combine": "--combine",
+                  "altitude_offset": "--altitude-offset", "horizontal": "--horizontal"}
 #: Reading keywords (mappings) and their flags: ``columns={'K': 'V'}`` is ``--col K=V``.
 _DICT_FLAGS = {"columns": "--col", "units": "--units"}
 #: Keywords given as a tuple: ``earth_field=(F, I, D)`` is ``--earth-field F I D``;
@@ -345,7 +347,8 @@ _TUPLE_FLAGS = {"earth_field": "--earth-field", "origin": "--origin",
 _TUPLE_JOIN = {"calm_window": ":", "gps": ":"}
 #: Keywords given as a string: ``date='2024-06-01'`` is ``--date 2024-06-01``.
 _STRING_FLAGS = {"date": "--date", "calm_window": "--calm-window", "gps": "--gps",
-                 "scheduler": "--scheduler"}
+                 "scheduler": "--scheduler", "combine": "--combine",
+                 "altitude_offset": "--altitude-offset"}
 
 
 def _tuple_flag(name: str, values: str) -> str:

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from .outputs import atomic_path, recorded_warnings
+from .outputs import atomic_path, report_warnings
 
 
 def _json_default(obj: Any) -> Any:
@@ -72,9 +72,9 @@ def write_json(obj: Any, path: str | os.PathLike[str]) -> Path:
     """
     target = Path(path)
     if isinstance(obj, dict) and REPORT_KEYS & obj.keys():
-        extra = [w for w in recorded_warnings() if w not in (obj.get("warnings") or [])]
-        if extra:
-            obj["warnings"] = [*(obj.get("warnings") or []), *extra]
+        warns = report_warnings(obj.get("warnings") or [])
+        if warns or "warnings" in obj:
+            obj["warnings"] = warns
     text = dumps_readable(_jsonable(obj))
     with atomic_path(target) as tmp:
         tmp.write_text(text + "\n", encoding="utf-8")

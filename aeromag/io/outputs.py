@@ -27,7 +27,7 @@ import secrets
 import signal
 import stat
 import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -58,6 +58,8 @@ class _OutputSet:
     inputs: dict[Path, str] = field(default_factory=dict)
     depth: int = 0
     warnings: list[str] = field(default_factory=list)
+    #: How the set's reports spell their own ``warnings`` (the CLI: with flags, like the log).
+    rewrite: Callable[[str], str] | None = None
 
 
 class _WarningCapture(logging.Handler):
@@ -128,6 +130,31 @@ def recorded_warnings() -> list[str]:
     """The warnings logged so far in the current output set (empty outside one)."""
     s = _active()
     return list(s.warnings) if s is not None else []
+
+
+def report_warnings(own: Sequence[str]) -> list[str]:
+    """A report's ``warnings``: its own, then those logged in the set that it does not hold.
+
+    A report lists the warnings its code found (in the library's words) and the set records
+    every warning logged while it ran, some of them the same message.  Inside a set opened
+    with ``rewrite`` (the command line names flags where the library names parameters,
+    :func:`output_set`), the report's own are spelt the same way first, so that one warning
+    is listed once.
+
+    Parameters
+    ----------
+    own : sequence of str
+        The report's own warnings.
+
+    Returns
+    -------
+    list of str
+    """
+    s = _active()
+    if s is None:
+        return list(own)
+    mine = [s.rewrite(w) for w in own] if s.rewrite is not None else list(own)
+    return [*mine, *(w for w in s.warnings if w not in mine)]
 
 
 _state = threading.local()
@@ -351,7 +378,8 @@ def _restore_signal_handlers(old: dict[int, object] | None) -> None:
 
 
 @contextlib.contextmanager
-def output_set(*, separate: bool = False) -> Iterator[_OutputSet]:
+def output_set(*, separate: bool = False,
+               rewrite: Callable[[str], str] | None = None) -> Iterator[_OutputSet]:
     """Write every output of the block as one set: all appear together, or none does.
 
     Files written with :func:`atomic_path` inside the block go to temporary names; at the
@@ -365,6 +393,10 @@ def output_set(*, separate: bool = False) -> Iterator[_OutputSet]:
     separate : bool
         Commit this block's files at its end even inside another set (its inputs are
         those of the enclosing set, plus its own).
+    rewrite : callable, optional
+        How the reports written in the set spell their own warnings (:func:`report_warnings`);
+        the command line passes the function that names its flags.  An inner set inherits
+        the outer one's.
 
     Yields
     ------
@@ -374,7 +406,8 @@ def output_set(*, separate: bool = False) -> Iterator[_OutputSet]:
     outer = not stack or separate
     handlers = None
     if outer:
-        s = _OutputSet(inputs=dict(stack[-1].inputs) if stack else {})
+        s = _OutputSet(inputs=dict(stack[-1].inputs) if stack else {},
+                       rewrite=rewrite or (stack[-1].rewrite if stack else None))
         if not stack:
             handlers = _install_signal_handlers()
         stack.append(s)
