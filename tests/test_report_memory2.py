@@ -167,11 +167,12 @@ def test_fom_table_peak_memory(compensated):
 
 
 def test_fit_diagnostics_prepares_no_heading_and_same_result(compensated, monkeypatch):
-    """prepare gets no heading (no float64 copy of it while the normal equations are built).
+    """prepare gets no heading (no float64 copy of it while the normal equations are built),
+    the stretch labels are int32 there, and the diagnostics are those of the old formula.
 
     A tracemalloc bound is no use here: the normal equations filter on the thread pool, and
     the peak at 210,000 rows varied 290-340 B/row with the threads' timing (the old code
-    348).  At 2e6 rows the step's peak went 165 -> 149 MB.
+    348).  At 2e6 rows the step's peak went 165 -> 149 -> 131 MB.
     """
     from aeromag.compensation.normal import segment_normal_equations
     from aeromag.qc import diagnostics as dg
@@ -190,8 +191,17 @@ def test_fit_diagnostics_prepares_no_heading_and_same_result(compensated, monkey
         return orig_prepare(df, *a, **kw)
 
     monkeypatch.setattr(dg, "prepare", spy)
+    stretch_dtypes: list[np.dtype] = []
+    orig_normal = dg.segment_normal_equations
+
+    def spy_normal(prep, *a, **kw):
+        stretch_dtypes.append(prep.stretch.dtype)
+        return orig_normal(prep, *a, **kw)
+
+    monkeypatch.setattr(dg, "segment_normal_equations", spy_normal)
     diag, cv = dg.fit_diagnostics(data, cfg, terms, seg=seg)
     assert seen and "heading" not in seen[0] and "flux_x" in seen[0]
+    assert stretch_dtypes == [np.int32]  # half the int64 labels while the sums are built
     # the old formula: prepare on the log with its heading
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

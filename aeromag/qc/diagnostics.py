@@ -64,6 +64,9 @@ def fit_diagnostics(
         seg = segment_labels(data)
     if (seg >= 0).any():
         prep.segment = seg
+    # The normal equations only compare stretch labels: int32 holds them in half the memory
+    # (8 MB fewer at 2e6 rows while they are built), the same values.
+    prep.stretch = prep.stretch.astype(np.int32)
     stats = segment_normal_equations(prep, fit_terms, cfg)
     del prep  # its full-length arrays: the diagnostics need only the per-segment sums
     kept_samples = kept_mask(data)
