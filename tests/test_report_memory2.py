@@ -214,3 +214,52 @@ def test_fit_diagnostics_prepares_no_heading_and_same_result(compensated, monkey
     d0, cv0 = dg.diagnostics_from_stats(stats, kept, fit_terms, cfg.ridge)
     assert d0 == diag
     pd.testing.assert_frame_equal(cv0, cv, check_exact=True)
+
+
+def _old_grouped_std(x, groups):
+    """grouped_std before its squares went in place."""
+    g = np.asarray(groups)
+    ok = np.isfinite(x) & (g >= 0)
+    if not ok.any():
+        return {}
+    if ok.all():
+        gk, xk = g.astype(np.int64, copy=False), np.asarray(x)
+    else:
+        gk = g[ok].astype(np.int64, copy=False)
+        xk = x[ok]
+    top = int(gk.max())
+    if top <= 4 * gk.size + 1024:
+        n = np.bincount(gk, minlength=top + 1)
+        ids = np.flatnonzero(n)
+        s1 = np.bincount(gk, xk, minlength=top + 1)[ids]
+        s2 = np.bincount(gk, xk * xk, minlength=top + 1)[ids]
+        n = n[ids]
+    else:
+        ids, inv = np.unique(gk, return_inverse=True)
+        n = np.bincount(inv)
+        s1 = np.bincount(inv, xk)
+        s2 = np.bincount(inv, xk * xk)
+    mean = s1 / n
+    std = np.sqrt(np.maximum(s2 / n - mean * mean, 0.0))
+    return {int(i): float(s) for i, s in zip(ids, std, strict=True)}
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_grouped_std_squares_in_place(dtype):
+    from aeromag.qc.noise import grouped_std
+
+    rng = np.random.default_rng(2)
+    n = 400_000
+    x = rng.normal(size=n).astype(dtype)
+    x[::97] = np.nan  # the copying path
+    heading = rng.integers(-1, 4, size=n).astype(np.int8)  # heading legs, as the QC passes
+    sparse = np.where(heading >= 0, heading.astype(np.int64) * 10**7, -1)  # the unique path
+    for g in (heading, sparse):
+        assert grouped_std(x, g) == _old_grouped_std(x, g)
+    clean = rng.normal(size=n)
+    assert grouped_std(clean, heading) == _old_grouped_std(clean, heading)
+    grouped_std(x[:1000], heading[:1000])
+    _, peak, _ = _peak(grouped_std, x, heading)
+    # Measured 13.7 B/row (float64; was 20.0: a second full-length array for the squares).
+    if dtype == np.float64:
+        assert peak / n < 17, f"grouped_std peak {peak / n:.1f} B/row"
