@@ -17,6 +17,7 @@ import pytest
 from aeromag._core.filters import sampling_rate
 from aeromag._core.runs import run_bounds
 from aeromag._core.stretches import find_stretches
+from aeromag.qc import _blocks
 from aeromag.qc import maneuvers as mv
 from aeromag.synthetic import simulate_calibration
 
@@ -93,7 +94,7 @@ def _old_block_means(df, t, step, max_gap_s):
 
 @pytest.mark.parametrize("chunk", [7, 1000, 1 << 18])
 def test_block_means_bitwise_as_before(cal, monkeypatch, chunk):
-    monkeypatch.setattr(mv, "_CHUNK", chunk)
+    monkeypatch.setattr(_blocks, "_CHUNK", chunk)
     df = cal.iloc[:40_000].copy()
     for c in ("heading", "pitch", "flux_y"):
         df[c] = df[c].astype(np.float32)  # as the report reads them
@@ -112,7 +113,7 @@ def test_gap_runs_equal_find_stretches(monkeypatch):
     rng = np.random.default_rng(0)
     for n in (1, 2, 5, 100, 5000):
         for chunk in (3, 7, 1 << 18):
-            monkeypatch.setattr(mv, "_CHUNK", chunk)
+            monkeypatch.setattr(_blocks, "_CHUNK", chunk)
             t = np.cumsum(rng.choice([0.1, 0.1, 0.1, 2.0], size=n))
             if n > 3:
                 t[n // 2] = np.nan
