@@ -247,14 +247,17 @@ def check_track(
         how = "log column"
     else:
         labels, model, assign_info, w = assign_track_legs(ned, vel, t, wps, model)
+        labels[~ok] = -1   # as reported: the plan diagnosis names the legs with no sample
         how = "assigned"
         warnings += w
         if assign_info["direction"] == "reversed":
             # diagnosed against the plan as flown (reversed); the plan as given is reversed
+            # (numbered along it; the legs not flown are named in the plan's numbering)
             n_k = n_legs - 1
             warnings += diagnose.plan_warnings(ned, vel, t, wps[::-1].copy(),
                                                np.where(labels >= 0, n_k - labels, -1), model,
-                                               plan_src, info=plan_check)
+                                               plan_src, info=plan_check,
+                                               leg_numbers=np.arange(n_legs)[::-1])
             if plan_check.get("mismatch") is None:
                 plan_check["mismatch"] = "reversed"
             # counted against the plan as given: on its legs, and on them backwards

@@ -123,7 +123,8 @@ def _decoded(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray, waypoints: np
 
 def plan_warnings(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray, waypoints: np.ndarray,
                   labels: np.ndarray, model: LegModel, plan_name: str = "the plan",
-                  info: dict | None = None) -> list[str]:
+                  info: dict | None = None, leg_numbers: np.ndarray | None = None
+                  ) -> list[str]:
     """Say what to check when the log does not follow the plan.
 
     The log is always decoded against the plan reversed (waypoint order) and against the plan
@@ -144,7 +145,7 @@ def plan_warnings(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray, waypoint
     waypoints : ndarray, shape (m, 3)
         Plan waypoints, NED, m.
     labels : ndarray of int
-        Assigned legs (-1: none).
+        Assigned legs, numbered along ``waypoints`` (-1: none).
     model : LegModel
         Leg model.
     plan_name : str
@@ -153,6 +154,11 @@ def plan_warnings(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray, waypoint
         Filled with ``mismatch`` (``None``, ``"reversed"``, ``"offset"``, ``"far"``,
         ``"altitude"`` or ``"few"``), ``n_on_leg``, ``n_reversed``, ``n_widened`` and, for an
         offset, ``offset_m`` (median horizontal distance of the widened samples to their leg).
+    leg_numbers : ndarray of int, shape (m - 1,), optional
+        The number the user knows each leg of ``waypoints`` by (default ``0 .. m - 2``); the
+        legs without a sample are named by it.  A flight diagnosed against the plan reversed
+        gives ``waypoints[::-1]`` and ``leg_numbers = arange(m - 1)[::-1]`` so that the
+        warning names the legs of the plan as given, as the per-leg report does.
 
     Returns
     -------
@@ -237,8 +243,13 @@ def plan_warnings(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray, waypoint
             f"only {n_on} of {n_ok} positioned samples follow a leg of {plan_name}: check the"
             " plan (waypoint order, site, altitude reference)")
         return warns
-    flown = set(np.unique(labels[labels >= 0]).tolist())
-    missing = [k for k in range(len(waypoints) - 1) if k not in flown]
+    names = (np.arange(len(waypoints) - 1) if leg_numbers is None
+             else np.asarray(leg_numbers, dtype=np.int64))
+    if names.shape != (len(waypoints) - 1,):
+        raise ValueError(f"leg_numbers has {names.size} values for {len(waypoints) - 1} legs")
+    flown = np.zeros(len(names), dtype=bool)
+    flown[np.unique(labels[labels >= 0])] = True
+    missing = sorted(int(k) for k in names[~flown])
     if missing:
         warns.append(f"leg(s) {', '.join(map(str, missing))} of {plan_name} have no sample:"
                      " not flown, or not along the plan")
