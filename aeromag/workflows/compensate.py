@@ -297,7 +297,7 @@ def compensate_file(
     path: str | os.PathLike[str], out_path: str | os.PathLike[str],
     cfg: CompensationConfig | None = None, *, model: TLModel | str | os.PathLike[str] | None = None,
     columns: dict[str, str] | None = None, units: dict[str, str] | None = None,
-    fmt: str | None = None, self_check: bool = False,
+    fmt: str | None = None, self_check: bool = True,
 ) -> CompensationResult:
     """Read a log, compensate it and write ``OUT.csv`` and ``OUT.json`` atomically.
 
@@ -316,8 +316,12 @@ def compensate_file(
     fmt : str, optional
         Input format (default from the extension).
     self_check : bool
-        When fitting on the log itself, check it for a calibration box and warn without one
-        (``aeromag compensate``; the report's ``self_calibration``).
+        When fitting on the log itself (no ``model``), check it for a calibration box and
+        warn without one: the heading-dependent level is then undetermined and the in-sample
+        improvement ratio flattering (the report's ``self_calibration``).  On by default, as
+        ``aeromag compensate`` and ``aeromag batch`` (each log fitted on itself) do; with
+        ``model`` nothing is fitted and nothing is checked.  False skips the check (e.g. a
+        log known to be a box, to save the maneuver detection).
 
     Returns
     -------
