@@ -37,6 +37,12 @@ __all__ = ["OPTIONS", "Option", "Options", "add_option", "command", "config_erro
 
 _REQUIRED = inspect.Parameter.empty
 
+#: CompensationConfig keywords that only the screening reads: with ``--no-screen`` they decide
+#: nothing (``shrink`` is not one: it also shrinks the per-segment coefficients reported).
+SCREEN_ONLY = ("pca_variance", "screen_quantile", "max_iter", "min_segments", "min_excess",
+               "min_excess_nT", "noise_factor", "gross_excess", "inlier_excess",
+               "inlier_own_excess")
+
 #: Log-reading commands (``--col``, ``--map``, ``--units``, ``--format``).
 _READERS = frozenset({"compensate", "calibrate", "batch"})
 #: Commands that fit or apply the TL model.
@@ -273,6 +279,11 @@ class Options(dict):
         :data:`~aeromag.compensation.config.FIT_ONLY` (``--terms``, ``--ridge``, screening...)
         steer a fit only; with ``--model`` nothing is fitted, so giving one is a mistake.
 
+        Parameters
+        ----------
+        why : str
+            Why nothing is fitted (the error's words).
+
         Raises
         ------
         InputError
@@ -280,13 +291,45 @@ class Options(dict):
         """
         from ..compensation.config import FIT_ONLY
 
+        self._refuse(FIT_ONLY, lambda f: f"{f} steers a fit, and {why}: nothing is fitted; "
+                     f"drop {f} (or drop --model to fit)")
+
+    def refuse_unused_options(self) -> None:
+        """Refuse, in one line, a fit or screening option that this run would not use.
+
+        With ``--model`` nothing is fitted (:meth:`refuse_fit_options`); with ``--online`` the
+        recursive fit uses ``--terms`` but no batch-fit option (``--ridge``,
+        ``--max-condition``, ``--no-decimate``) and screens nothing; with ``--no-screen`` the
+        screening's thresholds (``--noise-factor``, ``--min-excess``...) decide nothing.
+        ``--shrink`` stays allowed with ``--no-screen``: it still shrinks the per-segment
+        coefficients OUT.json reports.
+
+        Raises
+        ------
+        InputError
+            Naming the first such option given and what to drop.
+        """
+        from ..compensation.config import FIT_ONLY
+
+        if self.get("model") is not None:
+            self.refuse_fit_options()
+        if self.get("online"):
+            self._refuse(tuple(c for c in FIT_ONLY if c != "terms"),
+                         lambda f: f"{f} steers the batch fit or its screening, and --online "
+                         "fits sample by sample without either: nothing uses it; drop "
+                         f"{f} (or drop --online)")
+        elif self.get("no_screen"):
+            self._refuse(SCREEN_ONLY, lambda f: f"{f} steers the screening, and --no-screen "
+                         f"skips it: nothing uses it; drop {f} (or drop --no-screen)")
+
+    def _refuse(self, keywords: tuple[str, ...], message: Callable[[str], str]) -> None:
+        """Raise ``message(flag)`` for the first option given whose config is in ``keywords``."""
         for opt in OPTIONS:
-            if opt.config in FIT_ONLY and opt.flags and opt.name in self:
+            if opt.config in keywords and opt.flags and opt.name in self:
                 given = (opt.name in self.given if self.given is not None
                          else self[opt.name] != opt.default)
                 if given:
-                    raise InputError(f"{opt.flags[-1]} steers a fit, and {why}: nothing is "
-                                     f"fitted; drop {opt.flags[-1]} (or drop --model to fit)")
+                    raise InputError(message(opt.flags[-1]))
 
     def __getattr__(self, name: str) -> Any:
         try:

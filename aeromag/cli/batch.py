@@ -26,6 +26,7 @@ def batch(opts: Options) -> None:
     from ..workflows.batch import run_batch
 
     with user_errors():
+        opts.refuse_unused_options()  # --model / --no-screen with an option they ignore
         with strict_warnings(opts.strict):  # a warning about the options fails them all
             columns, unit_map = column_options(opts.col, opts.map_file, opts.units)
             cfg = opts.config()

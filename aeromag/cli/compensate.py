@@ -55,8 +55,7 @@ def compensate(opts: Options) -> None:
         if json_path_for(output) == output:
             raise InputError(f"-o {output}: the report goes to OUT.json, so OUT must not end in"
                              " .json; give the output CSV another name, e.g. -o survey_comp.csv")
-        if model is not None:
-            opts.refuse_fit_options()
+        opts.refuse_unused_options()  # --model / --no-screen with an option they ignore
         columns, unit_map = column_options(opts.col, opts.map_file, opts.units)
         cfg = opts.config()
         if chunk_rows is not None:
@@ -95,6 +94,7 @@ def calibrate(opts: Options) -> None:
     from ..workflows.compensate import calibrate_file
 
     with user_errors(), strict_warnings(opts.strict), config_errors():
+        opts.refuse_unused_options()  # --no-screen with a screening threshold
         columns, unit_map = column_options(opts.col, opts.map_file, opts.units)
         cfg = opts.config()
         res = calibrate_file(opts.cal, opts.output, cfg, columns=columns, units=unit_map,

@@ -45,6 +45,7 @@ def run_online(opts: Options) -> None:
             if opts.get(name) is not None:
                 raise InputError(f"{flag} does not go with --online (the online fit estimates "
                                  f"the model as it goes); drop {flag}")
+        opts.refuse_unused_options()  # --ridge, --noise-factor...: no batch fit, no screening
         columns, unit_map = column_options(opts.col, opts.map_file, opts.units)
         cfg = opts.config()
         lam = DEFAULT_FORGETTING if opts.get("forgetting") is None else opts.forgetting
