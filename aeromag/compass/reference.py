@@ -76,7 +76,13 @@ def explicit_field(intensity_nT: float, inclination_deg: float, declination_deg:
     InputError
         Intensity not positive or inclination outside [-90, 90].
     """
-    f, i, d = (float(x) for x in (intensity_nT, inclination_deg, declination_deg))
+    try:
+        f, i, d = (float(x) for x in (intensity_nT, inclination_deg, declination_deg))
+    except (TypeError, ValueError):
+        raise InputError("earth_field=(F, I, D): the intensity (nT), inclination and "
+                         "declination (degrees) must be numbers, got "
+                         f"({intensity_nT!r}, {inclination_deg!r}, {declination_deg!r})"
+                         ) from None
     if not (np.isfinite(f) and f > 0):
         raise InputError(f"earth_field: intensity must be a positive number of nT, got {f}")
     if not (np.isfinite(i) and -90 <= i <= 90):

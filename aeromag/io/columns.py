@@ -411,23 +411,25 @@ def convert_units(
     """
     units = dict(units or {})
     for key, unit in units.items():
+        # The parameter as a caller spells it (units={'flux': 'uT'}; the CLI: --units flux=uT).
+        given = f"units={{{key!r}: {unit!r}}}"
         if key == "time":
-            ticks = time_ticks(unit, what=f"{source}: units time={unit}")
+            ticks = time_ticks(unit, what=f"{source}: {given}")
             if "time" not in df.columns:
-                raise InputError(f"{source}: units time={unit}: no column 'time' in the log")
+                raise InputError(f"{source}: {given}: no column 'time' in the log")
             if df.attrs.get("_time_converted"):
-                raise InputError(f"{source}: units time={unit}: column 'time' holds date-times,"
+                raise InputError(f"{source}: {given}: column 'time' holds date-times,"
                                  " already converted to seconds; drop the time unit")
             df["time"] = df["time"].astype(np.float64) / ticks
             continue
-        factor = unit_factor(unit, what=f"{source}: units {key}={unit}")
+        factor = unit_factor(unit, what=f"{source}: {given}")
         cols = UNIT_GROUPS.get(key, (key,))
         present = [c for c in cols if c in df.columns]
         if not present:
-            raise InputError(f"{source}: units {key}={unit}: no column {key!r} in the log")
+            raise InputError(f"{source}: {given}: no column {key!r} in the log")
         for c in present:
             if CANONICAL_COLUMNS.get(c, "nT") != "nT":
-                raise InputError(f"{source}: units {key}: column {c!r} is not a field in nT")
+                raise InputError(f"{source}: {given}: column {c!r} is not a field in nT")
             df[c] = df[c].astype(np.float64) * factor
     if "time" in df.columns and "time" not in units:
         check_time_scale(df["time"], source, rows)

@@ -47,7 +47,13 @@ def reference_for(df: pd.DataFrame, src: str, *, date: str | None,
     if earth_field is not None:
         if date is not None:
             log.warning("earth_field given: date=%r is not used", date)
-        return explicit_field(*earth_field)
+        try:
+            f, i, d = earth_field
+        except (TypeError, ValueError):  # (F, I) or a bare number: say what goes where
+            raise InputError(f"{src}: earth_field={earth_field!r} is not three "
+                             "numbers; give earth_field=(F, I, D): the intensity in nT, the "
+                             "inclination and the declination in degrees") from None
+        return explicit_field(f, i, d)
     missing = [c for c in ("lat", "lon", "alt") if c not in df.columns]
     if missing:
         raise InputError(f"{src}: no {', '.join(missing)} column(s) for the IGRF reference "
