@@ -44,6 +44,7 @@ def _report(out):
 
 
 def test_an_online_fit_that_makes_things_worse_is_a_recorded_warning(logs, tmp_path):
+    from aeromag.cli._options import flag_message
     from aeromag.compensation.checks import metric_warnings
 
     log = str(logs["worse"])
@@ -55,8 +56,11 @@ def test_an_online_fit_that_makes_things_worse_is_a_recorded_warning(logs, tmp_p
     assert 0.5 < ratio < 1.0
     warned = [w for w in rep.get("warnings", []) if "improvement ratio" in w]
     assert len(warned) == 1 and warned[0].startswith(f"{log}: ") and "< 1" in warned[0]
-    # The very words of the batch fit's checks (one implementation).
-    assert warned == metric_warnings(rep["metrics"], source=log, fitted=True)
+    # The words of the batch fit's checks (one implementation), with the online advice
+    # (forgetting=, terms=) spelt as the command line's flags.
+    assert warned == [flag_message(w) for w in
+                      metric_warnings(rep["metrics"], source=log, fitted=True)]
+    assert "--forgetting 0.9999" in warned[0]
     assert "improvement ratio" in r.output  # and on the terminal
 
 
@@ -111,4 +115,5 @@ def test_the_frame_function_logs_it(logs, caplog):
     with caplog.at_level("WARNING", logger="aeromag"):
         _, rep, _ = compensate_online_frame(df, source="quiet.csv")
     assert rep["metrics"]["improvement_ratio"] < 1.0
-    assert "quiet.csv: the fitted model leaves more band-passed variation" in caplog.text
+    assert "quiet.csv: the online fit leaves more band-passed variation" in caplog.text
+    assert "forgetting=0.9999" in caplog.text  # the library's words

@@ -33,7 +33,9 @@ def metric_warnings(metrics: dict[str, Any], *, source: str | None = None,
         File name that starts every message.
     fitted : bool
         Whether the model was fitted on this very log (else a saved model was applied): only
-        the advice of the improvement-ratio message differs.
+        the advice of the improvement-ratio message differs.  Metrics with ``after_warmup``
+        are the online fit's (:func:`aeromag.workflows.online_compensate.online_metrics`),
+        whose advice is the recursive estimate's (memory, terms), not a calibration box.
 
     Returns
     -------
@@ -44,13 +46,20 @@ def metric_warnings(metrics: dict[str, Any], *, source: str | None = None,
     out = []
     ratio, resid = metrics.get("improvement_ratio"), metrics.get("residual_std_nT")
     if _finite(ratio) and ratio < 1.0:
-        if fitted:
+        shown = _below_one(float(ratio))
+        if fitted and "after_warmup" in metrics:  # only the online (recursive) fit's metrics
+            out.append(f"the online fit leaves more band-passed variation than it removes"
+                       f" (improvement ratio {shown} < 1): the recursive estimate chases"
+                       " noise when the interference is small against the sensor noise or"
+                       " the memory too short; try a longer memory (forgetting=0.9999),"
+                       " fewer terms (terms=9), or the batch fit of the whole log")
+        elif fitted:
             out.append(f"the fitted model leaves more band-passed variation than it removes"
-                       f" (improvement ratio {ratio:.3g} < 1): the fit is unreliable; calibrate"
+                       f" (improvement ratio {shown} < 1): the fit is unreliable; calibrate"
                        " on a flight with maneuvers and apply that model")
         else:
             out.append(f"the model leaves more band-passed variation than it removes"
-                       f" (improvement ratio {ratio:.3g} < 1): it adds interference to this"
+                       f" (improvement ratio {shown} < 1): it adds interference to this"
                        " log; check that the model is this aircraft's and the columns")
     if not _finite(resid):
         out.append("no residual could be computed (too few band-passed samples?)")
@@ -84,6 +93,15 @@ def check_metrics(metrics: dict[str, Any], *, source: str | None = None,
     for w in found:
         log.warning("%s", w)
     return found
+
+
+def _below_one(ratio: float) -> str:
+    """``ratio`` (< 1) with the fewest significant digits (3 at least) that still read < 1."""
+    for digits in range(3, 16):
+        text = f"{ratio:.{digits}g}"
+        if float(text) < 1.0:
+            return text
+    return repr(ratio)
 
 
 def _finite(x: Any) -> bool:
