@@ -189,4 +189,6 @@ def test_cli_summary_says_how_many_legs_were_checked(tmp_path):
     rep = json.loads(out.with_suffix(".json").read_text())
     n, checked = rep["n_legs"], rep["n_legs_checked"]
     assert checked < n
-    assert f"0/{n} legs flagged; only {checked} of {n} legs checked" in r.output
+    assert (f"0 of {checked} checked leg{'s' if checked != 1 else ''} flagged"
+            f" ({n - checked} of {n} not flown" in r.output)
+    assert f"0/{n} legs flagged" not in r.output

@@ -103,14 +103,16 @@ def track(
         )
     rep = res.report
     flagged = rep.get("flagged_legs", [])
-    line = (f"wrote {output} and {json_path_for(output)}: {len(flagged)}/{rep.get('n_legs', 0)}"
-            " legs flagged")
-    if flagged:
-        line += f" ({', '.join(map(str, flagged))})"
     n_legs, checked = rep.get("n_legs", 0), rep.get("n_legs_checked")
+    which = f" ({', '.join(map(str, flagged))})" if flagged else ""
     if checked is not None and checked < n_legs:  # "0/19 flagged" must not read as 19 clean
-        line += (f"; only {checked} of {n_legs} legs checked (the others have no flown rows"
-                 f" on them: see {json_path_for(output).name}, legs[].checked)")
+        line = (f"wrote {output} and {json_path_for(output)}: {len(flagged)} of {checked}"
+                f" checked leg{'s' if checked != 1 else ''} flagged{which}"
+                f" ({n_legs - checked} of {n_legs} not flown: no flown rows on them, see"
+                f" {json_path_for(output).name}, legs[].checked)")
+    else:
+        line = (f"wrote {output} and {json_path_for(output)}: {len(flagged)}/{n_legs}"
+                f" legs flagged{which}")
     if not rep.get("heading_detector", {}).get("available"):
         line += "; heading detector skipped (no heading columns)"
     mismatch = (rep.get("plan_check") or {}).get("mismatch")
