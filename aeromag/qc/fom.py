@@ -172,8 +172,11 @@ def fom_summary(table: pd.DataFrame) -> dict[str, Any]:
         ``fom_before_nT``, ``fom_after_nT``... for complete boxes), ``complete_boxes``,
         ``fom_before_nT``/``fom_after_nT`` (mean over complete boxes, None when none),
         ``fom_reduction`` (before / after), ``fom_kept_before_nT``/``fom_kept_after_nT``
-        (the same over only the manoeuvres in kept segments, ``kept_definition``;
-        ``n_maneuvers_kept``), ``n_maneuvers`` and ``per_maneuver`` (heading,
+        (the same over only the complete boxes whose 12 manoeuvres all lie in kept
+        segments, ``kept_boxes``; None when there is none, ``kept_applicable`` False;
+        ``kept_reason`` names each box left out, e.g. "box 1: 3 of its 12 manoeuvres in
+        dropped segments"; ``kept_definition``; ``n_maneuvers_kept``), ``n_maneuvers`` and
+        ``per_maneuver`` (heading,
         manoeuvre -> mean peak-to-peak over the complete boxes), ``fields`` (the field each
         ``ptp_*_nT`` is of) and ``definition`` (the words for it).
     """
@@ -195,14 +198,8 @@ def fom_summary(table: pd.DataFrame) -> dict[str, Any]:
         vals = [e[f"fom_{c}_nT"] for e in boxes if e["complete"]]
         out[f"fom_{c}_nT"] = float(np.mean(vals)) if vals else None
     if "kept" in table.columns:
-        for c in cols:
-            vals = [e[f"fom_kept_{c}_nT"] for e in boxes if e["complete"]]
-            out[f"fom_kept_{c}_nT"] = float(np.mean(vals)) if vals else None
+        out.update(_kept_fom(boxes, cols))
         out["n_maneuvers_kept"] = int(table["kept"].sum())
-        out["kept_definition"] = (
-            "fom_kept_X_nT: the same sum over only the manoeuvres of a complete box lying wholly"
-            " in kept segments (boxes[].n_maneuvers_kept of 12; boxes[].dropped names the"
-            " others), averaged over complete boxes: the FOM without the dropped faults")
     fa = out.get("fom_after_nT")
     fb = out.get("fom_before_nT")
     out["fom_reduction"] = float(fb / fa) if fa and fb is not None else None
@@ -221,6 +218,63 @@ def fom_summary(table: pd.DataFrame) -> dict[str, Any]:
             f"no complete calibration box: {len(boxes)} box(es) found, the most complete"
             f" (box {worst['box']}) lacks {', '.join(worst['missing'])}" if worst else
             "no manoeuvre found")
+    return out
+
+
+def _kept_fom(boxes: list[dict[str, Any]], cols: list[str]) -> dict[str, Any]:
+    """The kept FOM: the mean over the complete boxes whose manoeuvres are all kept.
+
+    A box with some of its 12 manoeuvres in dropped segments has no kept FOM (the sum of the
+    rest is not a sum of 12 peak-to-peak values): its ``fom_kept_X_nT`` become None and its
+    ``kept_reason`` says how many manoeuvres were dropped.  Edits ``boxes`` in place.
+
+    Parameters
+    ----------
+    boxes : list of dict
+        Per-box entries of :func:`_box_entries` (with ``n_maneuvers_kept``).
+    cols : list of str
+        The fields (``"before"``, ``"after"``, ``"truth"``).
+
+    Returns
+    -------
+    dict
+        ``fom_kept_X_nT`` [nT] (None when no box is wholly kept), ``kept_applicable``,
+        ``kept_boxes``, ``kept_reason`` (None when every complete box is wholly kept) and
+        ``kept_definition``.
+    """
+    kept, excluded = [], []
+    for e in boxes:
+        e["kept_reason"] = None
+        if not e["complete"]:
+            continue
+        n_dropped = e["n_maneuvers"] - e["n_maneuvers_kept"]
+        if n_dropped == 0:
+            kept.append(e)
+            continue
+        e["kept_reason"] = (f"box {e['box']}: {n_dropped} of its {e['n_maneuvers']} manoeuvres"
+                            " in dropped segments")
+        excluded.append(e["kept_reason"])
+        for c in cols:
+            e[f"fom_kept_{c}_nT"] = None
+    kept_boxes = [e["box"] for e in kept]
+    out: dict[str, Any] = {"kept_applicable": bool(kept), "kept_boxes": kept_boxes}
+    for c in cols:
+        vals = [e[f"fom_kept_{c}_nT"] for e in kept]
+        out[f"fom_kept_{c}_nT"] = float(np.mean(vals)) if vals else None
+    reason = None
+    if excluded and kept_boxes:
+        reason = (f"FOM of the kept segments over box{'es' if len(kept_boxes) > 1 else ''}"
+                  f" {', '.join(map(str, kept_boxes))} only, not applicable to"
+                  f" {'; '.join(excluded)}.")
+    elif excluded:
+        reason = ("FOM of the kept segments not applicable: no complete box has all its"
+                  f" manoeuvres in kept segments ({'; '.join(excluded)}).")
+    out["kept_reason"] = reason
+    out["kept_definition"] = (
+        "fom_kept_X_nT: the same FOM averaged over only the complete boxes whose 12"
+        " manoeuvres all lie wholly in kept segments (kept_boxes); a box with any manoeuvre"
+        " in a dropped segment has no kept FOM (boxes[].kept_reason, boxes[].dropped names"
+        " them): the FOM without the dropped faults")
     return out
 
 

@@ -342,6 +342,8 @@ def _compute(
             fom_block["table"] = _records(fom_tab)
             if not fom_block["applicable"]:
                 notes.append(fom_block["reason"])
+            elif fom_block.get("kept_reason"):  # a box with dropped manoeuvres: no kept FOM
+                notes.append(fom_block["kept_reason"])
         else:
             why = "no pitch/roll/yaw manoeuvre found (not a calibration flight?)"
             notes.append("no pitch/roll/yaw manoeuvre found: no FOM (not a calibration flight?)")

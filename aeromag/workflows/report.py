@@ -467,6 +467,7 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
         parts.append(f"<p class='small'>Complete boxes: {len(boxes)} (box "
                      f"{html.escape(', '.join(map(str, boxes)))}); manoeuvres in kept segments:"
                      f" {_fmt(fom.get('n_maneuvers_kept'))} of {_fmt(fom.get('n_maneuvers'))}."
+                     f" {html.escape(fom.get('kept_reason') or '')}"
                      f" {html.escape(fom.get('kept_definition') or '')}</p>")
         pm = fom.get("per_maneuver") or []
         if pm:
