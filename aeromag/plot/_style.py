@@ -30,7 +30,7 @@ from .._core.runs import run_bounds
 from ..errors import InputError
 
 __all__ = ["DISPLAY_COLUMNS", "DPI", "QCFigure", "envelope", "figure_png", "new_figure",
-           "save_figure", "time_axis"]
+           "plain_log_ticks", "save_figure", "time_axis"]
 
 log = logging.getLogger(__name__)
 
@@ -54,6 +54,27 @@ class QCFigure(Figure):
 
     def _repr_png_(self) -> bytes:
         return figure_png(self, dpi=100)
+
+
+def plain_log_ticks(ax: Axes) -> None:
+    r"""Label the log-scaled axes of ``ax`` in plain text ("0.01", "1e+03"), not mathtext.
+
+    matplotlib labels a log axis ``$\\mathdefault{10^{-2}}$`` by default: every PSD figure
+    then starts the mathtext parser, which looks up the Computer Modern and "DejaVu Sans
+    Display" fonts and, where the font cache does not list them, logs a ``findfont``
+    warning per font that reached the user of ``aeromag report`` at default verbosity.
+
+    Parameters
+    ----------
+    ax : Axes
+        Axes whose x and/or y scale is ``"log"``.
+    """
+    from matplotlib.ticker import LogFormatter
+
+    for axis in (ax.xaxis, ax.yaxis):
+        if axis.get_scale() == "log":
+            axis.set_major_formatter(LogFormatter(base=10.0))
+            axis.set_minor_formatter(LogFormatter(base=10.0, labelOnlyBase=False))
 
 
 def new_figure(figsize: tuple[float, float] = (7.0, 4.5)) -> tuple[Figure, Axes]:

@@ -54,6 +54,7 @@ from ._style import (
     envelope,
     figure_png,
     new_figure,
+    plain_log_ticks,
     save_figure,
     time_axis,
 )
@@ -390,6 +391,7 @@ def plot_psd(
     ax.set_title("Power spectral density before / after")
     ax.legend(loc="upper right", fontsize=8)
     ax.grid(alpha=0.3, which="both")
+    plain_log_ticks(ax)
     return _finish(fig, path)
 
 

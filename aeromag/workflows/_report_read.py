@@ -54,15 +54,40 @@ def read_columns(src: Path) -> pd.DataFrame:
     DataFrame
         The columns of :data:`_COLUMNS` the log has (``attrs["source"]`` names the file).
     """
+    data = None
     if src.suffix.lower() == ".csv":
         try:
             data = _read_csv_fast(src)
         except _NotPlain as exc:
             log.debug("%s: read through the validating reader (%s)", src, exc)
-        else:
-            if data is not None:
-                return data
-    return _read_batches(src)
+    if data is None:
+        data = _read_batches(src)
+    return _time_in_order(data, src)
+
+
+def _time_in_order(data: pd.DataFrame, src: Path) -> pd.DataFrame:
+    """Refuse a log whose ``time`` is not strictly increasing, as ``compensate`` does.
+
+    The check is :func:`aeromag.io.log.read_log`'s own (exact duplicate rows dropped with a
+    warning, then the row where time goes back named), so the report's error is the
+    compensation's: one line naming the file, the column and the row, instead of a sampling
+    rate estimated from shuffled times.
+    """
+    if "time" not in data.columns:
+        return data
+    t = data["time"].to_numpy(dtype=np.float64)
+    if len(t) < 2 or bool((t[1:] > t[:-1]).all()):
+        return data
+    from ..io.log import _clean_time
+    from ..io.rows import rows_after_header, rows_numbered
+
+    suffix = src.suffix.lower()
+    rows = (rows_after_header(src, 1) if suffix == ".csv"
+            else rows_numbered("row") if suffix in (".parquet", ".pq") else None)
+    attrs = dict(data.attrs)
+    data = _clean_time(data, str(src), rows)
+    data.attrs.update(attrs)
+    return data
 
 
 class _NotPlain(Exception):

@@ -439,6 +439,10 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
     if check.get("warning"):
         parts.append(f"<p class='warn' id='headline-warning'>Warning: "
                      f"{html.escape(check['warning'])}</p>")
+    comp_warning = (check.get("mag_comp") or {}).get("warning")
+    if comp_warning:
+        parts.append(f"<p class='warn' id='mag-comp-warning'>Warning: "
+                     f"{html.escape(comp_warning)}</p>")
     parts.append(_table(rows, header))
     words = _headline_words(check)
     if metrics.get("definition"):

@@ -25,7 +25,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from .._core.stretches import interpolate_short_gaps
+from .._core.filters import lowpass_stretches, sampling_rate
+from .._core.stretches import find_stretches, interpolate_short_gaps
+from ..compensation.apply import isolate_dropped, missing_total_field
 from ..compensation.config import CompensationConfig
 from ..compensation.result import CompensationResult
 from ..conventions import FLUX_COLUMNS
@@ -33,8 +35,9 @@ from ..errors import InputError
 from ..qc import kept_mask, segment_labels
 from ..qc.quality import _config_of, contract_metrics
 
-__all__ = ["REL_TOL", "REL_TOL_FLUXGATE", "REL_TOL_ONLINE", "compare_headline",
-           "headline_from_data", "headline_record", "headline_total_field"]
+__all__ = ["MAG_COMP_TOL_NT", "MAG_COMP_TOL_FLUXGATE_NT", "REL_TOL", "REL_TOL_FLUXGATE",
+           "REL_TOL_ONLINE", "check_mag_comp", "compare_headline", "headline_from_data",
+           "headline_record", "headline_total_field", "log_kind"]
 
 log = logging.getLogger(__name__)
 
@@ -61,8 +64,37 @@ _COMPARED = ("improvement_ratio", "residual_std_nT", "std_before_nT",
 #: The sample counts compared (equal on every unmodified output measured).
 _COUNTS = ("n_samples", "all_n_samples")
 
-#: What a disagreement most likely means.
-LIKELY_CAUSE = "the CSV was changed after compensation, or OUT.json belongs to another run"
+#: What a disagreement most likely means (``{kind}``: :func:`log_kind` of the file).
+LIKELY_CAUSE = "{kind} was changed after compensation, or OUT.json belongs to another run"
+
+#: Largest difference [nT] allowed between a log's ``mag_comp`` and the one the compensation
+#: writes from the log's own ``mag`` and ``mag_tl`` with OUT.json's filter settings
+#: (:func:`check_mag_comp`); see ``docs/qc.md`` for the differences measured on unmodified
+#: outputs.
+MAG_COMP_TOL_NT = 1e-3
+
+#: The same when the fluxgate magnitude is the total field (read in single precision).
+MAG_COMP_TOL_FLUXGATE_NT = 0.02
+
+
+def log_kind(source: str) -> str:
+    """The kind of a log file in words, for a warning ("the CSV", "the Parquet file" ...).
+
+    Parameters
+    ----------
+    source : str
+        File name.
+
+    Returns
+    -------
+    str
+        ``"the CSV"``, ``"the Parquet file"``, ``"the XYZ file"``, ``"the HDF5 file"`` or
+        ``"the log"``.
+    """
+    suffix = source.rsplit(".", 1)[-1].lower() if "." in source else ""
+    return {"csv": "the CSV", "parquet": "the Parquet file", "pq": "the Parquet file",
+            "xyz": "the XYZ file", "h5": "the HDF5 file", "hdf5": "the HDF5 file"
+            }.get(suffix, "the log")
 
 
 def headline_total_field(data: pd.DataFrame, report: dict[str, Any],
@@ -153,7 +185,7 @@ def compare_headline(computed: dict[str, Any], recorded: dict[str, Any] | None, 
             f" nT, {computed['n_samples']} samples) disagrees with {recorded_in}"
             f" ({_g(recorded['improvement_ratio'])}, {_g(recorded['residual_std_nT'])} nT,"
             f" {recorded['n_samples']} samples; differing: {', '.join(bad)}; tolerance {tol:g}"
-            f" relative, sample counts exact): {LIKELY_CAUSE}")
+            f" relative, sample counts exact): {LIKELY_CAUSE.format(kind=log_kind(source))}")
     return out
 
 
@@ -171,6 +203,100 @@ def _rel(a: Any, b: Any) -> float:
 
 def _g(v: Any) -> str:
     return "–" if v is None else f"{float(v):.4g}"
+
+
+def check_mag_comp(data: pd.DataFrame, comp: np.ndarray, report: dict[str, Any],
+                   cfg: CompensationConfig, *, source: str = "OUT.csv",
+                   recorded_in: str = "OUT.json") -> dict[str, Any]:
+    """Compare the log's ``mag_comp`` with what the compensation writes from its columns.
+
+    The expected ``mag_comp`` is ``mag - mag_tl`` (``comp``, the total field prepared as the
+    compensation did), low-passed per stretch with each dropped segment on its own
+    (:func:`aeromag.compensation.apply.isolate_dropped`, the same filter and cut-off as
+    :func:`aeromag.compensation.apply.apply_model`) unless ``cfg.filter_output`` is False,
+    and empty where the log has no measured total field.  Only rows where both are finite
+    are compared.
+
+    Parameters
+    ----------
+    data : DataFrame
+        The compensated log (``time`` [s], ``mag_comp`` [nT], ``segment``, ``segment_kept``).
+    comp : ndarray
+        ``mag - mag_tl`` per row [nT]; overwritten (it is the caller's temporary).
+    report : dict
+        Its report (``mag_from_fluxgate``).
+    cfg : CompensationConfig
+        Filter settings recorded in the report (``filter_output``, ``lowpass_hz``,
+        ``band_hz``, ``order``, ``max_gap_s``).
+    source, recorded_in : str
+        File names for the warning.
+
+    Returns
+    -------
+    dict
+        ``compared`` (rows compared), ``max_abs_difference_nT``, ``tolerance_nT``,
+        ``first_row`` (0-based data row of the first difference beyond the tolerance, or
+        None), ``filtered`` and ``warning`` (one line, or None).
+    """
+    fluxgate = bool(report.get("mag_from_fluxgate")) or "mag" not in data.columns
+    tol = MAG_COMP_TOL_FLUXGATE_NT if fluxgate else MAG_COMP_TOL_NT
+    # An --online OUT.json records no configuration: whether mag_comp was low-passed
+    # (--no-filter) is then not known, and mag_comp may match either.
+    recorded = "filter_output" in (report.get("config") or {})
+    choices = (bool(cfg.filter_output),) if recorded else (False, True)
+    out: dict[str, Any] = {"compared": 0, "max_abs_difference_nT": None, "tolerance_nT": tol,
+                           "first_row": None, "filtered": choices[0],
+                           "filter_recorded": recorded, "warning": None}
+    t = data["time"].to_numpy(dtype=np.float64)
+    no_mag = missing_total_field(data, fluxgate)
+    have = data["mag_comp"].to_numpy(dtype=np.float64)
+    cut = cfg.lowpass_hz if cfg.lowpass_hz is not None else cfg.band_hz[1]
+    best: tuple[float, bool, np.ndarray] | None = None
+    for filt in choices:
+        expected = comp
+        if filt:
+            stretch = find_stretches(t, np.isfinite(comp), cfg.max_gap_s)
+            lab = isolate_dropped(stretch, segment_labels(data), kept_mask(data))
+            del stretch
+            try:
+                expected = lowpass_stretches(comp, t, lab, cut, cfg.order,
+                                             fs_hz=sampling_rate(t))
+            except InputError as exc:
+                out["note"] = f"mag_comp not checked against the low-pass: {exc}"
+                continue
+            del lab
+        # the low-passed copy is this loop's own: the difference is written into it
+        diff = np.subtract(have, expected, out=expected if filt else None)
+        del expected
+        np.abs(diff, out=diff)
+        if no_mag is not None:
+            diff[no_mag] = np.nan
+        fin = np.isfinite(diff)
+        n = int(fin.sum())
+        out["compared"] = n
+        worst = float(diff[fin].max()) if n else 0.0
+        del fin
+        if best is None or worst < best[0]:
+            best = (worst, filt, diff)
+        del diff
+        if worst <= tol:
+            break
+    if best is None or not out["compared"]:
+        return out
+    worst, filt, diff = best
+    out.update(max_abs_difference_nT=worst, filtered=filt)
+    if worst > tol:
+        i = int(np.argmax(diff > tol))
+        out["first_row"] = i
+        what = (f"mag - mag_tl low-passed at {cut:g} Hz" if filt and recorded
+                else "mag - mag_tl (unfiltered)" if recorded
+                else "mag - mag_tl, unfiltered or low-passed,")
+        out["warning"] = (
+            f"{source}: column 'mag_comp' differs from {what} as {recorded_in} records it by up"
+            f" to {_g(worst)} nT (first at data row {i + 1}; tolerance {tol:g} nT):"
+            f" {LIKELY_CAUSE.format(kind=log_kind(source))}; the compensated-field figures"
+            " draw this column")
+    return out
 
 
 def headline_from_data(result: CompensationResult,
@@ -214,14 +340,22 @@ def headline_from_data(result: CompensationResult,
         computed = contract_metrics(t, mag, tl, segment_labels(data), kept_mask(data), cfg)
     except InputError as exc:
         raise InputError(str(exc).replace("<log>", src, 1)) from None
+    rj = data.attrs.get("report_json") or "OUT.json"
+    comp_check = None
+    if "mag_comp" in data.columns:
+        np.subtract(mag, tl, out=mag)  # mag's buffer becomes mag - mag_tl
+        comp_check = check_mag_comp(data, mag, report, cfg, source=src, recorded_in=str(rj))
     del t, mag, tl
     recorded = report.get("metrics") or None
-    rj = data.attrs.get("report_json") or "OUT.json"
     fluxgate = bool(report.get("mag_from_fluxgate")) or "mag" not in data.columns
     check = compare_headline(computed, recorded, online=bool(report.get("online")),
                              fluxgate=fluxgate, source=src, recorded_in=str(rj))
     if check["warning"]:
         log.warning("%s", check["warning"])
+    if comp_check is not None:
+        check["mag_comp"] = comp_check
+        if comp_check["warning"]:
+            log.warning("%s", comp_check["warning"])
     if recorded:
         report["recorded_metrics"] = recorded
     report["metrics"] = computed
