@@ -224,7 +224,8 @@ def test_calibrate_warns_loudly_when_it_must_use_time_windows(caplog, monkeypatc
     with caplog.at_level(logging.WARNING, logger="aeromag"):
         res = am.calibrate(df.drop(columns="line"), am.CompensationConfig(fom=False))
     warned = [r.getMessage() for r in caplog.records if "time windows" in r.getMessage()]
-    assert len(warned) == 1 and "--col line=SOURCE" in warned[0]
+    # the Python API names the parameter; the CLI shows --col line=SOURCE (flag_message)
+    assert len(warned) == 1 and "columns={'line': 'SOURCE'}" in warned[0]
     assert "never turns" in warned[0]
     assert res.report["segmentation"]["method"] == "time windows"
 
