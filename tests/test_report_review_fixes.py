@@ -165,12 +165,14 @@ def test_psd_tick_labels_are_plain_text(outs):
     assert not [s for s in labels if "$" in s], labels
 
 
-def test_report_prints_no_findfont_line(outs):
+@pytest.mark.parametrize("name", ["model.csv", "self.csv"])  # a survey; a box with its FOM
+def test_report_prints_no_findfont_line(outs, name):
     d, _ = outs
     # the user's matplotlib font cache as it is (one that did not list the mathtext fonts
-    # printed four findfont warnings per report)
-    r = subprocess.run([sys.executable, "-m", "aeromag", "report", str(d / "model.csv"),
-                        "-o", str(d / "rep_font")], capture_output=True, text=True,
+    # printed four findfont warnings per report; the FOM figure's log axis two more)
+    r = subprocess.run([sys.executable, "-m", "aeromag", "report", str(d / name),
+                        "-o", str(d / f"rep_font_{Path(name).stem}")], capture_output=True,
+                       text=True,
                        env=dict(os.environ), timeout=600, check=False)
     assert r.returncode == 0, r.stderr
     assert "findfont" not in r.stdout + r.stderr

@@ -540,6 +540,7 @@ def plot_fom(
     ax.set_xticklabels(labels, rotation=45, ha="right", fontsize=8)
     ax.set_ylabel("peak-to-peak (nT)")
     ax.set_yscale("log")
+    plain_log_ticks(ax)  # no mathtext: it looks up fonts and warns where they are missing
     ax.set_title(f"Figure of Merit: {np.sum(before):.2f} nT before, {np.sum(after):.3f} nT after")
     ax.legend(loc="upper right", fontsize=8)
     ax.grid(axis="y", alpha=0.3, which="both")
