@@ -26,14 +26,14 @@ import numpy as np
 import pandas as pd
 
 from .._core.filters import lowpass_stretches, sampling_rate
-from .._core.stretches import find_stretches, interpolate_short_gaps
+from .._core.stretches import find_stretches
 from ..compensation.apply import isolate_dropped, missing_total_field
 from ..compensation.config import CompensationConfig
 from ..compensation.result import CompensationResult
-from ..conventions import FLUX_COLUMNS
 from ..errors import InputError
 from ..qc import kept_mask, segment_labels
 from ..qc.quality import _config_of, contract_metrics
+from ..qc.total_field import prepared_total_field
 
 __all__ = ["MAG_COMP_TOL_NT", "MAG_COMP_TOL_FLUXGATE_NT", "REL_TOL", "REL_TOL_FLUXGATE",
            "REL_TOL_ONLINE", "check_mag_comp", "compare_headline", "headline_from_data",
@@ -101,6 +101,9 @@ def headline_total_field(data: pd.DataFrame, report: dict[str, Any],
                          cfg: CompensationConfig) -> np.ndarray:
     """The total field as the compensation used it (``mag`` with short gaps interpolated).
 
+    The QC's own preparation (:func:`aeromag.qc.total_field.prepared_total_field`), so that
+    the report's headline and its QC measure the same field.
+
     Parameters
     ----------
     data : DataFrame
@@ -115,18 +118,7 @@ def headline_total_field(data: pd.DataFrame, report: dict[str, Any],
     ndarray
         Total field per row [nT] (NaN where the compensation had none).
     """
-    t = data["time"].to_numpy(dtype=np.float64)
-    if report.get("mag_from_fluxgate") or "mag" not in data.columns:
-        if not set(FLUX_COLUMNS) <= set(data.columns):
-            raise InputError(f"{data.attrs.get('source', '<log>')}: no 'mag' column and no"
-                             " flux_x/flux_y/flux_z: no total field to measure")
-        sq = np.zeros(len(t))
-        for c in FLUX_COLUMNS:
-            v, _ = interpolate_short_gaps(data[c].to_numpy(dtype=np.float64), t,
-                                          cfg.max_interp_s, copy=False)
-            sq += v * v
-        return np.sqrt(sq)
-    return interpolate_short_gaps(data["mag"].to_numpy(dtype=np.float64), t, cfg.max_interp_s)[0]
+    return prepared_total_field(data, report, cfg)
 
 
 def compare_headline(computed: dict[str, Any], recorded: dict[str, Any] | None, *,
