@@ -111,7 +111,7 @@ def _plot(res: object, plot: Path | None, cfg: object) -> Path | None:
         return None
     from ..workflows.report import write_report
 
-    return write_report(res.data, res.report, plot, cfg=cfg)
+    return write_report(res, plot, cfg=cfg)
 
 
 def _summary(report: dict, out: Path, out_json: Path | None) -> None:
