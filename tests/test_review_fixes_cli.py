@@ -96,6 +96,17 @@ def test_compensate_online_refuses_batch_fit_options(tmp_path, flag, value):
     assert not out.exists()
 
 
+def test_compensate_online_refuses_fom(tmp_path):
+    # the recursive fit computes no Figure of Merit: --fom was accepted and did nothing
+    out = tmp_path / "out.csv"
+    r = runner.invoke(app, ["compensate", str(SAMPLES / "calibration.csv"), "-o", str(out),
+                            "--online", "--fom"])
+    assert r.exit_code == 1, r.output
+    err = _error(r)
+    assert err.count("\n") == 0 and err.startswith("error: --fom: --online reports no Figure")
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("command", ["compensate", "calibrate", "batch"])
 @pytest.mark.parametrize("flag", ["--noise-factor", "--min-excess", "--min-excess-nt",
                                   "--pca-variance", "--screen-quantile"])

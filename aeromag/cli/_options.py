@@ -299,8 +299,9 @@ class Options(dict):
 
         With ``--model`` nothing is fitted (:meth:`refuse_fit_options`); with ``--online`` the
         recursive fit uses ``--terms`` but no batch-fit option (``--ridge``,
-        ``--max-condition``, ``--no-decimate``) and screens nothing; with ``--no-screen`` the
-        screening's thresholds (``--noise-factor``, ``--min-excess``...) decide nothing.
+        ``--max-condition``, ``--no-decimate``), screens nothing and reports no FOM (``--fom``);
+        with ``--no-screen`` the screening's thresholds (``--noise-factor``, ``--min-excess``...)
+        decide nothing.
         ``--shrink`` stays allowed with ``--no-screen``: it still shrinks the per-segment
         coefficients OUT.json reports.
 
@@ -318,6 +319,8 @@ class Options(dict):
                          lambda f: f"{f} steers the batch fit or its screening, and --online "
                          "fits sample by sample without either: nothing uses it; drop "
                          f"{f} (or drop --online)")
+            self._refuse(("fom",), lambda f: f"{f}: --online reports no Figure of Merit; drop"
+                         f" {f} (aeromag report on the output gives the FOM of a calibration box)")
         elif self.get("no_screen"):
             self._refuse(SCREEN_ONLY, lambda f: f"{f} steers the screening, and --no-screen "
                          f"skips it: nothing uses it; drop {f} (or drop --no-screen)")
