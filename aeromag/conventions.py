@@ -16,6 +16,7 @@ from __future__ import annotations
 __all__ = [
     "BODY_FRAME",
     "CANONICAL_COLUMNS",
+    "EPOCH_DISPLAY_S",
     "COMPENSATE_COLUMNS",
     "EDDY_8",
     "FIELD_SCALE_NT",
@@ -82,6 +83,10 @@ TRACK_COLUMNS: dict[str, str] = {
 
 #: ``|B|`` enters the induced and eddy terms as ``|B| / FIELD_SCALE_NT`` [nT].
 FIELD_SCALE_NT = 50000.0
+
+#: Times [s] in this range (2001-09-09 to 2099-12-04) are shown as UTC clock times in
+#: summaries, tables and figure axes; other times are seconds since the start of the log.
+EPOCH_DISPLAY_S = (1e9, 4.1e9)
 
 #: TL term order (interface.md): permanent, induced (times ``|B|``), eddy (times ``|B|``).
 PERMANENT: tuple[str, ...] = ("cx", "cy", "cz")

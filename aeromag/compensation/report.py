@@ -16,6 +16,7 @@ import numpy as np
 
 from .. import __version__
 from .._core.angles import circular_mean_rad
+from ..conventions import EPOCH_DISPLAY_S
 from .config import FIT_ONLY, CompensationConfig, _config_dict
 from .model import TLModel
 from .screening import RULE
@@ -255,7 +256,7 @@ def is_epoch(t: float) -> bool:
     -------
     bool
     """
-    return bool(np.isfinite(t) and 1e9 <= t < 4.1e9)
+    return bool(np.isfinite(t) and EPOCH_DISPLAY_S[0] <= t < EPOCH_DISPLAY_S[1])
 
 
 def format_time(t: float) -> str:

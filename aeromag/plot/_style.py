@@ -27,6 +27,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from .._core.runs import run_bounds
+from ..conventions import EPOCH_DISPLAY_S
 from ..errors import InputError
 
 __all__ = ["DISPLAY_COLUMNS", "DPI", "QCFigure", "envelope", "figure_png", "new_figure",
@@ -178,7 +179,7 @@ def time_axis(time_s: np.ndarray) -> tuple[np.ndarray, str, bool]:
     t = np.asarray(time_s, dtype=np.float64)
     fin = t[np.isfinite(t)]
     t0 = float(fin[0]) if fin.size else 0.0
-    if fin.size and 1e9 <= t0 < 4.1e9:
+    if fin.size and EPOCH_DISPLAY_S[0] <= t0 < EPOCH_DISPLAY_S[1]:
         start = _dt.datetime.fromtimestamp(t0, _dt.UTC).strftime("%Y-%m-%d")
         return t / 86400.0, f"time (UTC, {start})", True
     return t - t0, "time since start of log (s)", False

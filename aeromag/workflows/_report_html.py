@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from ..compensation.report import is_epoch
+
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:2em auto;
 max-width:1100px;color:#222;padding:0 1em}
@@ -54,7 +56,7 @@ def _time(t: float | None) -> str:
     """A time for the tables: UTC when epoch seconds, else seconds."""
     if t is None or not np.isfinite(t):
         return "–"
-    if 1e9 <= t < 4.1e9:
+    if is_epoch(t):
         return dt.datetime.fromtimestamp(t, dt.UTC).strftime("%H:%M:%S")
     return f"{t:.1f}"
 

@@ -6,8 +6,9 @@ been zeroed, or with lines cut out, still showed OUT.json's numbers.  Here the h
 recomputed from the log's own columns with the library's one implementation
 (:func:`aeromag.qc.quality.contract_metrics`, i.e.
 :func:`aeromag.compensation.metrics.compensation_metrics` of ``mag - mag_tl``), after the same
-preparation of the total field as the compensation did (:func:`headline_total_field`: short
-gaps interpolated, or the fluxgate magnitude), so that an unmodified output reproduces
+preparation of the total field as the compensation did
+(:func:`aeromag.qc.total_field.prepared_total_field`: short gaps interpolated, or the fluxgate
+magnitude), so that an unmodified output reproduces
 OUT.json's figures; the recorded figures are shown beside it and a disagreement beyond
 :data:`REL_TOL` (:data:`REL_TOL_ONLINE` for ``--online`` outputs,
 :data:`REL_TOL_FLUXGATE` when the fluxgate magnitude is the total field) or any difference in the
@@ -37,7 +38,7 @@ from ..qc.total_field import prepared_total_field
 
 __all__ = ["MAG_COMP_TOL_NT", "MAG_COMP_TOL_FLUXGATE_NT", "REL_TOL", "REL_TOL_FLUXGATE",
            "REL_TOL_ONLINE", "check_mag_comp", "compare_headline", "headline_from_data",
-           "headline_record", "headline_total_field", "log_kind"]
+           "headline_record", "log_kind"]
 
 log = logging.getLogger(__name__)
 
@@ -95,30 +96,6 @@ def log_kind(source: str) -> str:
     return {"csv": "the CSV", "parquet": "the Parquet file", "pq": "the Parquet file",
             "xyz": "the XYZ file", "h5": "the HDF5 file", "hdf5": "the HDF5 file"
             }.get(suffix, "the log")
-
-
-def headline_total_field(data: pd.DataFrame, report: dict[str, Any],
-                         cfg: CompensationConfig) -> np.ndarray:
-    """The total field as the compensation used it (``mag`` with short gaps interpolated).
-
-    The QC's own preparation (:func:`aeromag.qc.total_field.prepared_total_field`), so that
-    the report's headline and its QC measure the same field.
-
-    Parameters
-    ----------
-    data : DataFrame
-        The compensated log (``time``, ``mag`` or ``flux_x/y/z`` [nT]).
-    report : dict
-        Its report (``mag_from_fluxgate``: the fluxgate magnitude was the total field).
-    cfg : CompensationConfig
-        ``max_interp_s``: the longest NaN gap the compensation interpolated [s].
-
-    Returns
-    -------
-    ndarray
-        Total field per row [nT] (NaN where the compensation had none).
-    """
-    return prepared_total_field(data, report, cfg)
 
 
 def compare_headline(computed: dict[str, Any], recorded: dict[str, Any] | None, *,
@@ -326,7 +303,7 @@ def headline_from_data(result: CompensationResult,
                          f" run `aeromag compensate LOG -o {src}` first")
     cfg = config or result.config or _config_of(report)
     t = data["time"].to_numpy(dtype=np.float64)
-    mag = headline_total_field(data, report, cfg)
+    mag = prepared_total_field(data, report, cfg)
     tl = data["mag_tl"].to_numpy(dtype=np.float64)
     try:
         computed = contract_metrics(t, mag, tl, segment_labels(data), kept_mask(data), cfg)
