@@ -129,7 +129,7 @@ def read_log(
     if df.attrs.pop("_time_converted", False):
         plain = None  # the time column is no longer the file's text
     if "time" in df.columns:
-        df = _clean_time(df, source, rows)
+        df = clean_time(df, source, rows)
     if len(df) < min_rows:
         raise InputError(f"{source}: only {len(df)} usable row(s); need at least {min_rows}:"
                          " give a longer log")
@@ -173,9 +173,32 @@ def duplicates_warning(source: str, n: int, where: str) -> str:
             " row before it); check the logger if you did not expect copies")
 
 
-def _clean_time(df: pd.DataFrame, source: str,
+def clean_time(df: pd.DataFrame, source: str,
                 rows: Mapping[str, Any] | None = None) -> pd.DataFrame:
-    """Drop exact duplicate rows; require a finite, strictly increasing ``time``."""
+    """Drop exact duplicate rows; require a finite, strictly increasing ``time``.
+
+    The readers' check (:func:`read_log`), also run by ``aeromag report`` on the log it reads,
+    so that both refuse a log in the same words.
+
+    Parameters
+    ----------
+    df : DataFrame
+        The log, with ``time`` [s].
+    source : str
+        The file, for messages.
+    rows : mapping, optional
+        How to name a row of the file in messages (:mod:`aeromag.io.rows`).
+
+    Returns
+    -------
+    DataFrame
+        ``df`` without its exact duplicate rows (a warning says how many).
+
+    Raises
+    ------
+    InputError
+        Naming the file, column ``time`` and the row where time does not increase.
+    """
     t = df["time"].to_numpy(dtype=np.float64)
     check_time_values(t, source, rows)
     dup = np.zeros(len(df), dtype=bool)

@@ -78,14 +78,14 @@ def _time_in_order(data: pd.DataFrame, src: Path) -> pd.DataFrame:
     t = data["time"].to_numpy(dtype=np.float64)
     if len(t) < 2 or bool((t[1:] > t[:-1]).all()):
         return data
-    from ..io.log import _clean_time
+    from ..io.log import clean_time
     from ..io.rows import rows_after_header, rows_numbered
 
     suffix = src.suffix.lower()
     rows = (rows_after_header(src, 1) if suffix == ".csv"
             else rows_numbered("row") if suffix in (".parquet", ".pq") else None)
     attrs = dict(data.attrs)
-    data = _clean_time(data, str(src), rows)
+    data = clean_time(data, str(src), rows)
     data.attrs.update(attrs)
     return data
 
