@@ -179,8 +179,8 @@ def test_improvement_ratio_just_below_one_reads_below_one():
 
 
 def test_online_ratio_below_one_gives_the_online_advice():
-    m = {"improvement_ratio": 0.9, "residual_std_nT": 0.1, "after_warmup": None}
-    (w,) = metric_warnings(m, fitted=True)
+    m = {"improvement_ratio": 0.9, "residual_std_nT": 0.1}
+    (w,) = metric_warnings(m, fitted=True, online=True)
     assert "calibrate on a flight with maneuvers" not in w
     assert "online fit" in w and "forgetting=" in w and "terms=" in w
     from aeromag.cli._options import flag_message

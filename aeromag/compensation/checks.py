@@ -22,7 +22,7 @@ IMPLAUSIBLE_RESIDUAL_NT = 50.0
 
 
 def metric_warnings(metrics: dict[str, Any], *, source: str | None = None,
-                    fitted: bool = False) -> list[str]:
+                    fitted: bool = False, online: bool = False) -> list[str]:
     """What is wrong with a compensation's headline metrics (empty when nothing).
 
     Parameters
@@ -33,9 +33,10 @@ def metric_warnings(metrics: dict[str, Any], *, source: str | None = None,
         File name that starts every message.
     fitted : bool
         Whether the model was fitted on this very log (else a saved model was applied): only
-        the advice of the improvement-ratio message differs.  Metrics with ``after_warmup``
-        are the online fit's (:func:`aeromag.workflows.online_compensate.online_metrics`),
-        whose advice is the recursive estimate's (memory, terms), not a calibration box.
+        the advice of the improvement-ratio message differs.
+    online : bool
+        The metrics are the online (recursive) fit's: its advice is the estimate's memory and
+        terms, not a calibration box.
 
     Returns
     -------
@@ -47,7 +48,7 @@ def metric_warnings(metrics: dict[str, Any], *, source: str | None = None,
     ratio, resid = metrics.get("improvement_ratio"), metrics.get("residual_std_nT")
     if _finite(ratio) and ratio < 1.0:
         shown = _below_one(float(ratio))
-        if fitted and "after_warmup" in metrics:  # only the online (recursive) fit's metrics
+        if online:
             out.append(f"the online fit leaves more band-passed variation than it removes"
                        f" (improvement ratio {shown} < 1): the recursive estimate chases"
                        " noise when the interference is small against the sensor noise or"
@@ -76,12 +77,12 @@ def metric_warnings(metrics: dict[str, Any], *, source: str | None = None,
 
 
 def check_metrics(metrics: dict[str, Any], *, source: str | None = None,
-                  fitted: bool = False) -> list[str]:
+                  fitted: bool = False, online: bool = False) -> list[str]:
     """Log every finding of :func:`metric_warnings` as a warning; return them.
 
     Parameters
     ----------
-    metrics, source, fitted
+    metrics, source, fitted, online
         As in :func:`metric_warnings`.
 
     Returns
@@ -89,7 +90,7 @@ def check_metrics(metrics: dict[str, Any], *, source: str | None = None,
     list of str
         The warnings logged.
     """
-    found = metric_warnings(metrics, source=source, fitted=fitted)
+    found = metric_warnings(metrics, source=source, fitted=fitted, online=online)
     for w in found:
         log.warning("%s", w)
     return found

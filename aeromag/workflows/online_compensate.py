@@ -183,7 +183,7 @@ def compensate_online_frame(df: pd.DataFrame, cfg: CompensationConfig | None = N
     out["segment_kept"] = np.ones(len(seg), dtype=bool)
     metrics, segments = online_metrics(t, prep.mag, res.mag_tl, seg, cfg, lam, src)
     # The batch fit's checks, one implementation: warnings (OUT.json; an error with --strict).
-    check_metrics(metrics, source=src, fitted=True)
+    check_metrics(metrics, source=src, fitted=True, online=True)
     n = len(t)
     step = max(1, n // HISTORY_POINTS)
     idx = np.arange(0, n, step)
