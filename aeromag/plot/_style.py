@@ -177,12 +177,69 @@ def time_axis(time_s: np.ndarray) -> tuple[np.ndarray, str, bool]:
     is_date : bool
     """
     t = np.asarray(time_s, dtype=np.float64)
-    fin = t[np.isfinite(t)]
-    t0 = float(fin[0]) if fin.size else 0.0
-    if fin.size and EPOCH_DISPLAY_S[0] <= t0 < EPOCH_DISPLAY_S[1]:
-        start = _dt.datetime.fromtimestamp(t0, _dt.UTC).strftime("%Y-%m-%d")
-        return t / 86400.0, f"time (UTC, {start})", True
-    return t - t0, "time since start of log (s)", False
+    ax = _TimeAxis(t)
+    return ax(t), ax.label, ax.is_date
+
+
+class _TimeAxis:
+    """The abscissa of :func:`time_axis` as a function of a block of times (no full copy).
+
+    ``_TimeAxis(t)(t[a:b])`` is ``time_axis(t)[0][a:b]``, value for value.
+    """
+
+    def __init__(self, t: np.ndarray) -> None:
+        fin = np.isfinite(t)
+        i = int(np.argmax(fin)) if len(t) else 0
+        has = bool(len(t)) and bool(fin[i])
+        del fin
+        self.t0 = float(t[i]) if has else 0.0  # the first finite time [s]
+        self.is_date = has and EPOCH_DISPLAY_S[0] <= self.t0 < EPOCH_DISPLAY_S[1]
+        if self.is_date:
+            start = _dt.datetime.fromtimestamp(self.t0, _dt.UTC).strftime("%Y-%m-%d")
+            self.label = f"time (UTC, {start})"
+        else:
+            self.label = "time since start of log (s)"
+
+    def __call__(self, t: np.ndarray) -> np.ndarray:
+        """Axis values [days since 1970 UTC, or s since the first sample] of times ``t`` [s]."""
+        return t / 86400.0 if self.is_date else t - self.t0
+
+
+def _median_step(time_s: np.ndarray) -> float:
+    """``np.median(np.diff(t))`` [s] (the same value) without the copy ``np.median`` makes.
+
+    The step :func:`aeromag._core.filters.sampling_rate` and :func:`find_stretches`'s default
+    gap are derived from; 16 MB transient at 2e6 rows instead of 32.  NaN when ``t`` has
+    fewer than 2 samples.
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    if len(t) < 2:
+        return float("nan")
+    return float(np.median(np.diff(t), overwrite_input=True))
+
+
+def _stretch_gap_s(time_s: np.ndarray) -> float:
+    """The largest step inside a stretch that :func:`find_stretches` uses by default [s]."""
+    med = _median_step(time_s) if len(time_s) >= 2 else 1.0
+    return 5.0 * med
+
+
+def _new_stretch(t: np.ndarray, a: int, b: int, gap_s: float) -> np.ndarray:
+    """Where ``find_stretches(t)`` (no validity mask, gap ``gap_s``) starts a stretch in [a, b).
+
+    True at the first sample of the log and after every step that is not ``<= gap_s``
+    (NaN times included), exactly as :func:`find_stretches` decides it.
+    """
+    d = np.diff(t[max(a - 1, 0):b])
+    new = np.empty(b - a, dtype=bool)
+    if a == 0:
+        new[0] = True
+        np.less_equal(d, gap_s, out=new[1:])
+        np.logical_not(new[1:], out=new[1:])
+    else:
+        np.less_equal(d, gap_s, out=new)
+        np.logical_not(new, out=new)
+    return new
 
 
 def _format_time(ax: Axes, is_date: bool, label: str) -> None:
@@ -297,6 +354,170 @@ def _line(ax: Axes, x: np.ndarray, y: np.ndarray, st: np.ndarray | None = None,
           **kw: Any) -> None:
     ex, ey = envelope(x, y, breaks=_valid_runs(y, st))
     ax.plot(ex, ey, **kw)
+
+
+#: Rows per block of :class:`_EnvelopeStream` (a few MB of temporaries per line).
+ENVELOPE_BLOCK = 1 << 17
+
+
+class _EnvelopeStream:
+    """``envelope(x, y, breaks=_valid_runs(y, st))`` of a long line, given block by block.
+
+    The figure's lines used to be enveloped whole: the abscissa, the stretch labels, the run
+    labels and the column keys were each a full-length array (16 MB apiece at 2e6 rows).
+    Here consecutive blocks of rows are added in order (:meth:`add`) and only the runs of one
+    pixel column and one stretch are kept (a run cut by a block end is joined to its rest), so
+    :meth:`result` returns the very points :func:`envelope` returns for a line of more than
+    ``4 * columns`` samples, value for value (same columns, same runs, same extremes).
+
+    Parameters
+    ----------
+    lo, hi : float
+        Least and greatest abscissa of the drawable samples (finite ``x`` and ``y``) of the
+        whole line: the pixel columns are ``(hi - lo) / columns`` wide.  Samples outside are
+        clipped to the first or last column, as by :func:`envelope`; :attr:`seen` gives the
+        bounds actually met, so a caller that guessed them can check.
+    columns : int
+        Pixel columns across the x range.
+
+    Notes
+    -----
+    The stretches are given as a flag per sample, True where ``find_stretches(t)`` (no
+    validity mask: every sample is in a stretch) starts a new one; see :func:`_new_stretch`.
+    """
+
+    def __init__(self, lo: float, hi: float, columns: int = DISPLAY_COLUMNS) -> None:
+        self.lo, self.columns = float(lo), int(columns)
+        self.width = (hi - lo) / columns if hi > lo else 1.0
+        self._parts: list[tuple[np.ndarray, ...]] = []  # (x0, x1, ymin, ymax, seg) per block
+        self._last: tuple[int, int, int] | None = None  # (stop, seg, col) of the last run
+        self._prev_good = False  # the previous block's last sample was finite
+        self._count = 0  # run labels issued so far (the cumsum of _valid_runs)
+        self.seen = (np.inf, -np.inf)
+
+    def add(self, x: np.ndarray, y: np.ndarray, new: np.ndarray, offset: int) -> None:
+        """Add the rows ``[offset, offset + len(x))``: abscissae, ordinates, stretch starts."""
+        m = len(x)
+        if m == 0:
+            return
+        good = np.isfinite(y)
+        # _valid_runs: a new run after every missing sample and at every new stretch.
+        start = good.copy()
+        start[1:] &= ~good[:-1]
+        start[0] &= not self._prev_good
+        start |= new
+        runs = np.cumsum(start, dtype=np.int64)
+        del start
+        runs += self._count
+        self._count = int(runs[-1])
+        self._prev_good = bool(good[-1])
+        good &= np.isfinite(x)
+        if not good.any():
+            return
+        xg = x[good]
+        self.seen = (min(self.seen[0], float(np.min(xg))), max(self.seen[1], float(np.max(xg))))
+        del xg
+        c = x - self.lo
+        c /= self.width
+        col = c.astype(np.int64)
+        del c
+        np.clip(col, 0, self.columns - 1, out=col)
+        key = runs - runs[0]
+        key *= self.columns
+        key += col
+        key[~good] = -1
+        a, b, _ = run_bounds(key)
+        del key
+        ymin = np.minimum.reduceat(np.where(good, y, np.inf), a)
+        ymax = np.maximum.reduceat(np.where(good, y, -np.inf), a)
+        x0, x1, seg, cola = x[a], x[b - 1], runs[a], col[a]
+        if self._last is not None and self._last == (offset + int(a[0]), int(seg[0]),
+                                                     int(cola[0])):
+            p = self._parts[-1]  # the run goes on from the previous block: join it
+            p[1][-1] = x1[0]
+            p[2][-1] = min(p[2][-1], ymin[0])
+            p[3][-1] = max(p[3][-1], ymax[0])
+            x0, x1, ymin, ymax, seg = x0[1:], x1[1:], ymin[1:], ymax[1:], seg[1:]
+        self._last = (offset + int(b[-1]), int(runs[b[-1] - 1]), int(col[b[-1] - 1]))
+        if len(x0):
+            self._parts.append((x0.copy(), x1.copy(), ymin, ymax, seg.copy()))
+
+    def result(self) -> tuple[np.ndarray, np.ndarray]:
+        """The points to draw (NaN between stretches), as :func:`envelope` returns them."""
+        if not self._parts:
+            return np.zeros(0), np.zeros(0)
+        x0, x1, ymin, ymax, seg = (np.concatenate(v) for v in zip(*self._parts, strict=True))
+        px = np.column_stack([x0, x1]).ravel()
+        py = np.column_stack([ymin, ymax]).ravel()
+        brk = _subpixel_breaks_merged(x0, x1, seg, self.width)
+        return np.insert(px, brk, np.nan), np.insert(py, brk, np.nan)
+
+
+def _drawable_bounds(lines: list[tuple[float, float]], x: np.ndarray,
+                     ys: list[np.ndarray]) -> None:
+    """Widen each line's ``(lo, hi)`` in place by the block's finite ``(x, y)`` samples."""
+    fx = np.isfinite(x)
+    for i, y in enumerate(ys):
+        g = np.isfinite(y)
+        g &= fx
+        if g.any():
+            xg = x[g]
+            lo, hi = lines[i]
+            lines[i] = (min(lo, float(np.min(xg))), max(hi, float(np.max(xg))))
+
+
+def _streamed_envelopes(
+    n: int, blocks: Any, n_lines: int, bounds: list[tuple[float, float]] | None = None,
+    columns: int = DISPLAY_COLUMNS,
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The envelopes of ``n_lines`` lines of ``n`` samples that are produced block by block.
+
+    Equal, point for point, to ``envelope(x, y, breaks=_valid_runs(y, find_stretches(t)))``
+    for each line: what :func:`_line` draws.
+
+    Parameters
+    ----------
+    n : int
+        Samples per line.
+    blocks : callable
+        ``blocks()`` yields ``(offset, x, new, ys)`` for consecutive blocks of rows covering
+        ``[0, n)`` in order: abscissae, stretch starts (:func:`_new_stretch`) and the list
+        of the lines' ordinates.  Called once or twice (or three times, see ``bounds``).
+    n_lines : int
+        Number of lines.
+    bounds : list of (float, float), optional
+        A guess of each line's drawable x range (when its ordinates are costly to make: one
+        pass); checked against the range met and, where it was wrong, the lines are made
+        again.  Default: one cheap pass finds them first.
+    columns : int
+        Pixel columns.
+
+    Returns
+    -------
+    list of (x, y)
+        The points to draw for each line.
+    """
+    if n <= 4 * columns:  # a short line is drawn as it is: the whole-array path
+        parts = list(blocks())
+        x = np.concatenate([p[1] for p in parts])
+        st = np.cumsum(np.concatenate([p[2] for p in parts])) - 1
+        return [envelope(x, y, columns, breaks=_valid_runs(y, st))
+                for y in (np.concatenate([p[3][i] for p in parts]) for i in range(n_lines))]
+    if bounds is None:
+        bounds = [(np.inf, -np.inf)] * n_lines
+        for _, x, _, ys in blocks():
+            _drawable_bounds(bounds, x, ys)
+    for _ in range(2):
+        streams = [_EnvelopeStream(lo, hi, columns) for lo, hi in bounds]
+        for off, x, new, ys in blocks():
+            for s, y in zip(streams, ys, strict=True):
+                s.add(x, y, new, off)
+        seen = [s.seen for s in streams]
+        if all(g == b or g[0] > g[1] for g, b in zip(seen, bounds, strict=True)):
+            break
+        log.debug("envelope bounds guessed %s, met %s: drawn again", bounds, seen)
+        bounds = seen
+    return [s.result() for s in streams]
 
 
 def _valid_runs(y: np.ndarray, st: np.ndarray | None) -> np.ndarray:

@@ -37,20 +37,24 @@ from matplotlib.patches import Ellipse
 from scipy import signal
 
 from .._core.filters import sampling_rate
-from .._core.runs import run_bounds
 from .._core.stretches import find_stretches
 from ..compensation.terms import BIAS, EDDY_9, INDUCED_6, PERMANENT, design_matrix
 from ..errors import InputError
 from ._style import (
     DPI,
+    ENVELOPE_BLOCK,
     QCFigure,
     _data,
     _finish,
     _format_time,
-    _line,
+    _median_step,
+    _new_stretch,
     _PathLike,
     _report,
+    _streamed_envelopes,
+    _stretch_gap_s,
     _target,
+    _TimeAxis,
     envelope,
     figure_png,
     new_figure,
@@ -200,14 +204,45 @@ def plot_explained_variance(
 
 
 # --------------------------------------------------------------------------- time series
+def _field_before_rows(data: pd.DataFrame) -> Any:
+    """``rows(a, b)``: the uncompensated field [nT] of rows ``[a, b)`` as float64.
+
+    ``mag``, or the fluxgate's magnitude when there is no ``mag`` (row by row, the same
+    values as ``np.linalg.norm`` of the whole ``(n, 3)`` float64 matrix).
+    """
+    if "mag" in data.columns:
+        mag = data["mag"].to_numpy()  # as stored: no copy of a float64 column
+        return lambda a, b: np.asarray(mag[a:b], dtype=np.float64)
+    fl = [data[k].to_numpy() for k in ("flux_x", "flux_y", "flux_z")]
+    return lambda a, b: np.linalg.norm(
+        np.column_stack([f[a:b] for f in fl]).astype(np.float64, copy=False), axis=1)
+
+
 def _field_before(data: pd.DataFrame) -> np.ndarray:
+    """The uncompensated field [nT] of every row (``mag``, else the fluxgate's magnitude)."""
     if "mag" in data.columns:
         return data["mag"].to_numpy(dtype=np.float64)
-    return np.linalg.norm(data[["flux_x", "flux_y", "flux_z"]].to_numpy(dtype=np.float64), axis=1)
+    rows, n = _field_before_rows(data), len(data)
+    out = np.empty(n)
+    for a in range(0, n, ENVELOPE_BLOCK):
+        out[a:a + ENVELOPE_BLOCK] = rows(a, min(n, a + ENVELOPE_BLOCK))
+    return out
 
 
-def _stretches(data: pd.DataFrame) -> np.ndarray:
-    return find_stretches(data["time"].to_numpy(dtype=np.float64))
+def _time_blocks(t: np.ndarray, lines: Any, block: int = ENVELOPE_BLOCK) -> Any:
+    """``blocks()`` for :func:`_streamed_envelopes`: time axis, stretch starts, ``lines(a, b)``.
+
+    The stretches are ``find_stretches(t)``'s (gap: 5 median steps), decided block by block.
+    """
+    ax = _TimeAxis(t)
+    gap = _stretch_gap_s(t)
+    n = len(t)
+
+    def blocks() -> Any:
+        for a in range(0, n, block):
+            b = min(n, a + block)
+            yield a, ax(t[a:b]), _new_stretch(t, a, b, gap), lines(a, b)
+    return ax, blocks
 
 
 def plot_timeseries(
@@ -230,12 +265,16 @@ def plot_timeseries(
     """
     data = _data(data)
     fig, ax = _target(ax, (9.0, 4.0))
-    x, label, is_date = time_axis(data["time"].to_numpy(dtype=np.float64))
-    st = _stretches(data)
-    _line(ax, x, _field_before(data), st, color="0.55", lw=0.8, label="uncompensated (mag)")
-    _line(ax, x, data["mag_comp"].to_numpy(dtype=np.float64), st, color="C0", lw=0.9,
-          label="compensated (mag_comp)")
-    _format_time(ax, is_date, label)
+    t = data["time"].to_numpy(dtype=np.float64)
+    before = _field_before_rows(data)
+    comp = data["mag_comp"].to_numpy()
+    # Enveloped block by block: no full-length abscissa, labels or keys (issue 15).
+    tax, blocks = _time_blocks(
+        t, lambda a, b: [before(a, b), np.asarray(comp[a:b], dtype=np.float64)])
+    (xb, yb), (xc, yc) = _streamed_envelopes(len(t), blocks, 2)
+    ax.plot(xb, yb, color="0.55", lw=0.8, label="uncompensated (mag)")
+    ax.plot(xc, yc, color="C0", lw=0.9, label="compensated (mag_comp)")
+    _format_time(ax, tax.is_date, tax.label)
     ax.ticklabel_format(axis="y", useOffset=False, style="plain")
     ax.set_ylabel("total field (nT)")
     ax.set_title("Uncompensated vs compensated total field")
@@ -286,18 +325,29 @@ def plot_residuals(
         time_s = data["time"].to_numpy()
     fig, ax = _target(ax, (9.0, 4.0))
     t = np.asarray(time_s, dtype=np.float64)
-    x, label, is_date = time_axis(t)
-    st = find_stretches(t)
-    k = np.ones(len(t), dtype=bool) if kept is None else np.asarray(kept, dtype=bool)
-    b = np.asarray(before_bp, dtype=np.float64)
-    a = np.asarray(after_bp, dtype=np.float64)
-    _line(ax, x, b, st, color="0.6", lw=0.7, label="before: mag")
-    _line(ax, x, np.where(k, a, np.nan), st, color="C0", lw=0.8,
-          label="after: mag - mag_tl (kept segments)")
-    if (~k).any():
-        _line(ax, x, np.where(k, np.nan, a), st, color="C3", lw=0.8,
-              label="after (dropped segments)")
-    _format_time(ax, is_date, label)
+    bp = np.asarray(before_bp)
+    ap = np.asarray(after_bp)
+    k = None if kept is None else np.asarray(kept, dtype=bool)
+    dropped = k is not None and not bool(k.all())
+
+    def lines(i: int, j: int) -> list[np.ndarray]:  # float64 rows [i, j) of each line
+        b = np.asarray(bp[i:j], dtype=np.float64)
+        a = np.asarray(ap[i:j], dtype=np.float64)
+        if k is None:
+            return [b, a]
+        out = [b, np.where(k[i:j], a, np.nan)]
+        if dropped:
+            out.append(np.where(k[i:j], np.nan, a))
+        return out
+
+    # Enveloped block by block: no full-length abscissa, masked copies, labels or keys.
+    tax, blocks = _time_blocks(t, lines)
+    env = _streamed_envelopes(len(t), blocks, 3 if dropped else 2)
+    ax.plot(*env[0], color="0.6", lw=0.7, label="before: mag")
+    ax.plot(*env[1], color="C0", lw=0.8, label="after: mag - mag_tl (kept segments)")
+    if dropped:
+        ax.plot(*env[2], color="C3", lw=0.8, label="after (dropped segments)")
+    _format_time(ax, tax.is_date, tax.label)
     ax.set_ylabel("band-passed field (nT)")
     band = f" {band_hz[0]:g}-{band_hz[1]:g} Hz" if band_hz else ""
     ax.set_title(f"Band-passed{band} field before and after compensation")
@@ -306,17 +356,50 @@ def plot_residuals(
     return _finish(fig, path)
 
 
-def _welch(x: np.ndarray, t: np.ndarray, nperseg: int) -> tuple[np.ndarray, np.ndarray]:
+def _finite_stretch_bounds(t: np.ndarray, x: np.ndarray, gap_s: float,
+                           block: int = ENVELOPE_BLOCK) -> tuple[np.ndarray, np.ndarray]:
+    """``run_bounds(find_stretches(t, np.isfinite(x)))``'s starts and stops, block by block.
+
+    A stretch starts at a finite sample whose predecessor is missing, not finite or more than
+    ``gap_s`` before it, and stops after a finite sample whose successor is; the same runs as
+    the full-length labels, without them (16 MB and 50 MB of temporaries at 2e6 rows).
+    """
+    n = len(t)
+    starts, stops = [], []
+    for a in range(0, n, block):
+        b = min(n, a + block)
+        lo, hi = max(a - 1, 0), min(b + 1, n)
+        ok = np.isfinite(x[lo:hi])
+        cont = np.less_equal(np.diff(t[lo:hi]), gap_s)  # sample i + 1 continues sample i
+        cont &= ok[1:]
+        cont &= ok[:-1]
+        i0 = a - lo  # index of row a in the window
+        mine = ok[i0:i0 + b - a]
+        first = mine & ~np.r_[False, cont][i0:i0 + b - a]
+        last = mine & ~np.r_[cont, False][i0:i0 + b - a]
+        starts.append(np.flatnonzero(first) + a)
+        stops.append(np.flatnonzero(last) + a + 1)
+    if not starts:
+        e = np.zeros(0, dtype=np.int64)
+        return e, e
+    return np.concatenate(starts), np.concatenate(stops)
+
+
+def _welch(x: np.ndarray, t: np.ndarray, nperseg: int,
+           step_s: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Welch PSD averaged over continuous stretches (weighted by their length), vectorised.
 
     The segments of every stretch (Hann window, 50 % overlap, linear detrend, density scaling:
     :func:`scipy.signal.welch`'s defaults) are transformed in batches, each weighted by its
     stretch's length over its number of segments: a log cut into thousands of stretches costs
-    a few FFT batches, not one call per stretch.
+    a few FFT batches, not one call per stretch.  ``step_s`` is ``t``'s median step (computed
+    when not given); the stretches are ``find_stretches(t, np.isfinite(x))``'s.
     """
-    fs = sampling_rate(t)
-    st = find_stretches(t, np.isfinite(x))
-    starts, stops, _ = run_bounds(st)
+    dt = _median_step(t) if step_s is None else step_s
+    if not dt > 0:
+        sampling_rate(t)  # raises its error (too short, not increasing)
+    fs = 1.0 / dt  # sampling_rate(t), without its two full-length temporaries
+    starts, stops = _finite_stretch_bounds(t, x, 5.0 * dt)
     if len(starts) == 0:
         raise InputError("no continuous stretch long enough for a spectrum")
     nps = min(nperseg, int(max(stops - starts)))
@@ -337,12 +420,19 @@ def _welch(x: np.ndarray, t: np.ndarray, nperseg: int) -> tuple[np.ndarray, np.n
     # scipy.signal.detrend computes through lstsq, to rounding; 0.8 s -> 0.1 s on 2e6 rows).
     tc = np.arange(nps) - (nps - 1) / 2.0
     tc_w = tc / float(tc @ tc)
+    rows = np.lib.stride_tricks.sliding_window_view(xv, nps)  # a view: row i is x[i:i + nps]
     for i in range(0, len(seg0), 2048):
-        seg = xv[seg0[i:i + 2048, None] + np.arange(nps)]
+        seg = rows[seg0[i:i + 2048]]  # the batch's segments (no index matrix)
         seg -= seg.mean(axis=-1, keepdims=True)
-        seg -= (seg @ tc_w)[:, None] * tc
+        slope = seg @ tc_w
+        for r in range(0, len(seg), 256):  # the detrend line, a few rows at a time
+            seg[r:r + 256] -= slope[r:r + 256, None] * tc
         seg *= win
-        acc += weight[i:i + 2048] @ (np.abs(np.fft.rfft(seg, axis=-1)) ** 2)
+        p = np.abs(np.fft.rfft(seg, axis=-1))
+        del seg
+        np.square(p, out=p)
+        acc += weight[i:i + 2048] @ p
+        del p
     acc *= scale / lens[ok].sum()
     acc[1:None if nps % 2 else -1] *= 2.0  # one-sided: all but DC (and Nyquist)
     return np.fft.rfftfreq(nps, 1.0 / fs), acc
@@ -377,12 +467,13 @@ def plot_psd(
     data = _data(data)
     fig, ax = _target(ax, (7.0, 4.5))
     t = data["time"].to_numpy(dtype=np.float64)
-    f, pb = _welch(_field_before(data), t, nperseg)
-    f2, pa = _welch(data["mag_comp"].to_numpy(dtype=np.float64), t, nperseg)
+    step = _median_step(t)
+    f, pb = _welch(_field_before(data), t, nperseg, step)
+    f2, pa = _welch(data["mag_comp"].to_numpy(dtype=np.float64), t, nperseg, step)
     ax.loglog(f[1:], pb[1:], color="0.55", lw=1, label="uncompensated (mag)")
     ax.loglog(f2[1:], pa[1:], color="C0", lw=1, label="compensated (mag_comp)")
     if "mag_tl" in data.columns:
-        f3, pt = _welch(data["mag_tl"].to_numpy(dtype=np.float64), t, nperseg)
+        f3, pt = _welch(data["mag_tl"].to_numpy(dtype=np.float64), t, nperseg, step)
         ax.loglog(f3[1:], pt[1:], color="C1", lw=0.8, ls=":", label="model (mag_tl)")
     if band_hz is not None:
         ax.axvspan(band_hz[0], band_hz[1], color="C2", alpha=0.08, label="fitting band")
@@ -395,8 +486,53 @@ def plot_psd(
     return _finish(fig, path)
 
 
+#: The term groups drawn (and summed) by :func:`term_contributions`, in this order.
+_GROUPS = {"permanent": PERMANENT, "induced": INDUCED_6, "eddy": EDDY_9, "bias": BIAS}
+
+#: Rows per block of the term contributions (with 2 rows of context on either side).
+TERM_BLOCK = 50_000
+
+
+def _term_groups(terms: tuple[str, ...]) -> dict[str, list[int]]:
+    """Column indices of each non-empty term group, in :data:`_GROUPS` order."""
+    idx = {g: [j for j, x in enumerate(terms) if x in m] for g, m in _GROUPS.items()}
+    return {g: v for g, v in idx.items() if v}
+
+
+def _term_blocks(data: pd.DataFrame, terms: Any, coef: Any, block: int = TERM_BLOCK) -> Any:
+    """Yield ``(a, b, {group: values [nT] of rows [a, b)})`` for consecutive blocks of rows.
+
+    Each block's design matrix is built from the rows ``[a - 2, b + 2)`` (derivatives at the
+    block's ends are the whole log's) with the stretches of ``find_stretches(t, ok)`` (``ok``:
+    a finite fluxgate sample), decided inside the block with the whole log's gap: only
+    changes of label matter to the derivatives, and those are the same.
+    """
+    terms = tuple(terms)
+    c = np.asarray(coef, dtype=np.float64)
+    t = data["time"].to_numpy(dtype=np.float64)
+    # The fluxgate as stored (float32 in the report), converted block by block below.
+    fcols = [data[k].to_numpy() for k in ("flux_x", "flux_y", "flux_z")]
+    idx = _term_groups(terms)
+    n = len(t)
+    gap = _stretch_gap_s(t)
+    pad = 2
+    for a in range(0, n, block):
+        b = min(n, a + block)
+        lo, hi = max(0, a - pad), min(n, b + pad)
+        f = [x[lo:hi] for x in fcols]
+        sel = np.isfinite(f[0]) & np.isfinite(f[1]) & np.isfinite(f[2])
+        if not sel.any():
+            yield a, b, {g: np.full(b - a, np.nan) for g in idx}
+            continue
+        st = find_stretches(t[lo:hi], sel, max_gap_s=gap)
+        flux = np.column_stack(f).astype(np.float64, copy=False)
+        A = np.full((hi - lo, len(terms)), np.nan)
+        A[sel] = design_matrix(flux[sel], t[lo:hi][sel], terms, stretch=st[sel])
+        yield a, b, {g: (A[:, j] @ c[j])[a - lo:b - lo] for g, j in idx.items()}
+
+
 def term_contributions(data: pd.DataFrame, terms: Any, coef: Any,
-                       block: int = 50_000) -> pd.DataFrame:
+                       block: int = TERM_BLOCK) -> pd.DataFrame:
     """Permanent, induced and eddy parts of the modelled interference.
 
     Built block by block (a 16-column design matrix of the whole log never exists); each block
@@ -419,31 +555,46 @@ def term_contributions(data: pd.DataFrame, terms: Any, coef: Any,
         ``permanent``, ``induced``, ``eddy`` (and ``bias``) [nT] per sample; their sum is
         ``mag_tl``.
     """
-    terms = tuple(terms)
-    c = np.asarray(coef, dtype=np.float64)
-    t = data["time"].to_numpy(dtype=np.float64)
-    # The fluxgate as stored (float32 in the report), converted block by block below.
-    fcols = [data[k].to_numpy() for k in ("flux_x", "flux_y", "flux_z")]
-    ok = np.isfinite(fcols[0]) & np.isfinite(fcols[1]) & np.isfinite(fcols[2])
-    st = find_stretches(t, ok)
-    groups = {"permanent": PERMANENT, "induced": INDUCED_6, "eddy": EDDY_9, "bias": BIAS}
-    idx = {g: [j for j, x in enumerate(terms) if x in m] for g, m in groups.items()}
-    idx = {g: v for g, v in idx.items() if v}
-    n = len(t)
-    out = {g: np.full(n, np.nan) for g in idx}
-    pad = 2
-    for a in range(0, n, block):
-        b = min(n, a + block)
-        lo, hi = max(0, a - pad), min(n, b + pad)
-        sel = ok[lo:hi]
-        if not sel.any():
-            continue
-        flux = np.column_stack([x[lo:hi] for x in fcols]).astype(np.float64, copy=False)
-        A = np.full((hi - lo, len(terms)), np.nan)
-        A[sel] = design_matrix(flux[sel], t[lo:hi][sel], terms, stretch=st[lo:hi][sel])
-        for g, j in idx.items():
-            out[g][a:b] = (A[:, j] @ c[j])[a - lo:b - lo]
+    n = len(data)
+    out = {g: np.full(n, np.nan) for g in _term_groups(tuple(terms))}
+    for a, b, parts in _term_blocks(data, terms, coef, block):
+        for g, y in parts.items():
+            out[g][a:b] = y
     return pd.DataFrame(out, index=data.index, copy=False)  # the arrays, not a copy
+
+
+class _NanStd:
+    """``np.nanstd`` of a series given block by block (Chan's pairwise update, float64)."""
+
+    def __init__(self) -> None:
+        self.n, self.mean, self.m2 = 0, 0.0, 0.0
+
+    def add(self, y: np.ndarray) -> None:
+        """Add a block of values (NaN ignored)."""
+        v = y[~np.isnan(y)]
+        m = len(v)
+        if not m:
+            return
+        mu = float(v.mean())
+        v -= mu
+        m2 = float(v @ v)
+        delta, tot = mu - self.mean, self.n + m
+        self.mean += delta * m / tot
+        self.m2 += m2 + delta * delta * self.n * m / tot
+        self.n = tot
+
+    def text(self) -> str | None:
+        """The standard deviation as ``.2f`` text, None when rounding could change it.
+
+        ``np.nanstd`` sums the whole series at once, this block by block: the two agree to
+        ~1e-15 relative, so the text is theirs unless the value sits within 1e-9 of a rounding
+        boundary (or is not finite); then the caller takes ``np.nanstd`` itself.
+        """
+        if not self.n:
+            return None
+        sd = float(np.sqrt(self.m2 / self.n))
+        lo, hi = f"{sd * (1 - 1e-9):.2f}", f"{sd * (1 + 1e-9):.2f}"
+        return lo if np.isfinite(sd) and lo == hi else None
 
 
 def plot_term_contributions(
@@ -451,6 +602,9 @@ def plot_term_contributions(
     path: _PathLike | None = None,
 ) -> Figure:
     """Permanent, induced and eddy contributions to ``mag_tl`` against time.
+
+    The contributions are computed and enveloped for display block by block
+    (:func:`term_contributions`' blocks): the full-length groups never exist.
 
     Parameters
     ----------
@@ -475,14 +629,45 @@ def plot_term_contributions(
         raise InputError("the term contributions need flux_x, flux_y, flux_z")
     if not report.get("terms") or not report.get("coef"):
         raise InputError("the report has no model (terms, coef)")
-    parts = term_contributions(data, report["terms"], report["coef"])
+    terms, coef = tuple(report["terms"]), report["coef"]
+    names = list(_term_groups(terms))
     fig, ax = _target(ax, (9.0, 4.0))
-    x, label, is_date = time_axis(data["time"].to_numpy(dtype=np.float64))
-    st = _stretches(data)
-    for j, name in enumerate(parts.columns):
-        y = parts[name].to_numpy()
-        _line(ax, x, y, st, lw=0.9, color=f"C{j}", label=f"{name} (std {np.nanstd(y):.2f} nT)")
-    _format_time(ax, is_date, label)
+    t = data["time"].to_numpy(dtype=np.float64)
+    tax, gap, n = _TimeAxis(t), _stretch_gap_s(t), len(t)
+    stats = {g: _NanStd() for g in names}
+    counted = [False]
+
+    def blocks() -> Any:
+        for a, b, parts in _term_blocks(data, terms, coef):
+            ys = [parts[g] for g in names]
+            if not counted[0]:
+                for g, y in zip(names, ys, strict=True):
+                    stats[g].add(y)
+            yield a, tax(t[a:b]), _new_stretch(t, a, b, gap), ys
+        counted[0] = True
+
+    # Each line's drawable x range, guessed from the rows with a fluxgate sample (the groups
+    # are finite there): checked by the envelopes, which redo the pass if it was wrong.
+    fl = [data[k].to_numpy() for k in ("flux_x", "flux_y", "flux_z")]
+    lo, hi = np.inf, -np.inf
+    for a in range(0, n, ENVELOPE_BLOCK):
+        x = tax(t[a:a + ENVELOPE_BLOCK])
+        ok = np.isfinite(x)
+        for f in fl:
+            ok &= np.isfinite(f[a:a + ENVELOPE_BLOCK])
+        if ok.any():
+            lo, hi = min(lo, float(np.min(x[ok]))), max(hi, float(np.max(x[ok])))
+    env = _streamed_envelopes(n, blocks, len(names), [(lo, hi)] * len(names))
+    exact = None
+    for j, name in enumerate(names):
+        sd = stats[name].text()
+        if sd is None:  # near a rounding boundary: np.nanstd's own value (one more pass)
+            if exact is None:
+                exact = term_contributions(data, terms, coef)
+            sd = f"{np.nanstd(exact[name].to_numpy()):.2f}"
+        ax.plot(*env[j], lw=0.9, color=f"C{j}", label=f"{name} (std {sd} nT)")
+    del exact
+    _format_time(ax, tax.is_date, tax.label)
     ax.set_ylabel("interference (nT)")
     ax.set_title("Term contributions to the modelled interference")
     ax.legend(loc="upper right", fontsize=8)
