@@ -18,9 +18,9 @@ import pytest
 
 from aeromag._core.runs import run_bounds
 from aeromag._core.stretches import find_stretches
+from aeromag.plot import _series, maps
 from aeromag.plot import _style as S
 from aeromag.plot import compensation as pc
-from aeromag.plot import maps
 
 
 def _log_times(rng: np.random.Generator, n: int, t0: float = 0.0) -> np.ndarray:
@@ -93,7 +93,7 @@ def test_finite_stretch_bounds_equal_the_stretch_labels_runs() -> None:
         x[:17] = np.nan
         a, b, _ = run_bounds(find_stretches(t, np.isfinite(x)))
         for block in (50, 1000, 1 << 17):
-            a2, b2 = pc._finite_stretch_bounds(t, x, S._stretch_gap_s(t), block)
+            a2, b2 = _series._finite_stretch_bounds(t, x, S._stretch_gap_s(t), block)
             np.testing.assert_array_equal(a2, a)
             np.testing.assert_array_equal(b2, b)
 
@@ -174,14 +174,14 @@ def test_blockwise_std_text_is_nanstd_text() -> None:
     for scale, mean in ((1.0, 0.0), (3.7, 5e4), (0.004, -20.0)):
         y = mean + scale * rng.standard_normal(333_333)
         y[rng.random(len(y)) < 0.01] = np.nan
-        s = pc._NanStd()
+        s = _series._NanStd()
         for i in range(0, len(y), 50_000):
             s.add(y[i:i + 50_000])
         assert s.text() == f"{np.nanstd(y):.2f}"
-    boundary = pc._NanStd()
+    boundary = _series._NanStd()
     boundary.add(np.array([0.0, 2 * 0.125]))  # std exactly 0.125: a rounding tie
     assert boundary.text() is None  # the caller takes np.nanstd's own digits
-    empty = pc._NanStd()
+    empty = _series._NanStd()
     empty.add(np.full(4, np.nan))
     assert empty.text() is None
     with warnings.catch_warnings():
