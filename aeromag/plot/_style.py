@@ -6,8 +6,10 @@ canvas (no pyplot state, no window, never ``matplotlib.use``), and saves a PNG a
 ``path`` is given.  A :class:`QCFigure` displays itself in Jupyter (``_repr_png_``), with or
 without ``%matplotlib inline``.
 
-Long lines are drawn as their min/max envelope per pixel column (:func:`envelope`); time axes
-are UTC for epoch seconds, else seconds since the start of the log (:func:`time_axis`).
+Long lines are drawn as their min/max envelope per pixel column (:func:`envelope`); the
+report's figures compute it block by block of rows (:class:`_EnvelopeStream`, the same points)
+so that no full-length abscissa, label or key array exists.  Time axes are UTC for epoch
+seconds, else seconds since the start of the log (:func:`time_axis`).
 """
 
 from __future__ import annotations
