@@ -32,9 +32,15 @@ asks three more questions, answered here in :func:`assign_track_legs`:
   alarms.  A pass is flown on its line: a run is kept only when at least
   ``min(MIN_ON_LINE_S, ON_LINE_FRACTION * duration)`` of it is within the on-line gate
   (``max(ON_LINE_GATE_M, GATE_SIGMAS * sigma)``, horizontally, about the flight's constant
-  offset from the plan) of the line.  A disturbed pass starts on its
-  line and stays a pass however far it then veers; a ferry that meets the line only at a
-  waypoint is dropped.
+  offset from the plan) of the line, *and* it has a stretch that long within the gate that is
+  parallel to the line (:data:`PARALLEL_MAX_SLOPE`: the least-squares slope of the lateral
+  distance against the distance flown, over windows that grow with the position error so
+  that the error cannot tilt them, :data:`PARALLEL_NOISE_FACTOR`).  On RTK
+  the 2 m gate alone does it (a ferry 8 deg off crosses it in 3 s); on plain GNSS the gate is
+  widened to 4 sigma, as wide as the widened tolerance, so every decoded run of a converging
+  ferry lies within it, and only its steady slope (0.14 m per m at 8 deg, a pass wanders
+  without a trend) tells it from a pass.  A disturbed pass starts on its line and stays a pass
+  however far it then veers; a ferry that meets the line only at a waypoint is dropped.
 """
 
 from __future__ import annotations
@@ -45,14 +51,15 @@ from typing import Any
 
 import numpy as np
 
-from .._core.runs import run_bounds
+from .._core.runs import run_bounds, true_runs
 from .continuation import continue_legs
 from .geometry import cross_track
 from .legs import LegModel, decode_legs, leg_evidence, velocity_for_legs
 
 __all__ = ["GATE_SIGMAS", "MAX_TOLERANCE_FACTOR", "MIN_ON_LINE_S", "ON_LINE_FRACTION",
-           "ON_LINE_GATE_M", "REVERSED_RATIO", "assign_legs", "assign_track_legs",
-           "drop_transit_runs", "line_error_sigma_m"]
+           "ON_LINE_GATE_M", "PARALLEL_MAX_SLOPE", "PARALLEL_MIN_ALONG_M",
+           "PARALLEL_NOISE_FACTOR", "REVERSED_RATIO", "assign_legs", "assign_track_legs",
+           "drop_transit_runs", "has_parallel_stretch", "line_error_sigma_m"]
 
 log = logging.getLogger(__name__)
 
@@ -98,6 +105,23 @@ MIN_ON_LINE_S = 5.0
 
 #: Fraction of a short run that must be within the on-line gate.
 ON_LINE_FRACTION = 0.5
+
+#: Largest steady slope of the lateral distance against the distance flown (m per m) of the
+#: stretch that makes a run a pass: 0.05 is 2.9 deg.  A ferry 8 deg off a line converges at
+#: 0.14; plain GNSS (1.5 m Gauss-Markov, tau 120 s, 0.3 m white) tilts a pass by about
+#: 0.015 (one sigma) over the 45 m windows it is tested on, far less over a whole line.
+PARALLEL_MAX_SLOPE = 0.05
+
+#: The parallel stretch spans at least this distance along the leg, m (or the whole
+#: in-gate stretch when shorter): over a few metres the noise, not the track, sets the slope.
+PARALLEL_MIN_ALONG_M = 20.0
+
+#: A stretch of length ``L`` along the leg is parallel up to a slope of
+#: ``max(PARALLEL_MAX_SLOPE, PARALLEL_NOISE_FACTOR * sigma / L)`` (``sigma`` the position error,
+#: the gate over :data:`GATE_SIGMAS`), and the windows are long enough for the first term to
+#: rule: a correlated GNSS error of sigma wanders by about sigma over a stretch, so a short or
+#: noisy stretch cannot show a slope and is kept (5 m Gauss-Markov, tau 60 s: windows of 150 m).
+PARALLEL_NOISE_FACTOR = 1.5
 
 
 def line_error_sigma_m(ned: np.ndarray, labels: np.ndarray, waypoints: np.ndarray
@@ -148,11 +172,84 @@ def line_error_sigma_m(ned: np.ndarray, labels: np.ndarray, waypoints: np.ndarra
             int(on.size), off)
 
 
+def has_parallel_stretch(time_s: np.ndarray, along_m: np.ndarray, h_m: np.ndarray,
+                         need_s: float, dt_s: float, max_slope: float = PARALLEL_MAX_SLOPE,
+                         sigma_m: float = 0.0, min_along_m: float = PARALLEL_MIN_ALONG_M
+                         ) -> bool:
+    """Whether a stretch of a run is flown parallel to its line (no steady lateral trend).
+
+    A window of consecutive samples lasting at least ``need_s`` and spanning at least
+    ``max(min_along_m, PARALLEL_NOISE_FACTOR * sigma_m / max_slope)`` along the leg is parallel
+    when the least-squares slope of the lateral distance against the distance along the leg is
+    at most ``max_slope`` in magnitude.  When no window is that long, the whole stretch (if it
+    lasts ``need_s``) is tested, against ``max(max_slope, PARALLEL_NOISE_FACTOR * sigma_m /
+    L)`` for its span ``L`` along the leg: the position error alone tilts a short stretch.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (m,)
+        Times of the stretch's samples (consecutive positioned samples within the gate), s.
+    along_m : ndarray, shape (m,)
+        Distance along the leg, m.
+    h_m : ndarray, shape (m,)
+        Signed horizontal distance to the line, m.
+    need_s : float
+        Shortest window, s.
+    dt_s : float
+        Sample interval, s (a window of ``k`` samples lasts ``t_last - t_first + dt_s``).
+    max_slope : float
+        Largest slope of a parallel window, m per m.
+    sigma_m : float
+        Horizontal position error (one sigma), m.
+    min_along_m : float
+        Shortest window along the leg, m.
+
+    Returns
+    -------
+    bool
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    m = t.size
+    if m < 3 or t[-1] - t[0] + dt_s < need_s - 1e-9:
+        return False
+    x = np.asarray(along_m, dtype=np.float64) - float(along_m[0])
+    y = np.asarray(h_m, dtype=np.float64) - float(h_m[0])
+    # window from sample i to the first j that is long enough in time and along the leg
+    j_t = np.searchsorted(t, t + need_s - dt_s - 1e-9, side="left")
+    xm = np.maximum.accumulate(x)
+    span = max(min_along_m, PARALLEL_NOISE_FACTOR * sigma_m / max_slope)
+    j_x = np.searchsorted(xm, x + span, side="left")
+    j = np.maximum(np.maximum(j_t, j_x), np.arange(m) + 2)
+    i = np.flatnonzero(j < m)
+    if i.size:
+        j = j[i]
+    else:
+        # no window long enough: the whole stretch, with the slope its noise allows
+        i, j = np.array([0]), np.array([m - 1])
+        length = float(np.max(x) - np.min(x))
+        if length > 0:
+            max_slope = max(max_slope, PARALLEL_NOISE_FACTOR * sigma_m / length)
+    c0 = np.r_[0.0, np.cumsum(np.ones(m))]
+    cx, cy = np.r_[0.0, np.cumsum(x)], np.r_[0.0, np.cumsum(y)]
+    cxx, cxy = np.r_[0.0, np.cumsum(x * x)], np.r_[0.0, np.cumsum(x * y)]
+    n = c0[j + 1] - c0[i]
+    sx, sy = cx[j + 1] - cx[i], cy[j + 1] - cy[i]
+    vxx = cxx[j + 1] - cxx[i] - sx * sx / n
+    vxy = cxy[j + 1] - cxy[i] - sx * sy / n
+    ok = vxx > 1e-12 * np.maximum(1.0, n)
+    return bool(np.any(np.abs(vxy[ok]) <= max_slope * vxx[ok]))
+
+
 def drop_transit_runs(labels: np.ndarray, ned: np.ndarray, time_s: np.ndarray,
                       waypoints: np.ndarray, gate_h_m: float,
-                      offset_ne: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+                      offset_ne: np.ndarray | None = None,
+                      max_slope: float | None = PARALLEL_MAX_SLOPE) -> tuple[np.ndarray, int]:
     """Unassign the runs that are not flown on their line (transits taken for a leg).
 
+    A run is a pass when it is within the gate for ``min(MIN_ON_LINE_S, ON_LINE_FRACTION *
+    duration)`` and has a stretch that long, within the gate, parallel to the line
+    (:func:`has_parallel_stretch`): a ferry a few degrees off a line converges on it (or
+    diverges from it) steadily, which a gate as wide as the tolerance (plain GNSS) cannot see.
     Horizontal only: a ferry between legs is a horizontal transit (climbs and descents have no
     motion along a leg), and a pass flown at a constant wrong height is a deviation to report.
 
@@ -172,6 +269,9 @@ def drop_transit_runs(labels: np.ndarray, ned: np.ndarray, time_s: np.ndarray,
         Constant horizontal offset of the flight from the plan (north, east), m: the gate is
         centred on it (:func:`line_error_sigma_m`), so that a plan moved sideways by a few
         metres is checked (and alarms), not dropped.
+    max_slope : float or None
+        Largest lateral slope of the parallel stretch, m per m (:data:`PARALLEL_MAX_SLOPE`);
+        None: the gate alone decides (the rule before the parallel stretch).
 
     Returns
     -------
@@ -191,7 +291,8 @@ def drop_transit_runs(labels: np.ndarray, ned: np.ndarray, time_s: np.ndarray,
         fin = np.isfinite(p).all(axis=1)
         if not fin.any():
             continue
-        _, h, _, _ = cross_track(np.where(fin[:, None], p, 0.0), waypoints[k], waypoints[k + 1])
+        _, h, _, along = cross_track(np.where(fin[:, None], p, 0.0), waypoints[k],
+                                     waypoints[k + 1])
         centre = 0.0
         if offset_ne is not None:
             d = waypoints[k + 1, :2] - waypoints[k, :2]
@@ -202,6 +303,23 @@ def drop_transit_runs(labels: np.ndarray, ned: np.ndarray, time_s: np.ndarray,
         need = min(MIN_ON_LINE_S, ON_LINE_FRACTION * duration)
         # time on the line: its share of the positioned samples (sparse fixes) of the run
         if near.sum() / fin.sum() * duration < need - 1e-9:
+            lab[s0:s1] = -1
+            dropped += 1
+            continue
+        if max_slope is None:
+            continue
+        # a stretch of consecutive positioned samples within the gate, parallel to the line;
+        # its time counts positioned samples at the run's mean positioned rate (sparse fixes)
+        idx = np.flatnonzero(fin)
+        tt = t[s0:s1][idx]
+        dt_fix = duration / idx.size
+        parallel = False
+        for a, b in zip(*true_runs(near[idx]), strict=True):
+            if has_parallel_stretch(tt[a:b], along[idx[a:b]], h[idx[a:b]], need, dt_fix,
+                                    max_slope, gate_h_m / GATE_SIGMAS):
+                parallel = True
+                break
+        if not parallel:
             lab[s0:s1] = -1
             dropped += 1
     return lab, dropped
