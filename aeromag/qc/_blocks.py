@@ -1,11 +1,18 @@
-"""Block means of a fast log for the block-rate manoeuvre detection, a chunk at a time."""
+"""Block means of a fast log for the manoeuvre detection, and filtering a block of runs at a time.
+
+The runs (stretches, segment pieces) are found and filtered without full-length labels or
+temporaries.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 import pandas as pd
+
+from .._core.filters import filter_stretches
 
 __all__: list[str] = []
 
@@ -96,3 +103,141 @@ def _block_means(df: pd.DataFrame, t: np.ndarray, step: int, max_gap_s: float
     small = pd.DataFrame(out, copy=False)  # no consolidated copy of the columns
     small.attrs = dict(df.attrs)
     return small, cnt
+
+
+# --------------------------------------------------------------------------- pieces in blocks
+def max_gap(t: np.ndarray, max_gap_s: float | None) -> float:
+    """The largest step inside a stretch [s].
+
+    ``max_gap_s``, else 5 median steps (as :func:`aeromag._core.stretches.find_stretches`).
+    """
+    if max_gap_s is not None:
+        return max_gap_s
+    dt = np.diff(np.asarray(t, dtype=np.float64))
+    # the median of the steps, partitioned in their own buffer (no second copy)
+    return 5.0 * float(np.median(dt, overwrite_input=True)) if len(dt) else 5.0
+
+
+def run_edges(t: np.ndarray, valid: Callable[[int, int], np.ndarray], max_gap_s: float,
+              split: Callable[[int, int], np.ndarray] | None = None,
+              chunk: int = _CHUNK) -> tuple[np.ndarray, np.ndarray]:
+    """``[start, stop)`` of the stretches of a log, a chunk of samples at a time.
+
+    The runs of :func:`~aeromag._core.stretches.find_stretches`, also cut where ``split``
+    changes.
+    The runs ``run_bounds`` finds in the stretch labels of ``band_passed``/``piece_labels``,
+    without their full-length label, step and mask arrays (three to five of 16 MB at 2e6
+    rows).
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Times [s].
+    valid : callable
+        ``valid(a, b)``: bool array, whether samples ``[a, b)`` are usable.
+    max_gap_s : float
+        Largest time step inside a run [s] (:func:`max_gap`).
+    split : callable, optional
+        ``split(a, b)``: labels of samples ``[a, b)``; a run also ends where they change.
+    chunk : int
+        Samples per chunk.
+
+    Returns
+    -------
+    starts, stops : ndarray of int64
+    """
+    n = len(t)
+    starts: list[np.ndarray] = []
+    stops: list[np.ndarray] = []
+    prev_ok = False
+    for s in range(0, n, chunk):
+        e = min(n, s + chunk)
+        a = max(s - 1, 0)
+        v = np.asarray(valid(a, e), dtype=bool)
+        # cont[j]: sample a + j continues the run of sample a + j - 1 (j >= 1)
+        cont = np.zeros(e - a, dtype=bool)
+        np.less_equal(np.diff(t[a:e]), max_gap_s, out=cont[1:])
+        cont[1:] &= v[1:]
+        cont[1:] &= v[:-1]
+        if split is not None:
+            sp = np.asarray(split(a, e))
+            cont[1:] &= sp[1:] == sp[:-1]
+        j0 = 1 if s > 0 else 0  # the first sample of the log has no predecessor
+        new = v[j0:] & ~cont[j0:]
+        starts.append(np.flatnonzero(new) + (a + j0))
+        end = v[:-1] & ~cont[1:]  # the run of sample a + j - 1 ends before a + j
+        stops.append(np.flatnonzero(end) + (a + 1))
+        prev_ok = bool(v[-1])
+    if prev_ok:
+        stops.append(np.array([n], dtype=np.int64))
+    if not starts:
+        e0 = np.zeros(0, dtype=np.int64)
+        return e0, e0
+    return (np.concatenate(starts).astype(np.int64, copy=False),
+            np.concatenate(stops).astype(np.int64, copy=False) if stops
+            else np.zeros(0, dtype=np.int64))
+
+
+def run_blocks(starts: np.ndarray, stops: np.ndarray, chunk: int = _CHUNK
+               ) -> list[tuple[int, int, np.ndarray, np.ndarray]]:
+    """Consecutive runs grouped into blocks of about ``chunk`` samples (a longer run alone).
+
+    Returns
+    -------
+    list of (a, b, starts, stops)
+        Block ``[a, b)`` and its runs' bounds relative to ``a``.
+    """
+    out = []
+    i, k = 0, len(starts)
+    while i < k:
+        a = int(starts[i])
+        j = int(np.searchsorted(stops, a + chunk, side="right"))
+        j = max(j, i + 1)
+        b = int(stops[j - 1])
+        out.append((a, b, starts[i:j] - a, stops[i:j] - a))
+        i = j
+    return out
+
+
+def local_labels(m: int, starts: np.ndarray, stops: np.ndarray) -> np.ndarray:
+    """Run index of each of ``m`` samples (-1 outside the runs), int64."""
+    mark = np.zeros(m + 1, dtype=np.int64)
+    j = np.arange(1, len(starts) + 1, dtype=np.int64)
+    mark[starts] += j
+    mark[stops] -= j
+    lab = np.cumsum(mark[:-1])
+    lab -= 1
+    return lab
+
+
+def filter_runs(get: Callable[[int, int], np.ndarray], out: np.ndarray, starts: np.ndarray,
+                stops: np.ndarray, sos: np.ndarray, *,
+                each: Callable[[int, int, np.ndarray], None] | None = None,
+                chunk: int = _CHUNK) -> None:
+    """Zero-phase filter every run on its own, a block of runs at a time, into ``out``.
+
+    Every row of every run is filtered alone whatever the grouping
+    (:func:`aeromag._core.filters.filter_stretches`), so ``out`` holds bitwise what one
+    ``filter_stretches`` call over the whole log gives; samples outside the runs are left
+    as they are (the caller fills ``out`` with NaN).
+
+    Parameters
+    ----------
+    get : callable
+        ``get(a, b)``: the rows of samples ``[a, b)``, shape (r, b - a).
+    out : ndarray, shape (r, n)
+        Filtered rows, written in place.
+    starts, stops : ndarray of int
+        The runs (:func:`run_edges`).
+    sos : ndarray
+        Second-order sections.
+    each : callable, optional
+        ``each(a, b, lab)``: called per block with its local run labels.
+    chunk : int
+        Samples per block.
+    """
+    for a, b, s0, s1 in run_blocks(starts, stops, chunk):
+        lab = local_labels(b - a, s0, s1)
+        out[:, a:b] = filter_stretches(get(a, b), lab, sos, axis=1)
+        if each is not None:
+            each(a, b, lab)

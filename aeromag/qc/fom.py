@@ -20,7 +20,7 @@ from .._core.runs import run_bounds
 from ..errors import InputError
 from .labels import kept_mask, segment_labels
 from .maneuvers import CARDINALS, MANEUVERS, ManeuverResult, detect_maneuvers
-from .noise import band_passed
+from .noise import band_passed_blocks
 
 __all__ = ["fom_not_applicable", "fom_summary", "fom_table", "not_applicable"]
 
@@ -100,20 +100,24 @@ def fom_table(
         raise InputError(f"FOM needs a {before!r} column (or the fluxgate)")
     b_name = (total_field_name if total_field is not None
               else before if before in data.columns else "|flux|")
-    # Each field made when it is filtered and let go after (a full-length array each).
-    cols: dict[str, Callable[[], np.ndarray]] = {"before": lambda: b_field}
+    # Each field read a block of rows at a time when it is filtered (band_passed_blocks): no
+    # full-length copy of a field or of mag - mag_tl (16 MB each at 2e6 rows).
+    cols: dict[str, Callable[[int, int], np.ndarray]] = {"before": lambda s, e: b_field[s:e]}
     b_field = b
     if after is None and "mag_tl" in data.columns:
-        cols["after"] = lambda: b_field - data["mag_tl"].to_numpy(dtype=np.float64)
+        tl = data["mag_tl"].to_numpy(dtype=np.float64)
+        cols["after"] = lambda s, e: b_field[s:e] - tl[s:e]
         a_name = f"{b_name} - mag_tl"
     else:
         a_name = "mag_comp" if after is None else after
         if a_name not in data.columns:
             raise InputError(f"FOM needs a {a_name!r} column; run 'aeromag compensate' first")
-        cols["after"] = lambda: data[a_name].to_numpy(dtype=np.float64)
+        a_col = data[a_name].to_numpy(dtype=np.float64)
+        cols["after"] = lambda s, e: a_col[s:e]
     fields = {"before": b_name, "after": a_name}
     if truth and truth in data.columns:
-        cols["truth"] = lambda: data[truth].to_numpy(dtype=np.float64)
+        tr_col = data[truth].to_numpy(dtype=np.float64)
+        cols["truth"] = lambda s, e: tr_col[s:e]
         fields["truth"] = truth
     del b
     mid = maneuvers.labels["maneuver_id"].to_numpy()
@@ -126,12 +130,16 @@ def fom_table(
     ab = np.column_stack([a, b]).ravel()  # [a, b) of each run: reduceat, even entries
     ab_in = ab[:-1] if len(ab) and ab[-1] == len(t) else ab
     keep = kept_mask(data)
-    seg = segment_labels(data)
-    # each dropped segment filtered alone (int32 labels: band_passed only looks for changes)
-    dropped = seg.astype(np.int32)
-    dropped[(seg < 0) | keep] = -1
+    seg = segment_labels(data, copy=False)
+
+    def dropped(s: int, e: int) -> np.ndarray:
+        """Each dropped segment filtered alone (band_passed only looks for changes)."""
+        g = seg[s:e]
+        return np.where((g < 0) | keep[s:e], -1, g)
+
     for name, make in cols.items():
-        xf = band_passed(make(), t, band_hz, order, max_gap_s, split=dropped, fs_hz=fs)
+        xf = band_passed_blocks(make, len(t), t, band_hz, order, max_gap_s, split=dropped,
+                                fs_hz=fs)
         ptp = np.full(len(tab), np.nan)
         if len(ids):
             # [a, b) of each run only (reduceat over a alone ran on to the next start); a

@@ -7,10 +7,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
-from .._core.filters import butter_sos, filter_stretches, sampling_rate, trim_mask
-from .._core.stretches import find_stretches
+from .._core.filters import butter_sos, sampling_rate, trim_mask
+from ._blocks import filter_runs, max_gap, run_edges
 
 __all__ = ["FOURTH_DIFF_NORM", "band_passed", "fourth_difference_noise", "grouped_std"]
 
@@ -51,31 +53,59 @@ def band_passed(
         Band-passed samples [nT], NaN where not filterable.
     """
     xv = np.asarray(x, dtype=np.float64)
+    sp = None if split is None else np.asarray(split)
+    return band_passed_blocks(lambda a, b: xv[a:b], len(xv), time_s, band_hz, order,
+                              max_gap_s, trim_s, fs_hz,
+                              None if sp is None else (lambda a, b: sp[a:b]))
+
+
+def band_passed_blocks(
+    get: Callable[[int, int], np.ndarray], n: int, time_s: np.ndarray,
+    band_hz: tuple[float, float], order: int = 4, max_gap_s: float | None = None,
+    trim_s: float = 0.0, fs_hz: float | None = None,
+    split: Callable[[int, int], np.ndarray] | None = None,
+) -> np.ndarray:
+    """:func:`band_passed` of a series given a block at a time.
+
+    The stretches are found and filtered a block of them at a time
+    (:func:`aeromag.qc._blocks.filter_runs`), bitwise as one pass over the whole log: the
+    only full-length array is the result (at 2e6 rows the stretch labels, their steps and
+    the filter's copy peaked at +36 MB).
+
+    Parameters
+    ----------
+    get : callable
+        ``get(a, b)``: samples ``[a, b)`` [nT], float64.
+    n : int
+        Samples.
+    time_s, band_hz, order, max_gap_s, trim_s, fs_hz
+        As :func:`band_passed`.
+    split : callable, optional
+        ``split(a, b)``: the labels of :func:`band_passed`'s ``split`` for samples ``[a, b)``.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Band-passed samples [nT], NaN where not filterable.
+    """
     t = np.asarray(time_s, dtype=np.float64)
-    st = find_stretches(t, np.isfinite(xv), max_gap_s)
-    if split is not None and len(st) > 1:
-        # The same labels as cumsum(...) - 1 then where(st >= 0, ., -1), in place: three
-        # full-length int64 temporaries fewer (16 MB each at 2e6 rows).
-        sp = np.asarray(split)
-        new = np.empty(len(st), dtype=bool)
-        new[0] = True
-        np.not_equal(st[1:], st[:-1], out=new[1:])
-        new[1:] |= sp[1:] != sp[:-1]
-        neg = st < 0
-        np.cumsum(new, out=st)  # st's own buffer (its signs kept in neg)
-        del new
-        st -= 1
-        st[neg] = -1
     fs = sampling_rate(t) if fs_hz is None else fs_hz
     sos = butter_sos("bandpass", band_hz, fs, order)
-    out = filter_stretches(xv[None, :], st, sos, axis=1)[0]
-    if trim_s > 0:
-        out[~trim_mask(st, t, trim_s)] = np.nan
-    return out
+    g = max_gap(t, max_gap_s)  # before the output (a full-length step array without a gap)
+    out = np.full((1, n), np.nan)
+
+    def trimmed(a: int, b: int, lab: np.ndarray) -> None:
+        out[0, a:b][~trim_mask(lab, t[a:b], trim_s)] = np.nan
+
+    st, sp = run_edges(t, lambda a, b: np.isfinite(get(a, b)), g, split)
+    filter_runs(lambda a, b: get(a, b)[None, :], out, st, sp, sos,
+                each=trimmed if trim_s > 0 else None)
+    return out[0]
 
 
 def fourth_difference_noise(x: np.ndarray, time_s: np.ndarray,
-                            max_gap_s: float | None = None) -> float:
+                            max_gap_s: float | None = None, *,
+                            minus: np.ndarray | None = None) -> float:
     """White-noise level from the fourth difference: ``std(d4 x) / sqrt(70)`` [nT].
 
     Differences spanning a time gap or a NaN are ignored.
@@ -88,6 +118,8 @@ def fourth_difference_noise(x: np.ndarray, time_s: np.ndarray,
         Times [s].
     max_gap_s : float, optional
         Longest time step inside a stretch [s].
+    minus : ndarray, shape (n,), optional
+        The noise of ``x - minus`` [nT], the difference taken a block at a time.
 
     Returns
     -------
@@ -95,12 +127,16 @@ def fourth_difference_noise(x: np.ndarray, time_s: np.ndarray,
         Noise std [nT] (NaN when fewer than 5 contiguous samples).
     """
     xv = np.asarray(x, dtype=np.float64)
-    st = find_stretches(np.asarray(time_s, dtype=np.float64), np.isfinite(xv), max_gap_s)
+    mv = None if minus is None else np.asarray(minus, dtype=np.float64)
+    t = np.asarray(time_s, dtype=np.float64)
     if len(xv) < 5:
         return float("nan")
+    g = max_gap(t, max_gap_s)
     # Moments of the fourth difference block by block, in one pass (no n-sized temporaries):
     # sums of (d - K) and (d - K)^2 about K, the first block's mean, so the variance has no
-    # cancellation (the fourth difference of a log is centred near 0 anyway).
+    # cancellation (the fourth difference of a log is centred near 0 anyway).  A difference
+    # is used when its five samples lie in one stretch of find_stretches: all finite, and
+    # no step between them above the gap (tested per block, no full-length labels).
     n = len(xv) - 4
     step = 1 << 16
     cnt = 0
@@ -109,9 +145,15 @@ def fourth_difference_noise(x: np.ndarray, time_s: np.ndarray,
     shift = None
     for a in range(0, n, step):
         b = min(n, a + step)
-        seg = xv[a:b + 4]
-        d4 = np.diff(np.where(np.isfinite(seg), seg, 0.0), n=4)
-        same = (st[a + 4:b + 4] == st[a:b]) & (st[a + 4:b + 4] >= 0)
+        seg = xv[a:b + 4] if mv is None else xv[a:b + 4] - mv[a:b + 4]
+        fin = np.isfinite(seg)
+        d4 = np.diff(np.where(fin, seg, 0.0), n=4)
+        ok = np.less_equal(np.diff(t[a:b + 4]), g)
+        same = fin[:-4] & fin[4:]
+        for k in range(1, 4):
+            same &= fin[k:k + b - a]
+        for k in range(4):
+            same &= ok[k:k + b - a]
         d = d4 if same.all() else d4[same]
         if d.size == 0:
             continue

@@ -17,8 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from .._core.filters import butter_sos, filter_stretches, sampling_rate, trim_mask
+from .._core.filters import butter_sos, sampling_rate, trim_mask
 from .._core.stretches import find_stretches
+from ._blocks import _CHUNK, filter_runs, max_gap, run_edges
 
 __all__ = ["PieceResiduals", "piece_labels", "piece_residuals", "rms_summary"]
 
@@ -110,7 +111,23 @@ def rms_summary(n: float, sum_before2: float, sum_after2: float) -> dict[str, An
 
 
 def _summary(before: np.ndarray, after: np.ndarray, use: np.ndarray) -> dict[str, Any]:
-    return rms_summary(use.sum(), np.sum(before[use] ** 2), np.sum(after[use] ** 2))
+    """:func:`rms_summary` over ``use``: ``np.sum(x[use] ** 2)`` of each field.
+
+    The selection is squared in place in one buffer (one temporary, not two per field).
+    """
+    m = int(np.count_nonzero(use))
+    buf = np.empty(m)
+    sums = []
+    n = len(use)
+    for x in (before, after):
+        p = 0
+        for a in range(0, n, _CHUNK):  # x[use] a chunk at a time (no index array)
+            sel = x[a:a + _CHUNK][use[a:a + _CHUNK]]
+            buf[p:p + sel.size] = sel
+            p += sel.size
+        np.multiply(buf, buf, out=buf)
+        sums.append(np.sum(buf))
+    return rms_summary(m, sums[0], sums[1])
 
 
 def piece_residuals(
@@ -146,46 +163,96 @@ def piece_residuals(
     PieceResiduals
     """
     t = np.asarray(time_s, dtype=np.float64)
-    # The two rows written in place (no full-length temporary of mag - mag_tl); every
-    # full-length array is let go as soon as it is used (2e6 rows: 16 MB each).
-    x = np.empty((2, len(t)))
-    x[0] = np.asarray(mag, dtype=np.float64)
-    np.subtract(x[0], np.asarray(mag_tl, dtype=np.float64), out=x[1])
+    n = len(t)
+    mg = np.asarray(mag, dtype=np.float64)
+    tl = np.asarray(mag_tl, dtype=np.float64)
     seg = np.asarray(segment, dtype=np.int64)
-    lab = piece_labels(t, np.isfinite(x).all(axis=0), seg, max_gap_s)
     fs = sampling_rate(t) if fs_hz is None else fs_hz
     sos = butter_sos("bandpass", band_hz, fs, order)
-    xf = filter_stretches(x, lab, sos, axis=1)
-    del x
     trim = 0.25 / band_hz[0] if trim_s is None else float(trim_s)
-    use = trim_mask(lab, t, trim)
-    del lab
-    use &= np.isfinite(xf).all(axis=0)
-    xf[:, ~use] = np.nan
+
+    def rows(a: int, b: int) -> np.ndarray:
+        x = np.empty((2, b - a))
+        x[0] = mg[a:b]
+        np.subtract(x[0], tl[a:b], out=x[1])
+        return x
+
+    def valid(a: int, b: int) -> np.ndarray:
+        return np.isfinite(rows(a, b)).all(axis=0)
+
+    # A block of pieces at a time (the pieces of piece_labels, each filtered on its own as
+    # filter_stretches does over the whole log): the only full-length arrays are the
+    # band-passed pair itself and the mask of samples used.  At 2e6 rows the step peaked at
+    # +82 MB (the two rows, their labels, the filter's copy, the trim mask).
+    g = max_gap(t, max_gap_s)
+    xf = np.full((2, n), np.nan)
+    use = np.zeros(n, dtype=bool)
+
+    def trimmed(a: int, b: int, lab: np.ndarray) -> None:
+        use[a:b] = trim_mask(lab, t[a:b], trim)
+
+    st, sp = run_edges(t, valid, g, lambda a, b: seg[a:b])
+    filter_runs(rows, xf, st, sp, sos, each=trimmed)
+    del st, sp
+    for a in range(0, n, _CHUNK):
+        b = min(n, a + _CHUNK)
+        u = use[a:b]
+        u &= np.isfinite(xf[:, a:b]).all(axis=0)
+        xf[:, a:b][:, ~u] = np.nan
     before, after = xf
-    ok = use & (seg >= 0)
-    by_seg: dict[int, float] = {}
-    n_by: dict[int, int] = {}
-    if ok.any():
-        s = seg[ok]
-        top = int(s.max())
-        if top <= 4 * s.size + 1024:
-            # Small non-negative ids: histograms, no sort.  np.bincount adds the weights in
-            # sample order per bin either way, so the sums are bitwise those of np.unique's
-            # inverse labels.
-            cnt_all = np.bincount(s, minlength=top + 1)
-            ids = np.flatnonzero(cnt_all)
-            ss = np.bincount(s, after[ok] ** 2, minlength=top + 1)[ids]
-            cnt = cnt_all[ids]
-        else:
-            ids, inv = np.unique(s, return_inverse=True)
-            cnt = np.bincount(inv)
-            ss = np.bincount(inv, after[ok] ** 2)
-        del s
-        by_seg = {int(i): float(np.sqrt(v / c)) for i, v, c in zip(ids, ss, cnt, strict=True)}
-        n_by = {int(i): int(c) for i, c in zip(ids, cnt, strict=True)}
-    del ok
+    by_seg, n_by = _by_segment(after, use, seg)
     k = np.asarray(kept, dtype=bool) & (seg >= 0) if (seg >= 0).any() \
         else np.asarray(kept, dtype=bool)
-    return PieceResiduals(before, after, by_seg, n_by, _summary(before, after, use & k),
+    k = k & use
+    return PieceResiduals(before, after, by_seg, n_by, _summary(before, after, k),
                           _summary(before, after, use), trim)
+
+
+def _by_segment(after: np.ndarray, use: np.ndarray, seg: np.ndarray
+                ) -> tuple[dict[int, float], dict[int, int]]:
+    """The rms of ``after`` and the samples used per segment id, over ``use & (seg >= 0)``.
+
+    The sums of squares are those of one ``np.bincount`` over the whole log (sequential in
+    sample order per bin), computed a chunk at a time: each chunk's bincount starts every
+    bin from the running sum (a first weight of each bin), so every addition is the one the
+    whole-log bincount makes, and the sums are bitwise the same.
+    """
+    n = len(after)
+    top = -1
+    cnt_ok = 0
+    for a in range(0, n, _CHUNK):
+        b = min(n, a + _CHUNK)
+        ok = use[a:b] & (seg[a:b] >= 0)
+        c = int(np.count_nonzero(ok))
+        if c:
+            cnt_ok += c
+            top = max(top, int(seg[a:b][ok].max()))
+    if cnt_ok == 0:
+        return {}, {}
+    if top > 4 * cnt_ok + 1024:  # large ids: one np.unique over the whole log
+        ok = use & (seg >= 0)
+        ids, inv = np.unique(seg[ok], return_inverse=True)
+        cnt = np.bincount(inv)
+        w = after[ok]
+        del ok
+        ss = np.bincount(inv, np.multiply(w, w, out=w))
+    else:
+        bins = np.arange(top + 1, dtype=np.int64)
+        ss_all = np.zeros(top + 1)
+        cnt_all = np.zeros(top + 1, dtype=np.int64)
+        for a in range(0, n, _CHUNK):
+            b = min(n, a + _CHUNK)
+            ok = use[a:b] & (seg[a:b] >= 0)
+            s = seg[a:b][ok]
+            if not s.size:
+                continue
+            w = after[a:b][ok]
+            np.multiply(w, w, out=w)
+            cnt_all += np.bincount(s, minlength=top + 1)
+            ss_all = np.bincount(np.concatenate([bins, s]), np.concatenate([ss_all, w]),
+                                 minlength=top + 1)
+        ids = np.flatnonzero(cnt_all)
+        ss, cnt = ss_all[ids], cnt_all[ids]
+    by_seg = {int(i): float(np.sqrt(v / c)) for i, v, c in zip(ids, ss, cnt, strict=True)}
+    n_by = {int(i): int(c) for i, c in zip(ids, cnt, strict=True)}
+    return by_seg, n_by
