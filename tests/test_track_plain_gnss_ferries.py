@@ -83,3 +83,13 @@ def test_drop_transit_runs_drops_a_converging_ferry_within_a_wide_gate():
     veer = np.c_[x, np.clip(x - 50.0, 0.0, None) * 0.2 + rng.normal(0.0, 0.3, t.size), z]
     out, n = drop_transit_runs(np.zeros(600, dtype=int), veer, t, wps, 6.0)
     assert n == 0 and (out == 0).all()
+
+
+def test_a_run_of_two_fixes_across_a_time_gap_is_kept():
+    # the shipped survey sample (turns cut out) has its 25 m cross legs as two fixes 18 s
+    # apart: two points show no trend, the gate decides (a first version dropped all nine and
+    # changed the batch golden)
+    wps = np.array([[0.0, 0.0, 0.0], [0.0, 25.0, 0.0]])
+    ned = np.array([[0.0, 0.02, 0.0], [0.02, 25.0, 0.0]])
+    out, n = drop_transit_runs(np.zeros(2, dtype=int), ned, np.array([20.0, 38.2]), wps, 2.0)
+    assert n == 0 and (out == 0).all()

@@ -184,6 +184,8 @@ def has_parallel_stretch(time_s: np.ndarray, along_m: np.ndarray, h_m: np.ndarra
     at most ``max_slope`` in magnitude.  When no window is that long, the whole stretch (if it
     lasts ``need_s``) is tested, against ``max(max_slope, PARALLEL_NOISE_FACTOR * sigma_m /
     L)`` for its span ``L`` along the leg: the position error alone tilts a short stretch.
+    A stretch of two fixes, or without progress along the leg, cannot show a trend and is
+    taken as parallel (the gate alone decides, as before this test).
 
     Parameters
     ----------
@@ -210,8 +212,10 @@ def has_parallel_stretch(time_s: np.ndarray, along_m: np.ndarray, h_m: np.ndarra
     """
     t = np.asarray(time_s, dtype=np.float64)
     m = t.size
-    if m < 3 or t[-1] - t[0] + dt_s < need_s - 1e-9:
+    if m == 0 or t[-1] - t[0] + dt_s < need_s - 1e-9:
         return False
+    if m < 3:
+        return True   # two fixes (a log with gaps) cannot show a trend: the gate decides
     x = np.asarray(along_m, dtype=np.float64) - float(along_m[0])
     y = np.asarray(h_m, dtype=np.float64) - float(h_m[0])
     # window from sample i to the first j that is long enough in time and along the leg
@@ -237,6 +241,8 @@ def has_parallel_stretch(time_s: np.ndarray, along_m: np.ndarray, h_m: np.ndarra
     vxx = cxx[j + 1] - cxx[i] - sx * sx / n
     vxy = cxy[j + 1] - cxy[i] - sx * sy / n
     ok = vxx > 1e-12 * np.maximum(1.0, n)
+    if not ok.any():
+        return True   # no progress along the leg to measure a slope on: the gate decides
     return bool(np.any(np.abs(vxy[ok]) <= max_slope * vxx[ok]))
 
 
