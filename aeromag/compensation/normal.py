@@ -33,7 +33,7 @@ class SegmentStats:
 
 def segment_normal_equations(
     prep: Prepared, terms: tuple[str, ...], cfg: CompensationConfig,
-    design: np.ndarray | None = None,
+    design: np.ndarray | None = None, *, batch_samples: int = 65_536,
 ) -> SegmentStats:
     """Band-pass the design matrix and target per segment piece; normal equations per segment.
 
@@ -49,6 +49,11 @@ def segment_normal_equations(
         The terms and the centred target already built, one column per valid sample of
         ``prep`` (the decimated fit: :func:`aeromag.compensation.decimation.fit_arrays`);
         by default they are built here from ``prep.flux`` and ``prep.mag``.
+    batch_samples : int
+        Samples per filtering batch (:func:`aeromag._core.filters.piece_normal_equations`):
+        each filter-pool thread holds about 0.5 kB per sample of its batch (17 design rows
+        and the filter's padded copies), 33 MB at the default; the values do not depend on
+        it.
 
     Returns
     -------
@@ -61,7 +66,21 @@ def segment_normal_equations(
     st = prep.stretch[v]
     seg = prep.segment[v]
     k = len(terms)
-    flux = prep.flux[v]
+    if prep.flux is not None:
+        flux = prep.flux[v]
+
+        def flux_rows(i: np.ndarray) -> np.ndarray:
+            return flux[i]
+    else:
+        # The log's own columns (prepare(flux_columns=True)): each batch's rows are cast to
+        # float64 as it is built, the same values as prepare's (n, 3) float64 copy.
+        cols = [c[v] for c in prep.flux_columns]
+
+        def flux_rows(i: np.ndarray) -> np.ndarray:
+            f = np.empty((len(i), 3))
+            for j, c in enumerate(cols):
+                f[:, j] = c[i]
+            return f
     y = prep.mag[v]
     y_level = float(np.median(y[:: _every(y)]))  # centring only (the band-pass removes it)
     nv = len(t)
@@ -78,7 +97,7 @@ def segment_normal_equations(
         ext[:, -1] = idx[:, -1] + 1
         outside = (ext < 0) | (ext >= nv)
         np.clip(ext, 0, nv - 1, out=ext)
-        cos, bt = direction_cosines(flux[ext.ravel()])
+        cos, bt = direction_cosines(flux_rows(ext.ravel()))
         cos = cos.reshape(q, L + 2, 3)
         lab = st[ext]
         lab[outside] = -2  # beyond the log: a stretch of its own, so never a neighbour
@@ -105,8 +124,30 @@ def segment_normal_equations(
     p_start, p_stop = p_start[has_seg], p_stop[has_seg]
     p_seg = seg[p_start]
     trim = (0.25 / cfg.band_hz[0]) if cfg.trim_s is None else cfg.trim_s
-    M, n_used = piece_normal_equations(rows if design is None else design, t, p_start, p_stop,
-                                       sos, trim)
+    # The pieces go to the filter in blocks of about _BLOCK_SAMPLES samples, each block's
+    # cross products added into its segments' sums at once: the (pieces, k+1, k+1) array of
+    # every piece and a second (segments, k+1, k+1) copy never exist (40 MB at 2e6 rows).
+    # The sums are the same: each segment's pieces are added in piece order, as one
+    # np.add.at over all pieces adds them, and a piece's cross products do not depend on
+    # which pieces share its filter batch.
+    ids, inv = np.unique(p_seg, return_inverse=True)
+    gram = np.zeros((len(ids), k, k))
+    rhs = np.zeros((len(ids), k))
+    yy = np.zeros(len(ids))
+    n_used = np.zeros(len(p_start), dtype=np.int64)
+    build = rows if design is None else design
+    cum = np.cumsum(p_stop - p_start)
+    cuts = np.searchsorted(cum, np.arange(_BLOCK_SAMPLES, cum[-1] if len(cum) else 0,
+                                          _BLOCK_SAMPLES), side="right")
+    for a, b in zip(np.r_[0, cuts], np.r_[cuts, len(p_start)], strict=True):
+        if b <= a:
+            continue
+        M, n_used[a:b] = piece_normal_equations(build, t, p_start[a:b], p_stop[a:b], sos,
+                                                trim, batch_samples=batch_samples)
+        np.add.at(gram, inv[a:b], M[:, :k, :k])
+        np.add.at(rhs, inv[a:b], M[:, :k, k])
+        np.add.at(yy, inv[a:b], M[:, k, k])
+        del M
     if not n_used.any():
         nmin = min_filter_length(sos) / prep.fs
         raise FitError(
@@ -115,22 +156,45 @@ def segment_normal_equations(
             " a higher low edge of band_hz, or a larger max_gap_s"
         )
     # Sum the pieces of each segment (a line flown twice, or cut by a gap, has several).
-    ids, inv = np.unique(p_seg, return_inverse=True)
     counts = np.bincount(inv, weights=n_used).astype(np.int64)
-    Mseg = np.zeros((len(ids), k + 1, k + 1))
-    np.add.at(Mseg, inv, M)
     min_s = (1.0 / cfg.band_hz[0]) if cfg.min_segment_seconds is None else cfg.min_segment_seconds
     nmin = max(int(np.ceil(min_s * prep.fs)), 3 * k)
     ok = counts >= nmin
     too_short = {int(i): int(c) for i, c in zip(ids[~ok], counts[~ok], strict=True)}
     # Segments with no valid sample at all are too short too.
-    all_ids = segment_counts(prep.segment)[0]
+    all_ids = _segment_ids(prep.segment)
     for i in np.setdiff1d(all_ids, ids):
         too_short[int(i)] = 0
-    gram = Mseg[ok, :k, :k]
-    rhs = Mseg[ok, :k, k]
-    yy = Mseg[ok, k, k]
+    if not ok.all():
+        gram, rhs, yy = _compact(gram, ok), _compact(rhs, ok), yy[ok]
     return SegmentStats(ids[ok], counts[ok], gram, rhs, yy, too_short, nmin)
+
+
+#: Samples of the pieces filtered per block by :func:`segment_normal_equations`.
+_BLOCK_SAMPLES = 262_144
+
+
+def _segment_ids(segment: np.ndarray, block: int = 1 << 18) -> np.ndarray:
+    """Segment ids present (ascending; :func:`segment_counts`' ids), block by block.
+
+    No full-length selection or sort: at 2e6 samples that saves 16-32 MB of temporaries.
+    """
+    found = [segment_counts(segment[a:a + block])[0] for a in range(0, len(segment), block)]
+    return np.unique(np.concatenate(found)) if found else np.zeros(0, dtype=np.int64)
+
+
+def _compact(x: np.ndarray, keep: np.ndarray, block: int = 1024) -> np.ndarray:
+    """``x[keep]`` along axis 0 written into ``x`` itself (no second copy of ``x``).
+
+    Returns the contiguous leading rows of ``x``; rows are moved forward in blocks, each
+    gathered before it is written, so no row is overwritten before it is moved.
+    """
+    idx = np.flatnonzero(keep)
+    for a in range(0, len(idx), block):
+        rows = idx[a:a + block]
+        x[a:a + len(rows)] = x[rows]
+    return x[:len(idx)]
+
 
 
 def _residual_std(stats: SegmentStats, coef: np.ndarray) -> np.ndarray:
