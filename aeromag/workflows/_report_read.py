@@ -8,6 +8,8 @@ validated row batches (:func:`_read_batches`); both give the same frame.
 from __future__ import annotations
 
 import logging
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -55,13 +57,14 @@ def read_columns(src: Path) -> pd.DataFrame:
         The columns of :data:`_COLUMNS` the log has (``attrs["source"]`` names the file).
     """
     data = None
-    if src.suffix.lower() == ".csv":
-        try:
-            data = _read_csv_fast(src)
-        except _NotPlain as exc:
-            log.debug("%s: read through the validating reader (%s)", src, exc)
-    if data is None:
-        data = _read_batches(src)
+    with _system_pool():
+        if src.suffix.lower() == ".csv":
+            try:
+                data = _read_csv_fast(src)
+            except _NotPlain as exc:
+                log.debug("%s: read through the validating reader (%s)", src, exc)
+        if data is None:
+            data = _read_batches(src)
     return _time_in_order(data, src)
 
 
@@ -94,9 +97,10 @@ class _NotPlain(Exception):
     """The fast reader declines a file (the validating reader then reads it)."""
 
 
-#: Block of the fast CSV reader [bytes]: pyarrow's transient memory grows with it (1 MB:
-#: ~50 MB above the columns on a 2e6-row log; 4 MB: ~170 MB) while larger blocks are no faster.
-_FAST_BLOCK = 1 << 20
+#: Block of the fast CSV reader [bytes]: pyarrow's transient memory grows with it (on a
+#: 2e6-row log with the system pool, peak above the end of the read: 512 kB ~52 MB, 1 MB
+#: ~70 MB; 4 MB: ~170 MB with mimalloc) while larger blocks are no faster.
+_FAST_BLOCK = 1 << 19
 
 
 def _read_csv_fast(src: Path) -> pd.DataFrame | None:
@@ -142,9 +146,7 @@ def _read_csv_fast(src: Path) -> pd.DataFrame | None:
     # the validating reader.
     shortest = min([len(first), *(len(r) + 1 for r in sample if r.strip())])
     cap = (src.stat().st_size - len(head)) // max(len(header), shortest // 2) + 1
-    floats: dict[str, np.ndarray] = {}
-    parts: dict[str, list[np.ndarray]] = {c: [] for c in want}
-    n = 0
+    store = _Store(cap)
     try:
         reader = pacsv.open_csv(
             src, read_options=pacsv.ReadOptions(block_size=_FAST_BLOCK),
@@ -152,7 +154,7 @@ def _read_csv_fast(src: Path) -> pd.DataFrame | None:
                                                  strings_can_be_null=True))
         for rb in reader:
             k = rb.num_rows
-            if n + k > cap:
+            if store.n + k > cap:
                 raise _NotPlain("more rows than lines")
             for j, c in enumerate(want):
                 col = rb.column(j)
@@ -161,37 +163,31 @@ def _read_csv_fast(src: Path) -> pd.DataFrame | None:
                     x = col.to_numpy(zero_copy_only=False)
                     if np.isinf(x).any():
                         raise _NotPlain(f"infinite value in {c}")
-                    if c not in floats:
-                        if n:
-                            raise _NotPlain(f"{c} changed type")
-                        floats[c] = np.empty(cap, dtype=np.float32 if c in _FLOAT32
-                                             else np.float64)
-                        del parts[c]
-                    floats[c][n:n + k] = x
                 elif (pa.types.is_integer(typ) or pa.types.is_boolean(typ)) \
-                        and col.null_count == 0 and c in parts:
-                    parts[c].append(col.to_numpy(zero_copy_only=False))
+                        and col.null_count == 0:
+                    x = col.to_numpy(zero_copy_only=False)
                 else:
                     raise _NotPlain(f"column {c} of type {typ}")
-            n += k
+                if not store.put(c, x):
+                    raise _NotPlain(f"{c} changed type")
+            store.n += k
     except (pa.ArrowInvalid, UnicodeDecodeError, ValueError, OSError) as exc:
         raise _NotPlain(str(exc).splitlines()[0] if str(exc) else type(exc).__name__) from None
-    finally:
-        _release_arrow_memory()
+    n = store.n
     if not n:
         raise _NotPlain("no rows")
-    t = floats.get("time")
-    if t is None:
+    t = store.arrays.get("time")
+    if t is None or t.dtype != np.float64:
         raise _NotPlain("time is not a float column")
     t = t[:n]
     if not (np.isfinite(t).all() and (np.abs(t) <= MAX_TIME_S).all()):
         raise _NotPlain("time not finite or out of range")
-    if "line" in floats:
-        ln = floats["line"][:n]
+    if "line" in store.arrays:
+        ln = store.arrays["line"][:n]
         if (np.abs(ln[np.isfinite(ln)]) > MAX_ID).any():
             raise _NotPlain("line id out of range")
     register_input(src, "input log")
-    return _frame(src, want, n, floats, parts)
+    return store.frame(src, want)
 
 
 def _read_batches(src: Path) -> pd.DataFrame:
@@ -202,53 +198,122 @@ def _read_batches(src: Path) -> pd.DataFrame:
     the peak is the columns themselves plus one small batch); the others are joined at the
     end.
     """
-    cap = _row_capacity(src)
-    floats: dict[str, np.ndarray] = {}
-    parts: dict[str, list[np.ndarray]] = {}
-    n = 0
+    store = _Store(_row_capacity(src))
     order: list[str] = []
     for b in iter_log_batches(src, None, columns=list(_COLUMNS), batch_rows=_BATCH_ROWS):
-        k = len(b)
         if not order:
             order = list(b.columns)
-        if n + k > cap:  # the bound was too small (not expected): grow
-            cap = max(2 * cap, n + k)
-            floats = {c: np.resize(x, cap) for c, x in floats.items()}
+        store.reserve(len(b))
         for c in b.columns:
             x = b[c].to_numpy()
-            if c not in floats and c not in parts:
-                if x.dtype.kind == "f" and n == 0:
-                    dt = np.float32 if c in _FLOAT32 else np.float64
-                    floats[c] = np.empty(cap, dtype=dt)
-                else:
-                    parts[c] = []
-            if c in floats:
-                floats[c][n:n + k] = x
-            else:
-                parts[c].append(x)
-        n += k
-    _release_arrow_memory()
-    if not n:
+            if not store.put(c, x):
+                store.to_parts(c)
+                store.put(c, x)
+        store.n += len(b)
+    if not store.n:
         raise InputError(f"{src}: no rows")
-    return _frame(src, order, n, floats, parts)
+    return store.frame(src, order)
 
 
-def _frame(src: Path, order: list[str], n: int, floats: dict[str, np.ndarray],
-           parts: dict[str, list[np.ndarray]]) -> pd.DataFrame:
-    """The table of the columns in ``order``: float arrays cut to ``n`` rows, others joined.
+#: Integer columns stored as int32 while their values fit (``segment``: ids of a few
+#: thousand; 8 MB instead of 16 at 2e6 rows; :func:`aeromag.qc.segment_labels` returns int64).
+_INT32 = ("segment",)
 
-    The arrays are handed over (popped), so the frame holds the only reference to each.
+
+class _Store:
+    """A log's columns, written batch by batch into arrays allocated once for a row bound.
+
+    Float columns go into float64 arrays (float32 for :data:`_FLOAT32`), integer and boolean
+    columns into arrays of their kind (:data:`_INT32` as int32 while the values fit, int64
+    else): no list of batch arrays and no concatenation, so the peak is the columns plus one
+    batch, and no small long-lived blocks are left among the reader's transient ones in the
+    C heap (they kept its freed space from being reused).  A column of another kind (object,
+    nullable ...) is kept as batch arrays joined at the end.  Pages of the arrays beyond the
+    rows read are never written, hence never resident.
+
+    Parameters
+    ----------
+    cap : int
+        Bound of the rows [rows] (grown by :meth:`reserve` if beaten).
     """
-    cols: dict[str, np.ndarray] = {}
-    for c in order:
-        if c in floats:
-            cols[c] = floats.pop(c)[:n]
-        else:
-            chunks = parts.pop(c)
-            cols[c] = chunks[0] if len(chunks) == 1 else np.concatenate(chunks)
-    data = pd.DataFrame(cols, copy=False)
-    data.attrs["source"] = str(src)
-    return data
+
+    def __init__(self, cap: int) -> None:
+        self.cap = max(1, int(cap))
+        self.n = 0
+        self.arrays: dict[str, np.ndarray] = {}
+        self.parts: dict[str, list[np.ndarray]] = {}
+
+    def reserve(self, k: int) -> None:
+        """Grow the arrays when ``k`` more rows do not fit the bound (not expected)."""
+        if self.n + k > self.cap:
+            self.cap = max(2 * self.cap, self.n + k)
+            self.arrays = {c: _grown(x, self.n, self.cap) for c, x in self.arrays.items()}
+
+    def put(self, c: str, x: np.ndarray) -> bool:
+        """Write batch ``x`` of column ``c`` at row :attr:`n`; False when not of its kind."""
+        n, k = self.n, len(x)
+        if c in self.parts:
+            self.parts[c].append(x)
+            return True
+        a = self.arrays.get(c)
+        if a is None:
+            dt = _dtype_for(c, x.dtype)
+            if dt is None or n:
+                self.parts[c] = [x]
+                return True
+            a = self.arrays[c] = np.empty(self.cap, dtype=dt)
+        elif a.dtype.kind != "f" and x.dtype.kind != a.dtype.kind \
+                and not (a.dtype.kind == "i" and x.dtype.kind == "u"):
+            return False
+        if a.dtype == np.int32 and k and not _fits_int32(x):
+            a = self.arrays[c] = _grown(a, n, self.cap, np.int64)
+        a[n:n + k] = x
+        return True
+
+    def to_parts(self, c: str) -> None:
+        """Keep column ``c`` as batch arrays from now on (a batch of another kind came)."""
+        self.parts[c] = [self.arrays.pop(c)[:self.n].copy()]
+
+    def frame(self, src: Path, order: list[str]) -> pd.DataFrame:
+        """The table of the columns in ``order`` (``attrs["source"]`` names the file).
+
+        The arrays are handed over (popped), so the frame holds the only reference to each.
+        """
+        cols: dict[str, np.ndarray] = {}
+        for c in order:
+            if c in self.arrays:
+                cols[c] = self.arrays.pop(c)[:self.n]
+            else:
+                chunks = self.parts.pop(c)
+                cols[c] = chunks[0] if len(chunks) == 1 else np.concatenate(chunks)
+        data = pd.DataFrame(cols, copy=False)
+        data.attrs["source"] = str(src)
+        return data
+
+
+def _dtype_for(c: str, dt: np.dtype) -> type | None:
+    """The array type column ``c`` is stored in, from its first batch's (None: batch list)."""
+    if dt.kind == "f":
+        return np.float32 if c in _FLOAT32 else np.float64
+    if dt.kind == "i" or (dt.kind == "u" and dt.itemsize < 8):
+        return np.int32 if c in _INT32 else np.int64
+    if dt.kind == "b":
+        return np.bool_
+    return None
+
+
+def _fits_int32(x: np.ndarray) -> bool:
+    """Whether every value of the integer array ``x`` fits in int32."""
+    i = np.iinfo(np.int32)
+    return (x.dtype.kind == "i" and x.dtype.itemsize <= 4) \
+        or bool(x.min() >= i.min and x.max() <= i.max)
+
+
+def _grown(x: np.ndarray, n: int, cap: int, dtype: type | None = None) -> np.ndarray:
+    """A new array of ``cap`` rows (of ``dtype``, default ``x``'s) starting with ``x[:n]``."""
+    out = np.empty(cap, dtype=dtype or x.dtype)
+    out[:n] = x[:n]
+    return out
 
 
 def _row_capacity(src: Path) -> int:
@@ -270,11 +335,29 @@ def _row_capacity(src: Path) -> int:
     return n
 
 
-def _release_arrow_memory() -> None:
-    """Give pyarrow's freed reading buffers back to the system."""
+@contextmanager
+def _system_pool() -> Iterator[None]:
+    """Read with pyarrow's system (C heap) memory pool, then give the freed memory back.
+
+    pyarrow's default pool (mimalloc) kept ~33 MB of the reader's freed blocks resident
+    after the read of a 2e6-row log, whatever ``release_unused`` asked; the C heap's free
+    pages are returned by ``malloc_trim`` (:func:`aeromag._core.libc.trim_heap`).  The
+    previous default pool is restored afterwards (the frame holds no pyarrow memory).
+    """
     try:
         import pyarrow as pa
+    except ImportError:  # pragma: no cover - pyarrow is a dependency
+        yield
+        return
+    from .._core.libc import trim_heap
 
-        pa.default_memory_pool().release_unused()
-    except (ImportError, AttributeError):  # pragma: no cover - older pyarrow
-        pass
+    before = pa.default_memory_pool()
+    pool = pa.system_memory_pool()
+    pa.set_memory_pool(pool)
+    try:
+        yield
+    finally:
+        pa.set_memory_pool(before)
+        pool.release_unused()
+        before.release_unused()
+        trim_heap()
