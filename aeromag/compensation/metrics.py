@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
@@ -11,10 +12,12 @@ from .._core.filters import (
     butter_sos,
     filter_stretches,
     filter_stretches_each,
+    min_filter_length,
     sampling_rate,
     trim_mask,
 )
 from .._core.moments import masked_std
+from .._core.runs import true_runs
 from .._core.stretches import find_stretches
 from ..errors import InputError
 from .config import CompensationConfig
@@ -180,3 +183,255 @@ def metrics_dict(n_samples: int, before: float, after: float,
         "all_improvement_ratio": ratio(before, after),
         "band_hz": list(band_hz),
     }
+
+
+#: Rows per block of :func:`residual_metrics` (whole stretches are added to a block until it
+#: holds this many rows; a longer stretch is a block of its own).
+BLOCK_ROWS = 1 << 16
+
+
+def stretch_runs(time_s: np.ndarray, mag: np.ndarray, mag_tl: np.ndarray,
+                 segment: np.ndarray, kept: np.ndarray, max_gap_s: float | None, *,
+                 block_rows: int = BLOCK_ROWS) -> tuple[np.ndarray, np.ndarray]:
+    """Runs of the stretches the compensation metrics of a compensated log are taken over.
+
+    The runs of ``isolate_dropped(find_stretches(t, isfinite(mag - mag_tl), max_gap_s),
+    segment, kept)`` (:func:`aeromag.compensation.apply.isolate_dropped`,
+    :func:`aeromag._core.stretches.find_stretches`), found with boolean masks built in blocks
+    of rows: no full-length label, difference or time-step array.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,)
+        Times [s].
+    mag, mag_tl : ndarray, shape (n,)
+        Total field and the model's interference [nT].
+    segment : ndarray of int, shape (n,)
+        Segment per sample (-1: none).
+    kept : ndarray of bool, shape (n,)
+        Samples of kept segments (each dropped segment is a stretch of its own).
+    max_gap_s : float or None
+        Largest time step inside a stretch [s] (None: 5 median time steps).
+    block_rows : int
+        Rows per block of the temporaries.
+
+    Returns
+    -------
+    starts, stops : ndarray of int64
+        Half-open ``[start, stop)`` row ranges of the stretches, in order.
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    n = len(t)
+    if n == 0:
+        e = np.zeros(0, dtype=np.int64)
+        return e, e
+    if max_gap_s is None:
+        max_gap_s = 5.0 * float(np.median(np.diff(t), overwrite_input=True))
+    has = segment >= 0
+    isolate = not kept[has].all()
+    del has
+    ok = np.empty(n, dtype=bool)
+    start = np.empty(n, dtype=bool)  # first sample of a run
+    for a in range(0, n, block_rows):
+        b = min(n, a + block_rows)
+        np.isfinite(np.subtract(mag[a:b], mag_tl[a:b]), out=ok[a:b])
+    start[0] = ok[0]
+    for a in range(1, n, block_rows):
+        b = min(n, a + block_rows)
+        # find_stretches: a sample continues its predecessor when both are valid and the
+        # time step is at most max_gap_s
+        cont = np.less_equal(np.subtract(t[a:b], t[a - 1:b - 1]), max_gap_s)
+        cont &= ok[a - 1:b - 1]
+        np.logical_not(cont, out=cont)
+        cont &= ok[a:b]
+        if isolate:  # isolate_dropped: a new run where the dropped segment changes
+            s = segment[a - 1:b]
+            dropped = np.where((s >= 0) & ~kept[a - 1:b], s, -1)
+            cont |= (dropped[1:] != dropped[:-1]) & ok[a:b]
+        start[a:b] = cont
+    starts = np.flatnonzero(start)
+    # a run stops before the next run's start or the next invalid sample
+    stops = [np.flatnonzero(ok[a - 1:b - 1] & (start[a:b] | ~ok[a:b])) + a
+             for a, b in ((a, min(n, a + block_rows)) for a in range(1, n, block_rows))]
+    if ok[-1]:
+        stops.append(np.array([n]))
+    del ok, start
+    stops_all = np.concatenate(stops) if stops else np.zeros(0, dtype=np.int64)
+    return starts.astype(np.int64), stops_all.astype(np.int64)
+
+
+def run_blocks(starts: np.ndarray, stops: np.ndarray, block_rows: int = BLOCK_ROWS,
+               ) -> Iterator[tuple[int, int, np.ndarray]]:
+    """Blocks of whole runs: ``(a, b, labels)`` with stretch labels of rows ``a:b``.
+
+    Parameters
+    ----------
+    starts, stops : ndarray of int
+        Runs in order (:func:`stretch_runs`).
+    block_rows : int
+        Runs are added to a block while it spans at most this many rows (a longer run is a
+        block of its own).
+
+    Yields
+    ------
+    a, b : int
+        Rows of the block.
+    labels : ndarray of int64, shape (b - a,)
+        Run number per row of the block (-1 between runs), as
+        :func:`aeromag._core.filters.filter_stretches` takes them.
+    """
+    i, k = 0, len(starts)
+    while i < k:
+        a = int(starts[i])
+        j = int(np.searchsorted(stops, a + block_rows, side="right"))
+        j = max(j, i + 1)
+        b = int(stops[j - 1])
+        lab = np.zeros(b - a, dtype=np.int64)
+        lab[starts[i:j] - a] = 1
+        np.cumsum(lab, out=lab)
+        inrun = np.zeros(b - a + 1, dtype=np.int8)
+        inrun[starts[i:j] - a] += 1
+        inrun[stops[i:j] - a] -= 1
+        np.cumsum(inrun, out=inrun)
+        lab -= 1
+        lab[inrun[:-1] == 0] = -1
+        yield a, b, lab
+        i = j
+
+
+def residual_metrics(
+    time_s: np.ndarray, mag: np.ndarray, mag_tl: np.ndarray, starts: np.ndarray,
+    stops: np.ndarray, cfg: CompensationConfig, kept: np.ndarray, *, fs_hz: float,
+    visit: Callable[[int, int, np.ndarray, np.ndarray], None] | None = None,
+    source: str = "<log>", block_rows: int = BLOCK_ROWS,
+) -> dict[str, Any]:
+    """:func:`compensation_metrics` of ``mag`` and ``mag - mag_tl``, in blocks of stretches.
+
+    The same figures, bit for bit, as ``compensation_metrics(mag, mag - mag_tl, t, stretch,
+    cfg, kept=kept)`` with ``stretch`` the labels of the runs ``starts``/``stops``
+    (:func:`stretch_runs`), without its full-length temporaries (the difference, the labels,
+    both band-passed series and their masks): each block of whole stretches is band-passed on
+    its own, and only the samples the metrics use are kept, packed, in ``mag``'s own buffer
+    and one other.  ``mag`` is overwritten.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,)
+        Times [s].
+    mag : ndarray of float64, shape (n,)
+        Total field [nT]; **overwritten** (the caller's temporary).
+    mag_tl : ndarray, shape (n,)
+        The model's interference [nT] (float32 or float64).
+    starts, stops : ndarray of int
+        The stretches (:func:`stretch_runs`).
+    cfg : CompensationConfig
+        Band, order, trim.
+    kept : ndarray of bool, shape (n,)
+        Samples of kept segments.
+    fs_hz : float
+        Sampling rate [Hz] (:func:`aeromag._core.filters.sampling_rate` of ``time_s``).
+    visit : callable, optional
+        ``visit(a, b, after, labels)`` for each block, with ``after = mag - mag_tl`` of rows
+        ``a:b`` [nT] and the block's stretch labels, before ``mag`` is overwritten there.
+    source : str
+        File name for messages.
+    block_rows : int
+        Rows per block (:func:`run_blocks`).
+
+    Returns
+    -------
+    dict
+        :func:`metrics_dict`, as :func:`compensation_metrics` returns it.
+
+    Raises
+    ------
+    InputError
+        Too few band-passed samples (:func:`require_samples`).
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    n = len(t)
+    sos = butter_sos("bandpass", cfg.band_hz, fs_hz, cfg.order)
+    trim = (0.5 / cfg.band_hz[0]) if cfg.trim_s is None else cfg.trim_s
+    use = np.zeros(n, dtype=bool)
+    comp = np.empty(n)  # band-passed mag - mag_tl at the used samples, packed
+    pos = 0
+    for a, b, lab in run_blocks(starts, stops, block_rows):
+        X = np.empty((2, b - a))
+        X[0] = mag[a:b]
+        np.subtract(mag[a:b], mag_tl[a:b], out=X[1])
+        if visit is not None:
+            visit(a, b, X[1], lab)
+        Xf = filter_stretches(X, lab, sos, axis=1)
+        del X
+        ub = trim_mask(lab, t[a:b], trim)
+        ub &= np.isfinite(Xf).all(axis=0)
+        use[a:b] = ub
+        k = int(ub.sum())
+        # rows before a are consumed: the packed band-passed mag goes into mag's buffer
+        mag[pos:pos + k] = Xf[0][ub]
+        comp[pos:pos + k] = Xf[1][ub]
+        pos += k
+        del Xf, ub, lab
+    require_samples(pos, fs_hz, cfg.band_hz, source)
+    use_runs = _run_lengths(use)
+    kin = kept_runs = None
+    n_kept = pos
+    if not kept.all():
+        kin = kept[use]  # which packed samples are of kept segments
+        np.logical_and(use, kept, out=use)  # use & kept
+        kept_runs = _run_lengths(use)
+        n_kept = int(kin.sum())
+    del use
+    mag_bp, comp_bp = mag[:pos], comp[:pos]
+    # one stretch over the whole log: the filter returned views with a negative stride
+    rev = (len(starts) == 1 and starts[0] == 0 and stops[0] == n
+           and n >= min_filter_length(sos))
+    if kept_runs is None:
+        before = _packed_std(mag_bp, use_runs, rev)
+        after = _packed_std(comp_bp, use_runs, rev)
+        kept_std: tuple[float, float] | None = (before, after)
+    else:
+        kept_std = None
+        if n_kept:
+            kept_std = (_packed_std(mag_bp[kin], kept_runs, rev),
+                        _packed_std(comp_bp[kin], kept_runs, rev))
+        before = _packed_std(mag_bp, use_runs, rev)
+        after = _packed_std(comp_bp, use_runs, rev)
+    return metrics_dict(pos, before, after, kept_std, cfg.band_hz, n_kept=n_kept)
+
+
+def _run_lengths(mask: np.ndarray) -> np.ndarray:
+    """Lengths of the runs of True in ``mask``, in order (as :func:`masked_std` finds them)."""
+    starts, stops = true_runs(mask)
+    return stops - starts
+
+
+def _packed_std(v: np.ndarray, lengths: np.ndarray, reversed_x: bool = False) -> float:
+    """``masked_std(x, m)`` from ``v = x[m]`` and the lengths of ``m``'s runs; may overwrite ``v``.
+
+    The same arithmetic as :func:`aeromag._core.moments.masked_std`: more than 1000 runs are
+    ``np.std(x[m])`` (here computed in ``v``'s own buffer: the same sums in the same order as
+    numpy's ``_var``, without its full-size temporary), fewer are summed run by run (the
+    runs are ``v``'s consecutive slices).  ``reversed_x``: ``x`` was a view with a negative
+    stride (what the filter returns for one stretch over the whole log), whose dot products
+    numpy sums in another order than BLAS does: each run is then summed as such a view too.
+    """
+    cnt = int(lengths.sum())
+    if cnt == 0:
+        return float("nan")
+    if len(lengths) > 1000:
+        # numpy's _var: mean = sum / n; x = (a - mean) ** 2; sum(x) / n; then sqrt
+        mean = np.add.reduce(v, keepdims=True)
+        np.true_divide(mean, cnt, out=mean, casting="unsafe")
+        np.subtract(v, mean, out=v)
+        np.square(v, out=v)
+        ret = np.add.reduce(v)
+        return float(np.sqrt(ret.dtype.type(ret / np.intp(cnt))))
+    ends = np.cumsum(lengths)
+    bounds = zip((ends - lengths).tolist(), ends.tolist(), strict=True)
+    runs = [v[a:b][::-1].copy()[::-1] if reversed_x else v[a:b] for a, b in bounds]
+    mean = sum(float(r.sum()) for r in runs) / cnt
+    s2 = sum(float(r @ r) for r in runs)
+    if mean * mean > 1e-6 * s2 / cnt:  # far from zero mean: deviations, not raw squares
+        return float(np.sqrt(sum(float(((r - mean) ** 2).sum()) for r in runs) / cnt))
+    return float(np.sqrt(max(s2 / cnt - mean * mean, 0.0)))

@@ -27,13 +27,14 @@ import numpy as np
 import pandas as pd
 
 from .._core.filters import lowpass_stretches, sampling_rate
-from .._core.stretches import find_stretches
-from ..compensation.apply import isolate_dropped, missing_total_field
+from .._core.libc import trim_heap
+from ..compensation.apply import missing_total_field
 from ..compensation.config import CompensationConfig
+from ..compensation.metrics import residual_metrics, run_blocks, stretch_runs
 from ..compensation.result import CompensationResult
 from ..errors import InputError
 from ..qc import kept_mask, segment_labels
-from ..qc.quality import _config_of, contract_metrics
+from ..qc.quality import _config_of
 from ..qc.total_field import prepared_total_field
 
 __all__ = ["MAG_COMP_TOL_NT", "MAG_COMP_TOL_FLUXGATE_NT", "REL_TOL", "REL_TOL_FLUXGATE",
@@ -174,6 +175,97 @@ def _g(v: Any) -> str:
     return "–" if v is None else f"{float(v):.4g}"
 
 
+class _MagCompCheck:
+    """:func:`check_mag_comp`'s comparison, accumulated over blocks of whole stretches.
+
+    Called as ``check(a, b, comp, labels)`` for rows ``a:b`` (``comp = mag - mag_tl`` there,
+    ``labels`` the block's stretch labels); :meth:`result` then gives the check's record.
+    Each filter choice keeps its rows compared, largest difference and first row beyond the
+    tolerance, so no full-length expected or difference array exists.
+    """
+
+    def __init__(self, data: pd.DataFrame, report: dict[str, Any], cfg: CompensationConfig,
+                 time_s: np.ndarray, fs_hz: float, source: str, recorded_in: str) -> None:
+        fluxgate = bool(report.get("mag_from_fluxgate")) or "mag" not in data.columns
+        self.tol = MAG_COMP_TOL_FLUXGATE_NT if fluxgate else MAG_COMP_TOL_NT
+        # An --online OUT.json records no configuration: whether mag_comp was low-passed
+        # (--no-filter) is then not known, and mag_comp may match either.
+        self.recorded = "filter_output" in (report.get("config") or {})
+        self.choices = (bool(cfg.filter_output),) if self.recorded else (False, True)
+        self.t, self.fs, self.cfg = time_s, fs_hz, cfg
+        self.cut = cfg.lowpass_hz if cfg.lowpass_hz is not None else cfg.band_hz[1]
+        self.no_mag = missing_total_field(data, fluxgate)
+        self.have = data["mag_comp"].to_numpy(dtype=np.float64)
+        self.source, self.recorded_in = source, recorded_in
+        self.n = dict.fromkeys(self.choices, 0)
+        self.worst = dict.fromkeys(self.choices, 0.0)
+        self.first: dict[bool, int | None] = dict.fromkeys(self.choices, None)
+        self.error: dict[bool, InputError] = {}
+
+    def __call__(self, a: int, b: int, comp: np.ndarray, labels: np.ndarray) -> None:
+        have = self.have[a:b]
+        for filt in self.choices:
+            if filt in self.error:
+                continue
+            if filt:
+                try:
+                    diff = lowpass_stretches(comp, self.t[a:b], labels, self.cut,
+                                             self.cfg.order, fs_hz=self.fs)
+                except InputError as exc:
+                    self.error[filt] = exc
+                    continue
+                np.subtract(have, diff, out=diff)
+            else:
+                diff = np.subtract(have, comp)
+            np.abs(diff, out=diff)
+            if self.no_mag is not None:
+                diff[self.no_mag[a:b]] = np.nan
+            fin = np.isfinite(diff)
+            k = int(fin.sum())
+            if k:
+                self.n[filt] += k
+                self.worst[filt] = max(self.worst[filt], float(diff[fin].max()))
+                if self.first[filt] is None:
+                    over = diff > self.tol
+                    if over.any():
+                        self.first[filt] = a + int(np.argmax(over))
+
+    def result(self) -> dict[str, Any]:
+        """The check's record (see :func:`check_mag_comp`)."""
+        tol, recorded = self.tol, self.recorded
+        out: dict[str, Any] = {"compared": 0, "max_abs_difference_nT": None,
+                               "tolerance_nT": tol, "first_row": None,
+                               "filtered": self.choices[0], "filter_recorded": recorded,
+                               "warning": None}
+        best: tuple[float, bool, int | None] | None = None
+        for filt in self.choices:  # the unfiltered field first when the file does not say
+            if filt in self.error:
+                out["note"] = f"mag_comp not checked against the low-pass: {self.error[filt]}"
+                continue
+            out["compared"] = self.n[filt]
+            worst = self.worst[filt]
+            if best is None or worst < best[0]:
+                best = (worst, filt, self.first[filt])
+            if worst <= tol:
+                break
+        if best is None or not out["compared"]:
+            return out
+        worst, filt, first = best
+        out.update(max_abs_difference_nT=worst, filtered=filt)
+        if worst > tol:
+            i = int(first or 0)
+            out["first_row"] = i
+            what = (f"mag - mag_tl low-passed at {self.cut:g} Hz" if filt and recorded
+                    else "mag - mag_tl (unfiltered)" if recorded
+                    else "mag - mag_tl, unfiltered or low-passed,")
+            out["warning"] = (
+                f"{self.source}: column 'mag_comp' differs from {what} as {self.recorded_in}"
+                f" records it by up to {_g(worst)} nT (first at data row {i + 1}; tolerance"
+                f" {tol:g} nT): {LIKELY_CAUSE.format(kind=log_kind(self.source))}; the"
+                " compensated-field figures draw this column")
+        return out
+
+
 def check_mag_comp(data: pd.DataFrame, comp: np.ndarray, report: dict[str, Any],
                    cfg: CompensationConfig, *, source: str = "OUT.csv",
                    recorded_in: str = "OUT.json") -> dict[str, Any]:
@@ -184,14 +276,16 @@ def check_mag_comp(data: pd.DataFrame, comp: np.ndarray, report: dict[str, Any],
     (:func:`aeromag.compensation.apply.isolate_dropped`, the same filter and cut-off as
     :func:`aeromag.compensation.apply.apply_model`) unless ``cfg.filter_output`` is False,
     and empty where the log has no measured total field.  Only rows where both are finite
-    are compared.
+    are compared.  The work is done in blocks of whole stretches
+    (:func:`aeromag.compensation.metrics.run_blocks`); :func:`headline_from_data` makes the
+    same check inside the headline's own pass over the blocks.
 
     Parameters
     ----------
     data : DataFrame
         The compensated log (``time`` [s], ``mag_comp`` [nT], ``segment``, ``segment_kept``).
     comp : ndarray
-        ``mag - mag_tl`` per row [nT]; overwritten (it is the caller's temporary).
+        ``mag - mag_tl`` per row [nT] (not changed).
     report : dict
         Its report (``mag_from_fluxgate``).
     cfg : CompensationConfig
@@ -207,70 +301,44 @@ def check_mag_comp(data: pd.DataFrame, comp: np.ndarray, report: dict[str, Any],
         ``first_row`` (0-based data row of the first difference beyond the tolerance, or
         None), ``filtered`` and ``warning`` (one line, or None).
     """
-    fluxgate = bool(report.get("mag_from_fluxgate")) or "mag" not in data.columns
-    tol = MAG_COMP_TOL_FLUXGATE_NT if fluxgate else MAG_COMP_TOL_NT
-    # An --online OUT.json records no configuration: whether mag_comp was low-passed
-    # (--no-filter) is then not known, and mag_comp may match either.
-    recorded = "filter_output" in (report.get("config") or {})
-    choices = (bool(cfg.filter_output),) if recorded else (False, True)
-    out: dict[str, Any] = {"compared": 0, "max_abs_difference_nT": None, "tolerance_nT": tol,
-                           "first_row": None, "filtered": choices[0],
-                           "filter_recorded": recorded, "warning": None}
     t = data["time"].to_numpy(dtype=np.float64)
-    no_mag = missing_total_field(data, fluxgate)
-    have = data["mag_comp"].to_numpy(dtype=np.float64)
-    cut = cfg.lowpass_hz if cfg.lowpass_hz is not None else cfg.band_hz[1]
-    best: tuple[float, bool, np.ndarray] | None = None
-    for filt in choices:
-        expected = comp
-        if filt:
-            stretch = find_stretches(t, np.isfinite(comp), cfg.max_gap_s)
-            lab = isolate_dropped(stretch, segment_labels(data), kept_mask(data))
-            del stretch
-            try:
-                expected = lowpass_stretches(comp, t, lab, cut, cfg.order,
-                                             fs_hz=sampling_rate(t))
-            except InputError as exc:
-                out["note"] = f"mag_comp not checked against the low-pass: {exc}"
-                continue
-            del lab
-        # the low-passed copy is this loop's own: the difference is written into it
-        diff = np.subtract(have, expected, out=expected if filt else None)
-        del expected
-        np.abs(diff, out=diff)
-        if no_mag is not None:
-            diff[no_mag] = np.nan
-        fin = np.isfinite(diff)
-        n = int(fin.sum())
-        out["compared"] = n
-        worst = float(diff[fin].max()) if n else 0.0
-        del fin
-        if best is None or worst < best[0]:
-            best = (worst, filt, diff)
-        del diff
-        if worst <= tol:
-            break
-    if best is None or not out["compared"]:
-        return out
-    worst, filt, diff = best
-    out.update(max_abs_difference_nT=worst, filtered=filt)
-    if worst > tol:
-        i = int(np.argmax(diff > tol))
-        out["first_row"] = i
-        what = (f"mag - mag_tl low-passed at {cut:g} Hz" if filt and recorded
-                else "mag - mag_tl (unfiltered)" if recorded
-                else "mag - mag_tl, unfiltered or low-passed,")
-        out["warning"] = (
-            f"{source}: column 'mag_comp' differs from {what} as {recorded_in} records it by up"
-            f" to {_g(worst)} nT (first at data row {i + 1}; tolerance {tol:g} nT):"
-            f" {LIKELY_CAUSE.format(kind=log_kind(source))}; the compensated-field figures"
-            " draw this column")
-    return out
+    comp = np.asarray(comp, dtype=np.float64)
+    check = _MagCompCheck(data, report, cfg, t, sampling_rate(t), source, recorded_in)
+    starts, stops = stretch_runs(t, comp, np.broadcast_to(0.0, comp.shape), _segments(data),
+                                 kept_mask(data), cfg.max_gap_s)
+    for a, b, lab in run_blocks(starts, stops):
+        check(a, b, comp[a:b], lab)
+    return check.result()
+
+
+def _segments(data: pd.DataFrame) -> np.ndarray:
+    """:func:`aeromag.qc.segment_labels`'s values, without its int64 copy.
+
+    The column itself when it is a plain integer column (the report's reader gives int32).
+    """
+    col = data["segment"] if "segment" in data.columns else None
+    if col is not None and isinstance(col.dtype, np.dtype) and col.dtype.kind == "i":
+        return col.to_numpy()
+    return segment_labels(data)
+
+
+def _float_column(data: pd.DataFrame, name: str) -> np.ndarray:
+    """A float column as stored (float32 or float64, no copy), else as float64.
+
+    ``mag - col`` is the same in both: numpy widens float32 to float64 exactly.
+    """
+    v = data[name].to_numpy()
+    return v if v.dtype in (np.float32, np.float64) else data[name].to_numpy(dtype=np.float64)
 
 
 def headline_from_data(result: CompensationResult,
                        config: CompensationConfig | None = None) -> CompensationResult:
     """The result with its headline metrics computed from its data, OUT.json's kept beside.
+
+    The metrics are :func:`aeromag.qc.quality.contract_metrics`'s, bit for bit, computed by
+    :func:`aeromag.compensation.metrics.residual_metrics` in blocks of whole stretches
+    (one pass, which also makes the ``mag_comp`` check, :func:`check_mag_comp`), so that
+    no full-length temporary is made beyond the prepared total field and one packed array.
 
     Parameters
     ----------
@@ -302,33 +370,45 @@ def headline_from_data(result: CompensationResult,
                          " so this log must be the output of `aeromag compensate` as written;"
                          f" run `aeromag compensate LOG -o {src}` first")
     cfg = config or result.config or _config_of(report)
+    rj = str(data.attrs.get("report_json") or "OUT.json")
     t = data["time"].to_numpy(dtype=np.float64)
-    mag = prepared_total_field(data, report, cfg)
-    tl = data["mag_tl"].to_numpy(dtype=np.float64)
+    fs_error: InputError | None = None
+    try:  # first: its median's temporaries come before the full-length arrays
+        fs = sampling_rate(t)
+    except InputError as exc:
+        fs, fs_error = math.nan, exc
+    mag = prepared_total_field(data, report, cfg)  # ours: residual_metrics overwrites it
+    tl = _float_column(data, "mag_tl")
+    check = (_MagCompCheck(data, report, cfg, t, fs, src, rj)
+             if "mag_comp" in data.columns and fs_error is None else None)
     try:
-        computed = contract_metrics(t, mag, tl, segment_labels(data), kept_mask(data), cfg)
+        if fs_error is not None:
+            raise fs_error
+        kept = kept_mask(data)
+        starts, stops = stretch_runs(t, mag, tl, _segments(data), kept, cfg.max_gap_s)
+        computed = residual_metrics(t, mag, tl, starts, stops, cfg, kept, fs_hz=fs,
+                                    visit=check)
     except InputError as exc:
         raise InputError(str(exc).replace("<log>", src, 1)) from None
-    rj = data.attrs.get("report_json") or "OUT.json"
-    comp_check = None
-    if "mag_comp" in data.columns:
-        np.subtract(mag, tl, out=mag)  # mag's buffer becomes mag - mag_tl
-        comp_check = check_mag_comp(data, mag, report, cfg, source=src, recorded_in=str(rj))
-    del t, mag, tl
+    finally:
+        del mag
+    comp_check = check.result() if check is not None else None
+    del t, tl, kept, starts, stops, check
+    trim_heap()  # the blocks' freed temporaries back to the system
     recorded = report.get("metrics") or None
     fluxgate = bool(report.get("mag_from_fluxgate")) or "mag" not in data.columns
-    check = compare_headline(computed, recorded, online=bool(report.get("online")),
-                             fluxgate=fluxgate, source=src, recorded_in=str(rj))
-    if check["warning"]:
-        log.warning("%s", check["warning"])
+    check_ = compare_headline(computed, recorded, online=bool(report.get("online")),
+                              fluxgate=fluxgate, source=src, recorded_in=rj)
+    if check_["warning"]:
+        log.warning("%s", check_["warning"])
     if comp_check is not None:
-        check["mag_comp"] = comp_check
+        check_["mag_comp"] = comp_check
         if comp_check["warning"]:
             log.warning("%s", comp_check["warning"])
     if recorded:
         report["recorded_metrics"] = recorded
     report["metrics"] = computed
-    report["headline_check"] = check
+    report["headline_check"] = check_
     return dataclasses.replace(result, report=report)
 
 
