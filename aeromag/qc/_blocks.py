@@ -81,11 +81,31 @@ def _block_means(df: pd.DataFrame, t: np.ndarray, step: int, max_gap_s: float
         return res
 
     out = {"time": mean(lambda s, e: t[s:e] - t[0]) + t[0] + 1e6 * sid}
-    for c in ("pitch", "roll", "flux_x", "flux_y", "flux_z"):
+    for c in ("pitch", "roll"):
         if c in df.columns:
             x = df[c].to_numpy()
             xf = x if x.dtype.kind == "f" else x.astype(np.float64)
             out[c] = mean(lambda s, e, xf=xf: xf[s:e])
+    _heading_means(df, out, first, cnt, mean)
+    # The detection reads the fluxgate only when the reduced log's attitude is not usable
+    # (_detect_full's test, on the same means): then no block means of it (3 x 3.2 MB at
+    # 2e6 rows, held through the detection).
+    att = [out[c] for c in ("heading", "pitch", "roll") if c in out]
+    if not (len(att) == 3 and float(np.mean(~np.isnan(np.column_stack(att)).any(axis=1)))
+            > 0.5):
+        for c in ("flux_x", "flux_y", "flux_z"):
+            if c in df.columns:
+                x = df[c].to_numpy()
+                xf = x if x.dtype.kind == "f" else x.astype(np.float64)
+                out[c] = mean(lambda s, e, xf=xf: xf[s:e])
+    small = pd.DataFrame(out, copy=False)  # no consolidated copy of the columns
+    small.attrs = dict(df.attrs)
+    return small, cnt
+
+
+def _heading_means(df: pd.DataFrame, out: dict[str, np.ndarray], first: np.ndarray,
+                   cnt: np.ndarray, mean: Any) -> None:
+    """``out["heading"]``: circular block means of the heading about each block's first."""
     if "heading" in df.columns:
         hcol = df["heading"].to_numpy()
         h_first = hcol[first].astype(np.float64)
@@ -100,9 +120,6 @@ def _block_means(df: pd.DataFrame, t: np.ndarray, step: int, max_gap_s: float
             return d
 
         out["heading"] = (mean(about_first) + ref_first) % 360.0
-    small = pd.DataFrame(out, copy=False)  # no consolidated copy of the columns
-    small.attrs = dict(df.attrs)
-    return small, cnt
 
 
 # --------------------------------------------------------------------------- pieces in blocks

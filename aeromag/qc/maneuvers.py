@@ -186,8 +186,10 @@ def detect_heading_legs(
     else:
         unit, ok = _heading_unit(df, declination_deg)
         stretch = find_stretches(t, ok, max_gap_s)
+        del ok
         half = max(1, int(round(smooth_s * fs / 2)))
         sc = moving_mean(unit, stretch, half)
+        del unit  # each intermediate let go once used (the step held ~20 of them)
         hs = np.rad2deg(np.arctan2(sc[:, 1], sc[:, 0]))
         good = np.isfinite(hs)
         if not good.any():
@@ -199,10 +201,14 @@ def detect_heading_legs(
         c2, s2 = (u * u - v * v) / r2, 2.0 * u * v / r2
         offset = float(np.rad2deg(np.arctan2(np.mean(2.0 * c2 * s2),
                                              np.mean(c2 * c2 - s2 * s2))) / 4.0)
+        del u, v, r2, c2, s2
         rel = wrap_deg(hs - offset)
+        del hs
         k = np.round(rel / 90.0)
         close = good & (np.abs(rel - 90.0 * k) <= tolerance_deg)
+        del good
         card = np.where(close, np.mod(k, 4), -1).astype(np.int64)
+        del rel, k, close
     # Runs of one cardinal within one stretch.
     key = np.where((card >= 0) & (stretch >= 0), card + 4 * stretch, -1)
     starts, stops, vals = run_bounds(key)
