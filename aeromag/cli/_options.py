@@ -37,12 +37,6 @@ __all__ = ["OPTIONS", "Option", "Options", "add_option", "command", "config_erro
 
 _REQUIRED = inspect.Parameter.empty
 
-#: CompensationConfig keywords that only the screening reads: with ``--no-screen`` they decide
-#: nothing (``shrink`` is not one: it also shrinks the per-segment coefficients reported).
-SCREEN_ONLY = ("pca_variance", "screen_quantile", "max_iter", "min_segments", "min_excess",
-               "min_excess_nT", "noise_factor", "gross_excess", "inlier_excess",
-               "inlier_own_excess")
-
 #: Log-reading commands (``--col``, ``--map``, ``--units``, ``--format``).
 _READERS = frozenset({"compensate", "calibrate", "batch"})
 #: Commands that fit or apply the TL model.
@@ -272,36 +266,18 @@ class Options(dict):
         #: Names of the options given on the command line (None: unknown, e.g. in tests).
         self.given = given
 
-    def refuse_fit_options(self, why: str = "--model applies a saved model") -> None:
-        """Raise a one-line error naming a fit-only option given on the command line.
-
-        Options whose :class:`CompensationConfig` keyword is in
-        :data:`~aeromag.compensation.config.FIT_ONLY` (``--terms``, ``--ridge``, screening...)
-        steer a fit only; with ``--model`` nothing is fitted, so giving one is a mistake.
-
-        Parameters
-        ----------
-        why : str
-            Why nothing is fitted (the error's words).
-
-        Raises
-        ------
-        InputError
-            Naming the first such option given.
-        """
-        from ..compensation.config import FIT_ONLY
-
-        self._refuse(FIT_ONLY, lambda f: f"{f} steers a fit, and {why}: nothing is fitted; "
-                     f"drop {f} (or drop --model to fit)")
-
     def refuse_unused_options(self) -> None:
-        """Refuse, in one line, a fit or screening option that this run would not use.
+        """Refuse, in one line, a fit, screening or filter option that this run would not use.
 
-        With ``--model`` nothing is fitted (:meth:`refuse_fit_options`); with ``--online`` the
-        recursive fit uses ``--terms`` but no batch-fit option (``--ridge``,
-        ``--max-condition``, ``--no-decimate``), screens nothing and reports no FOM (``--fom``);
-        with ``--no-screen`` the screening's thresholds (``--noise-factor``, ``--min-excess``...)
-        decide nothing.
+        The rule is the library's (:func:`~aeromag.compensation.config.unused_options`, which
+        :func:`aeromag.compensate` and :func:`aeromag.calibrate` apply to a Python caller's
+        configuration); here it names flags and counts an option as given when it was typed,
+        even at its default value.  With ``--model`` nothing is fitted (``--terms``,
+        ``--ridge``, the screening options...); with ``--online`` the recursive fit uses
+        ``--terms`` but no batch-fit option (``--ridge``, ``--max-condition``,
+        ``--no-decimate``, ``--no-screen``), screens nothing and reports no FOM (``--fom``);
+        with ``--no-screen`` the screening's thresholds (``--noise-factor``,
+        ``--min-excess``...) decide nothing; with ``--no-filter`` ``--lowpass`` does nothing.
         ``--shrink`` stays allowed with ``--no-screen``: it still shrinks the per-segment
         coefficients OUT.json reports.
 
@@ -310,29 +286,20 @@ class Options(dict):
         InputError
             Naming the first such option given and what to drop.
         """
-        from ..compensation.config import FIT_ONLY
+        from ..compensation.config import unused_options
 
-        if self.get("model") is not None:
-            self.refuse_fit_options()
-        if self.get("online"):
-            self._refuse(tuple(c for c in FIT_ONLY if c != "terms"),
-                         lambda f: f"{f} steers the batch fit or its screening, and --online "
-                         "fits sample by sample without either: nothing uses it; drop "
-                         f"{f} (or drop --online)")
-            self._refuse(("fom",), lambda f: f"{f}: --online reports no Figure of Merit; drop"
-                         f" {f} (aeromag report on the output gives the FOM of a calibration box)")
-        elif self.get("no_screen"):
-            self._refuse(SCREEN_ONLY, lambda f: f"{f} steers the screening, and --no-screen "
-                         f"skips it: nothing uses it; drop {f} (or drop --no-screen)")
-
-    def _refuse(self, keywords: tuple[str, ...], message: Callable[[str], str]) -> None:
-        """Raise ``message(flag)`` for the first option given whose config is in ``keywords``."""
-        for opt in OPTIONS:
-            if opt.config in keywords and opt.flags and opt.name in self:
-                given = (opt.name in self.given if self.given is not None
-                         else self[opt.name] != opt.default)
-                if given:
-                    raise InputError(message(opt.flags[-1]))
+        rows = {o.config: i for i, o in enumerate(OPTIONS)
+                if o.config and o.flags and o.name in self}
+        given = {o.config for o in OPTIONS if o.config in rows and (
+            o.name in self.given if self.given is not None else self[o.name] != o.default)}
+        found = unused_options(self.config(), model=self.get("model") is not None,
+                               online=bool(self.get("online")), given=given)
+        if not found:
+            return
+        first = min((u for u in found if u.cause == found[0].cause),
+                    key=lambda u: rows[u.keyword])
+        cond, undo = _CLI_SPELLING[first.cause]
+        raise InputError(first.message(OPTIONS[rows[first.keyword]].flags[-1], cond, undo))
 
     def __getattr__(self, name: str) -> Any:
         try:
@@ -362,6 +329,16 @@ class Options(dict):
         kw.update(overrides)
         with config_errors():
             return CompensationConfig(**kw)
+
+
+#: ``{cond}`` and ``{undo}`` of :data:`aeromag.compensation.config.UNUSED_MESSAGES` in flags.
+_CLI_SPELLING = {
+    "model": ("--model", "or drop --model to fit"),
+    "online": ("--online", "or drop --online"),
+    "online_fom": ("--online", "aeromag report on the output gives the FOM of a calibration box"),
+    "screen": ("--no-screen", "or drop --no-screen"),
+    "filter": ("--no-filter", "or drop --no-filter"),
+}
 
 
 def _flag_text(value: Any) -> str:

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..errors import ConfigError
+from ..errors import ConfigError, InputError
 from .terms import parse_terms
 
 
@@ -350,11 +350,188 @@ FIT_ONLY = ("terms", "decimate", "screen", "shrink", "pca_variance", "screen_qua
             "inlier_excess", "inlier_own_excess", "ridge", "max_condition")
 
 
+#: CompensationConfig keywords that only the screening reads: with ``screen=False`` they decide
+#: nothing (``shrink`` is not one: it also shrinks the per-segment coefficients reported).
+SCREEN_ONLY = ("pca_variance", "screen_quantile", "max_iter", "min_segments", "min_excess",
+               "min_excess_nT", "noise_factor", "gross_excess", "inlier_excess",
+               "inlier_own_excess")
+
+#: CompensationConfig keywords that the online (recursive) fit reads none of: it has no batch
+#: fit and no screening (``terms`` it uses).
+BATCH_FIT_ONLY = tuple(k for k in FIT_ONLY if k != "terms")
+
+#: Why a setting cannot act, the one-line message of each cause.  ``{what}`` is the setting
+#: (``noise_factor=2``, or a flag), ``{cond}`` what makes it idle (``screen=False``), ``{undo}``
+#: how to make it act.  The command line fills in flags (:mod:`aeromag.cli._options`), the
+#: library Python keywords (:data:`_PYTHON_SPELLING`).
+UNUSED_MESSAGES = {
+    "model": "{what} steers a fit, and {cond} applies a saved model: nothing is fitted; drop "
+             "{what} ({undo})",
+    "online": "{what} steers the batch fit or its screening, and {cond} fits sample by sample "
+              "without either: nothing uses it; drop {what} ({undo})",
+    "online_fom": "{what}: {cond} reports no Figure of Merit; drop {what} ({undo})",
+    "screen": "{what} steers the screening, and {cond} skips it: nothing uses it; drop {what} "
+              "({undo})",
+    "filter": "{what} sets the final low-pass of mag_comp, and {cond} leaves mag_comp "
+              "unfiltered: nothing uses it; drop {what} ({undo})",
+}
+
+#: ``{cond}`` and ``{undo}`` of each cause in a Python caller's words.
+_PYTHON_SPELLING = {
+    "model": ("model=MODEL", "or drop model=MODEL to fit"),
+    "online": ("the online fit (compensate_online_file)",
+               "or run the batch fit: aeromag.compensate, compensate_file"),
+    "online_fom": ("the online fit (compensate_online_file)",
+                   "aeromag report on the output gives the FOM of a calibration box"),
+    "screen": ("screen=False", "or drop screen=False"),
+    "filter": ("filter_output=False", "or drop filter_output=False"),
+}
+
+
+@dataclass(frozen=True)
+class UnusedOption:
+    """A setting that a run would not use (:func:`unused_options`).
+
+    Attributes
+    ----------
+    keyword : str
+        The :class:`CompensationConfig` keyword (``noise_factor``).
+    value : object
+        Its value.
+    cause : str
+        Why it cannot act, a key of :data:`UNUSED_MESSAGES`: ``"model"`` (a saved model is
+        applied), ``"online"`` / ``"online_fom"`` (the recursive fit), ``"screen"``
+        (``screen=False``), ``"filter"`` (``filter_output=False``).
+    """
+
+    keyword: str
+    value: Any
+    cause: str
+
+    def message(self, what: str | None = None, cond: str | None = None,
+                undo: str | None = None) -> str:
+        """The one-line message; by default in a Python caller's words.
+
+        Parameters
+        ----------
+        what, cond, undo : str, optional
+            The setting, what makes it idle and how to make it act (the command line gives
+            flags); default ``keyword=value`` and :data:`_PYTHON_SPELLING`.
+
+        Returns
+        -------
+        str
+        """
+        py_cond, py_undo = _PYTHON_SPELLING[self.cause]
+        value = self.value.item() if isinstance(self.value, np.generic) else self.value
+        return UNUSED_MESSAGES[self.cause].format(
+            what=what if what is not None else f"{self.keyword}={value!r}",
+            cond=cond if cond is not None else py_cond,
+            undo=undo if undo is not None else py_undo)
+
+
+def changed_options(cfg: CompensationConfig) -> frozenset[str]:
+    """Keywords of ``cfg`` whose value differs from the field's default.
+
+    Parameters
+    ----------
+    cfg : CompensationConfig
+        A configuration.
+
+    Returns
+    -------
+    frozenset of str
+        What the caller changed (``CompensationConfig(noise_factor=3)`` changes nothing).
+    """
+    out = set()
+    for f in fields(cfg):
+        v = getattr(cfg, f.name)
+        if f.name == "band_hz":
+            v = tuple(v)
+        if v != f.default:
+            out.add(f.name)
+    return frozenset(out)
+
+
+def unused_options(cfg: CompensationConfig, *, model: bool = False, online: bool = False,
+                   given: frozenset[str] | set[str] | None = None) -> list[UnusedOption]:
+    """The settings of ``cfg`` that a run would not use; the rule the command line refuses by.
+
+    With a saved model nothing is fitted (every keyword of :data:`FIT_ONLY`); the online fit
+    has no batch fit or screening (:data:`BATCH_FIT_ONLY`) and computes no Figure of Merit
+    (``fom=True``); with ``screen=False`` the screening's thresholds (:data:`SCREEN_ONLY`)
+    decide nothing; with ``filter_output=False`` the low-pass cut-off (``lowpass_hz``) does
+    nothing.  ``shrink`` stays allowed with ``screen=False``: it also shrinks the per-segment
+    coefficients the report holds.
+
+    Parameters
+    ----------
+    cfg : CompensationConfig
+        The run's configuration.
+    model : bool
+        A saved model is applied (nothing is fitted).
+    online : bool
+        The online (recursive least squares) fit runs.
+    given : set of str, optional
+        Keywords the user set; default those that differ from the field defaults
+        (:func:`changed_options`), so a default value is never refused.
+
+    Returns
+    -------
+    list of UnusedOption
+        The first cause's settings first (model, then online, then screen), then the filter's;
+        empty when every setting acts.
+    """
+    given = changed_options(cfg) if given is None else frozenset(given)
+    found: list[UnusedOption] = []
+
+    def add(keywords: tuple[str, ...], cause: str) -> None:
+        found.extend(UnusedOption(k, getattr(cfg, k), cause) for k in keywords if k in given)
+
+    if model:
+        add(FIT_ONLY, "model")
+    elif online:
+        add(BATCH_FIT_ONLY, "online")
+        if cfg.fom and "fom" in given:  # fom=False asks for what the online fit does anyway
+            found.append(UnusedOption("fom", cfg.fom, "online_fom"))
+    elif not cfg.screen:
+        add(SCREEN_ONLY, "screen")
+    if not cfg.filter_output:
+        add(("lowpass_hz",), "filter")
+    return found
+
+
+def refuse_unused_options(cfg: CompensationConfig, *, model: bool = False,
+                          online: bool = False) -> None:
+    """Raise, in one line, when a setting the user changed cannot act in this run.
+
+    The library's side of the command line's refusal (:func:`unused_options`): a tool that
+    silently ignores a setting is worse than one that refuses it.  Default values are never
+    refused; internal callers that build configurations leave the idle ones at their defaults.
+
+    Parameters
+    ----------
+    cfg : CompensationConfig
+        The run's configuration.
+    model, online : bool
+        As in :func:`unused_options`.
+
+    Raises
+    ------
+    InputError
+        Naming the first such keyword and what to drop, e.g. ``noise_factor=2 steers the
+        screening, and screen=False skips it: nothing uses it; drop noise_factor=2 (or drop
+        screen=False)``.
+    """
+    found = unused_options(cfg, model=model, online=online)
+    if found:
+        raise InputError(found[0].message())
+
+
 def _config_dict(cfg: CompensationConfig) -> dict[str, Any]:
     d = dataclasses.asdict(cfg)
     d["band_hz"] = list(cfg.band_hz)
     return d
-
 
 
 def _resolve_gap(cfg: CompensationConfig, df: pd.DataFrame) -> CompensationConfig:

@@ -34,7 +34,7 @@ import numpy as np
 import pandas as pd
 
 from .apply import _apply, _check_plausible
-from .config import CompensationConfig, _resolve_gap
+from .config import CompensationConfig, _resolve_gap, refuse_unused_options
 from .fit import fit_result
 from .model import TLModel
 from .prepare import check_total_field, prepare
@@ -67,8 +67,18 @@ def compensate(
     -------
     CompensationResult
         ``data`` holds the output table, ``report`` the JSON report (without ``qc``).
+
+    Raises
+    ------
+    InputError
+        When ``cfg`` changes a setting this run cannot use, as the command line refuses it
+        (:func:`~aeromag.compensation.config.unused_options`): a fit-only one (``ridge``,
+        ``terms``, the screening's) with ``model``, a screening threshold (``noise_factor``...)
+        with ``screen=False``, ``lowpass_hz`` with ``filter_output=False``.
     """
-    cfg = _resolve_gap(cfg or CompensationConfig(), df)
+    cfg = cfg or CompensationConfig()
+    refuse_unused_options(cfg, model=model is not None)  # as the command line does
+    cfg = _resolve_gap(cfg, df)
     prep = prepare(df, cfg, source=source)
     if model is None:
         fit = fit_result(prep, cfg)
