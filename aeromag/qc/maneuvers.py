@@ -42,6 +42,7 @@ import pandas as pd
 
 from .._core.angles import wrap_deg
 from .._core.filters import sampling_rate
+from .._core.libc import trim_heap
 from .._core.runs import run_bounds
 from .._core.stretches import find_stretches
 from ..errors import InputError
@@ -281,11 +282,24 @@ def _axis_energy(df: pd.DataFrame, stretch: np.ndarray, fs: float, highpass_hz: 
         head = np.unwrap(np.deg2rad(df["heading"].to_numpy(dtype=np.float64)))
         ang = np.column_stack([np.deg2rad(df["roll"].to_numpy(dtype=np.float64)),
                                np.deg2rad(df["pitch"].to_numpy(dtype=np.float64)), head])
-        hp = highpass(ang)
-        np.square(hp, out=hp)
-        e = moving_mean(hp, stretch, half)
-        best = _best_of(e / np.maximum(e.sum(axis=1, keepdims=True), 1e-30))
+        del head
+        # In place, each intermediate let go once used (bitwise as highpass, square, share
+        # and _best_of on fresh arrays): the attitude energy rose ~+38 MB at 2e6 rows.
+        m = moving_mean(ang, stretch, hw)
+        np.subtract(ang, m, out=ang)
+        del m
+        np.square(ang, out=ang)
+        e = moving_mean(ang, stretch, half)
+        del ang
+        tot = e.sum(axis=1, keepdims=True)
+        np.maximum(tot, 1e-30, out=tot)
+        share = e / tot
+        del tot
+        np.copyto(share, -1.0, where=np.isnan(share))
+        best = np.argmax(share, axis=1)  # _best_of
+        del share
         eb = np.take_along_axis(e, best[:, None], axis=1)[:, 0]
+        del e
         return best, np.nan_to_num(np.rad2deg(np.sqrt(eb))), np.zeros(n)
     flux = df[["flux_x", "flux_y", "flux_z"]].to_numpy(dtype=np.float64)
     c = flux / np.linalg.norm(flux, axis=1, keepdims=True)
@@ -393,11 +407,21 @@ def detect_maneuvers(
         res = _narrow(_detect_full(df, max_gap_s=max_gap_s, **kw))
     else:
         small, cnt = _block_means(df, t, step, 5.0 / fs if max_gap_s is None else max_gap_s)
-        res = (_narrow(_detect_full(df, max_gap_s=max_gap_s, **kw)) if len(small) < 10 else
-               _expand(_detect_full(small, max_gap_s=None, **kw), df, t, fs, cnt))
-        del small
+        trim_heap()  # the block means' freed temporaries, before the detection's own
+        if len(small) < 10:
+            del small
+            res = _narrow(_detect_full(df, max_gap_s=max_gap_s, **kw))
+        else:
+            red = _detect_full(small, max_gap_s=None, **kw)
+            del small
+            trim_heap()  # the reduced log and the detection's temporaries, before expanding
+            res = _expand(red, df, t, fs, cnt)
+            del red
     # a manoeuvre never spans two lines (its tail would sample a neighbour, maybe a fault)
-    return clip_to_lines(res, df["line"], t, fs) if "line" in df.columns else res
+    if "line" in df.columns:
+        res = clip_to_lines(res, df["line"], t, fs)
+    trim_heap()  # only the labels and tables stay
+    return res
 
 
 def _narrow(res: ManeuverResult) -> ManeuverResult:
