@@ -302,6 +302,7 @@ def _compute(
     kept = kept_mask(data)
     pieces = piece_residuals(t, mag, tl, seg, kept, band, cfg.order, trim_s=cfg.trim_s,
                              max_gap_s=cfg.max_gap_s, fs_hz=fs)
+    trim_heap()  # the pieces' freed block temporaries
     # The headline is the compensation's own metrics of this log (OUT.json metrics, computed on
     # its prepared arrays: gaps interpolated, stretches as fitted); recomputed only without them.
     cm = (base_metrics if base_metrics and "all_improvement_ratio" in base_metrics
@@ -333,6 +334,7 @@ def _compute(
         metrics["residual_std_by_heading_nT"] = {
             CARDINALS[k]: v for k, v in grouped_std(resid_bp, hl).items()}
         del hl
+        trim_heap()  # grouped_std's freed temporaries, before the tables are assembled
         metrics["maneuvers"] = {
             "method": maneuvers.method, "n_legs": len(maneuvers.legs),
             "n_maneuvers": len(maneuvers.table), "complete_boxes": maneuvers.complete_boxes,
