@@ -312,7 +312,10 @@ def drop_transit_runs(labels: np.ndarray, ned: np.ndarray, time_s: np.ndarray,
             lab[s0:s1] = -1
             dropped += 1
             continue
-        if max_slope is None:
+        if max_slope is None or gate_h_m <= ON_LINE_GATE_M + 1e-9:
+            # the 2 m gate (RTK, or a navigated position as good) is narrower than a ferry's
+            # convergence: the gate alone decides, as before the parallel rule (a pass that
+            # flies on through a GNSS outage on navigated rows, which drift without noise)
             continue
         # a stretch of consecutive positioned samples within the gate, parallel to the line;
         # its time counts positioned samples at the run's mean positioned rate (sparse fixes)
