@@ -24,8 +24,8 @@ from aeromag._core.geodesy import ned_to_geodetic
 from aeromag.cli import app
 from aeromag.synthetic.mission import simulate_mission
 from aeromag.track import check_track
-from aeromag.track.assign import estimate_plan_offset
 from aeromag.track.legs import LegModel, motion_velocity
+from aeromag.track.offset import estimate_plan_offset
 
 ORIGIN = (47.3, 8.5, 540.0)
 

@@ -62,10 +62,11 @@ from ..detection.heading import (
 )
 from ..errors import InputError
 from . import diagnose
-from .assign import OFFSET_DECODE_MIN_M, assign_track_legs
+from .assign import assign_track_legs
 from .deviation import leg_summary, track_alarm
 from .geometry import cross_track
 from .legs import LegModel, labels_from_column, leg_passes, velocity_for_legs
+from .offset import OFFSET_DECODE_MIN_M
 from .plan import validate_plan
 
 __all__ = ["ADDED_COLUMNS", "TrackResult", "check_track"]
