@@ -40,16 +40,11 @@ def moving_mean(x: np.ndarray, stretch: np.ndarray, half_width: int) -> np.ndarr
         return out if xv.ndim == 2 else out[:, 0]
     # Every element is written below (no NaN fill first): the full windows, the ``h`` samples
     # at either end of every stretch (all that lie within ``h`` of the array's ends), and NaN
-    # outside the stretches.
+    # outside the stretches.  One column at a time: the cumulative sum and the finite mask
+    # are one column long (3 x 9.6 MB less at the peak of the attitude energy of a 2e6-row
+    # report), and each column's sums run in the same order as over the whole array.
     out = np.empty((n, m))
-    cs = np.empty((n + 1, m))
-    cs[0] = 0.0
-    fin = np.isfinite(x2)
-    np.cumsum(x2 if fin.all() else np.where(fin, x2, 0.0), axis=0, out=cs[1:])
     w = 2 * h + 1
-    if n > 2 * h:  # full windows everywhere, then the stretch ends are redone
-        np.subtract(cs[w:], cs[: n + 1 - w], out=out[h: n - h])
-        out[h: n - h] /= w
     k = np.arange(h)
     lens = (stops - starts)[:, None]
     sel = k < lens
@@ -61,7 +56,18 @@ def moving_mean(x: np.ndarray, stretch: np.ndarray, half_width: int) -> np.ndarr
         run = np.searchsorted(starts, idx, side="right") - 1
     lo = np.maximum(idx - h, starts[run])
     hi = np.minimum(idx + h + 1, stops[run])
-    out[idx] = (cs[hi] - cs[lo]) / (hi - lo)[:, None]
+    width = hi - lo
+    cs = np.empty(n + 1)
+    cs[0] = 0.0
+    for j in range(m):
+        col = x2[:, j]
+        fin = np.isfinite(col)
+        np.cumsum(col if fin.all() else np.where(fin, col, 0.0), out=cs[1:])
+        del fin
+        if n > 2 * h:  # full windows everywhere, then the stretch ends are redone
+            np.subtract(cs[w:], cs[: n + 1 - w], out=out[h: n - h, j])
+            out[h: n - h, j] /= w
+        out[idx, j] = (cs[hi] - cs[lo]) / width
     out[lab < 0] = np.nan
     return out if xv.ndim == 2 else out[:, 0]
 

@@ -492,6 +492,7 @@ def _detect_full(
     labels, legs, offset = detect_heading_legs(
         df, min_leg_s=min_leg_s, smooth_s=smooth_s, tolerance_deg=tolerance_deg,
         declination_deg=declination_deg, max_gap_s=max_gap_s, leg_column=leg_column)
+    trim_heap()  # the leg detection's freed temporaries, before the energy's own
     t = df["time"].to_numpy(dtype=np.float64)
     n = len(t)
     fs = sampling_rate(t)

@@ -286,6 +286,7 @@ def _compute(
         trim_heap()
     noise_before, noise_after = _noise_pair(mag, tl if has_tl else None, comp, t,
                                             cfg.max_gap_s)
+    trim_heap()  # the noise's freed block temporaries, before the manoeuvre detection
     detect_error: AeromagError | None = None
     if maneuvers is None and (fom_on or maneuver_column is not None):
         try:

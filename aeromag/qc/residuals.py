@@ -166,7 +166,9 @@ def piece_residuals(
     n = len(t)
     mg = np.asarray(mag, dtype=np.float64)
     tl = np.asarray(mag_tl, dtype=np.float64)
-    seg = np.asarray(segment, dtype=np.int64)
+    seg = np.asarray(segment)
+    if seg.dtype.kind != "i":  # an int32 segment column is used as it is (no 16 MB copy)
+        seg = seg.astype(np.int64)
     fs = sampling_rate(t) if fs_hz is None else fs_hz
     sos = butter_sos("bandpass", band_hz, fs, order)
     trim = 0.25 / band_hz[0] if trim_s is None else float(trim_s)
@@ -192,7 +194,7 @@ def piece_residuals(
         use[a:b] = trim_mask(lab, t[a:b], trim)
 
     st, sp = run_edges(t, valid, g, lambda a, b: seg[a:b])
-    filter_runs(rows, xf, st, sp, sos, each=trimmed)
+    filter_runs(rows, xf, st, sp, sos, each=trimmed, chunk=1 << 16)
     del st, sp
     for a in range(0, n, _CHUNK):
         b = min(n, a + _CHUNK)

@@ -118,6 +118,26 @@ def write_report(
     Path
         The HTML page.
     """
+    import gc
+
+    # Each figure is freed by a collection of its reference cycles (_trim_heap); the
+    # objects that exist before the report (the imported modules, the log's report) are
+    # frozen for its duration so that these collections do not traverse them again (nine
+    # full collections cost 1.6 s at 2e6 rows).  Unfrozen at the end: nothing is kept.
+    gc.freeze()
+    try:
+        return _write_report(result, out_dir, *legacy, config=config, title=title,
+                             progress=progress, **qc_kw)
+    finally:
+        gc.unfreeze()
+
+
+def _write_report(
+    result: CompensationResult, out_dir: Any, *legacy: Any,
+    config: CompensationConfig | None, title: str | None, progress: Progress | None,
+    **qc_kw: Any,
+) -> Path:
+    """:func:`write_report` (with the collector's older objects frozen)."""
     if config is None:
         config = qc_kw.pop("cfg", None)
     if isinstance(result, pd.DataFrame):  # the old write_report(data, report, out_dir) call
