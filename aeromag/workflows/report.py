@@ -166,7 +166,8 @@ def _write_report(
         if progress is not None:
             progress(step, total, what)
 
-    qc = compute_qc(result, config=config, **qc_kw)
+    # the report shows the manoeuvre tables only: no per-sample labels kept (26 MB at 2e6 rows)
+    qc = compute_qc(result, config=config, **{"keep_labels": False, **qc_kw})
     qc.metrics.update(headline_record(report))
     # Only the metrics, the FOM table and the band-passed fields are shown: the per-sample
     # manoeuvre labels (~65 MB at 2e6 rows) go before the figures.
