@@ -152,3 +152,20 @@ def test_any_split_of_a_numeric_log_reads_every_row_once(tmp_path: Path, halves,
     assert np.array_equal(d["mag"].to_numpy(), np.array([float(f"{b:.{digits}g}")
                                                          for b in mag]))
     assert np.array_equal(d["segment"].to_numpy(), seg)
+
+
+def test_columns_hold_their_rows_only_and_line_narrowed_when_lossless(out_csv: Path,
+                                                                     tmp_path: Path) -> None:
+    d = rep.read_columns(out_csv)
+    for c in d.columns:
+        x = d[c].to_numpy()
+        base = x if x.base is None else x.base
+        assert base.nbytes == x.nbytes, f"{c} holds {base.nbytes - x.nbytes} bytes past its rows"
+    assert d["line"].dtype == np.float32
+    assert np.array_equal(d["line"].to_numpy(), pd.read_csv(out_csv)["line"].to_numpy())
+    df = pd.read_csv(out_csv)
+    df.loc[df.index[7], "line"] = 16777217.0  # 2**24 + 1: not a float32
+    f = tmp_path / "bigline.csv"
+    df.to_csv(f, index=False)
+    e = rep.read_columns(f)
+    assert e["line"].dtype == np.float64 and e["line"].iloc[7] == 16777217.0
