@@ -19,6 +19,7 @@ from hypothesis import strategies as st
 
 from aeromag.errors import InputError
 from aeromag.synthetic import simulate_calibration
+from aeromag.workflows import _csv_halves as halves_mod
 from aeromag.workflows import _report_read as rep
 from aeromag.workflows.compensate import compensate_file
 
@@ -35,8 +36,8 @@ def out_csv(tmp_path_factory) -> Path:
 @pytest.fixture
 def halves(monkeypatch):
     """Split every log, whatever its size and the machine's cores; count the splits."""
-    monkeypatch.setattr(rep, "_SPLIT_MIN_BYTES", 0)
-    monkeypatch.setattr(rep, "_cores", lambda: 2)
+    monkeypatch.setattr(halves_mod, "_SPLIT_MIN_BYTES", 0)
+    monkeypatch.setattr(halves_mod, "_cores", lambda: 2)
     seen: list[int | None] = []
     real = rep._split_point
 
