@@ -219,19 +219,18 @@ def _parse_plain(src: Path, wide: frozenset[str]) -> pd.DataFrame | None:
 
 
 def _arrow_dtype(c: str, typ: Any, wide: frozenset[str]) -> type:
-    """The array type of column ``c`` parsed as Arrow type ``typ`` (see :class:`_Store`).
+    """The array type of column ``c`` parsed as Arrow type ``typ`` (:func:`_dtype_for`'s).
 
-    :data:`_INT32` columns are int32 unless in ``wide``.
+    :data:`_INT32` columns in ``wide`` are int64; a type :func:`_dtype_for` keeps as batch
+    arrays (text, null, uint64) raises :class:`_NotPlain`.
     """
-    import pyarrow as pa
-
-    if pa.types.is_floating(typ):
-        return np.float32 if c in _FLOAT32 else np.float64
-    if pa.types.is_integer(typ) and not pa.types.is_uint64(typ):
-        return np.int32 if c in _INT32 and c not in wide else np.int64
-    if pa.types.is_boolean(typ):
-        return np.bool_
-    raise _NotPlain(f"column {c} of type {typ}")
+    try:
+        dt = _dtype_for(c, np.dtype(typ.to_pandas_dtype()))
+    except (NotImplementedError, TypeError):
+        dt = None
+    if dt is None:
+        raise _NotPlain(f"column {c} of type {typ}")
+    return np.int64 if dt is np.int32 and c in wide else dt
 
 
 def _read_batches(src: Path) -> pd.DataFrame:
