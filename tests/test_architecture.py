@@ -29,19 +29,20 @@ LAYERS: dict[str, int] = {
     "errors": 0, "conventions": 0, "_deprecated": 0,
     "_core": 1,
     "compensation": 2, "compass": 2, "nav": 2, "detection": 2, "qc": 2, "track": 2,
-    "synthetic": 2,
+    "synthetic": 2, "survey": 2,
     "io": 2,  # beside the domains: it may use _core; who may use it is checked separately
     "plot": 3,
     "workflows": 4,
     "cli": 5, "__main__": 5,
 }
-DOMAINS = {"compensation", "compass", "nav", "detection", "qc", "track", "synthetic"}
+DOMAINS = {"compensation", "compass", "nav", "detection", "qc", "track", "synthetic", "survey"}
 #: Cross-domain imports allowed (importer -> imported).
 CROSS = {("qc", "compensation"), ("track", "detection"), ("track", "nav"),
          ("detection", "nav")}
 #: What the simulators must never import.
 NOT_IN_SYNTHETIC = ("aeromag.compensation", "aeromag.compass", "aeromag.nav",
-                    "aeromag.detection", "aeromag.qc", "aeromag.track", "aeromag._core.lstsq",
+                    "aeromag.detection", "aeromag.qc", "aeromag.track", "aeromag.survey",
+                    "aeromag._core.lstsq",
                     "aeromag._core.filters", "aeromag._core.rls", "aeromag._core.unscented",
                     "aeromag._core.particles", "aeromag._core.fit_diagnostics",
                     "aeromag._core.decimate")

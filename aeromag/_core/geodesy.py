@@ -14,7 +14,7 @@ import numpy as np
 from pyproj import Transformer
 
 __all__ = ["geodetic_to_ecef", "ecef_to_geodetic", "ecef_to_ned_matrix", "geodetic_to_ned",
-           "ned_to_geodetic"]
+           "ned_to_geodetic", "utm_epsg", "project", "unproject"]
 
 Origin = tuple[float, float, float]
 
@@ -128,3 +128,75 @@ def ned_to_geodetic(ned: np.ndarray, origin: Origin) -> np.ndarray:
     ecef = np.atleast_2d(np.asarray(ned, dtype=np.float64)) @ ecef_to_ned_matrix(
         origin[0], origin[1]) + o
     return ecef_to_geodetic(ecef)
+
+
+def utm_epsg(lat: np.ndarray, lon: np.ndarray) -> int:
+    """EPSG code of the WGS84 UTM zone that holds the centre of the given positions.
+
+    Parameters
+    ----------
+    lat, lon : array_like
+        Latitude and longitude, degrees (WGS84).
+
+    Returns
+    -------
+    int
+        326ZZ (northern hemisphere) or 327ZZ (southern), ZZ the UTM zone of the centre
+        (median position; Norway and Svalbard exceptions not applied).
+    """
+    la = np.asarray(lat, dtype=np.float64)
+    lo = np.asarray(lon, dtype=np.float64)
+    ok = np.isfinite(la) & np.isfinite(lo)
+    if not ok.any():
+        raise ValueError("no finite position to choose a UTM zone from")
+    lat_c = float(np.median(la[ok]))
+    lon_c = float(np.median(((lo[ok] + 180.0) % 360.0) - 180.0))
+    zone = min(int((lon_c + 180.0) // 6.0) + 1, 60)
+    return (32600 if lat_c >= 0 else 32700) + zone
+
+
+@functools.lru_cache(maxsize=8)
+def _projector(epsg: int) -> Transformer:
+    """WGS84 geographic 2-D (EPSG:4326) -> the projected CRS ``epsg``, built once."""
+    return Transformer.from_crs("EPSG:4326", f"EPSG:{int(epsg)}", always_xy=True)
+
+
+def project(lat: np.ndarray, lon: np.ndarray, epsg: int) -> tuple[np.ndarray, np.ndarray]:
+    """Project WGS84 positions into a projected CRS (exact, through pyproj).
+
+    Parameters
+    ----------
+    lat, lon : array_like
+        Latitude and longitude, degrees (WGS84).
+    epsg : int
+        EPSG code of the projected CRS (e.g. from :func:`utm_epsg`).
+
+    Returns
+    -------
+    x_m, y_m : ndarray
+        Easting and northing, m (NaN where the position is NaN).
+    """
+    x, y = _projector(int(epsg)).transform(np.asarray(lon, dtype=np.float64),
+                                           np.asarray(lat, dtype=np.float64))
+    return np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+
+
+def unproject(x_m: np.ndarray, y_m: np.ndarray, epsg: int) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse of :func:`project`: projected metres back to WGS84 latitude and longitude.
+
+    Parameters
+    ----------
+    x_m, y_m : array_like
+        Easting and northing, m, in ``epsg``.
+    epsg : int
+        EPSG code of the projected CRS.
+
+    Returns
+    -------
+    lat, lon : ndarray
+        Latitude and longitude, degrees (WGS84).
+    """
+    lon, lat = _projector(int(epsg)).transform(np.asarray(x_m, dtype=np.float64),
+                                               np.asarray(y_m, dtype=np.float64),
+                                               direction="INVERSE")
+    return np.asarray(lat, dtype=np.float64), np.asarray(lon, dtype=np.float64)
