@@ -134,9 +134,10 @@ def estimate_line_spacing(x_m: np.ndarray, y_m: np.ndarray,
     Samples are cut into pieces (a new ``line`` number, a jump of more than 5 median sample
     steps or a turn of more than 60 degrees); the dominant direction is the peak of the
     length-weighted histogram of the pieces' directions (5 degree bins), pieces within 20
-    degrees of it are the lines (ties and turns left out), and the spacing is the median gap
-    between the sorted across-line offsets of the lines, gaps under a fifth of that median (a
-    line flown in two pieces, a re-flight) left out.
+    degrees of it are the lines (ties and turns left out; their direction is their
+    length-weighted mean), and the spacing is the median gap between the sorted across-line
+    offsets of the lines, gaps under a fifth of that median (a line flown in two pieces, a
+    re-flight) left out.
 
     Parameters
     ----------
@@ -174,6 +175,9 @@ def estimate_line_spacing(x_m: np.ndarray, y_m: np.ndarray,
     ref = 0.5 * (edges[k] + edges[k + 1])
     off = np.abs(np.angle(np.exp(2j * (ang - ref)))) / 2.0
     lines = off < np.radians(20.0)
+    # the lines' direction: their length-weighted mean (doubled angles), not the bin's centre
+    # (2.5 degrees off would add x sin 2.5 deg to the across-line offsets)
+    ref = float(np.angle(np.sum(length[lines] * np.exp(2j * ang[lines])))) / 2.0
     if lines.sum() < 2:
         raise InputError("cannot estimate the line spacing (fewer than two parallel lines):"
                          " give --cell")
