@@ -22,6 +22,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import time
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -42,8 +43,9 @@ DEFAULT_TENSION = 0.25
 #: Weight of a datum against the curvature of one cell (grid units): the surface passes
 #: within a small fraction of the data's spread of each datum (measured: rms misfit in GRID.json).
 DATA_WEIGHT = 100.0
-#: Peak bytes per grid cell of the solve (sparse normal matrix, its products, CG vectors);
-#: measured by benchmarks/bench_grid.py (about 1.6 kB at 640,000 cells), with a margin.
+#: Bytes per grid cell the refusal counts (sparse normal matrix, its products, CG vectors):
+#: benchmarks/bench_grid.py measures about 0.6 kB per added cell (the whole command's peak
+#: 636 MiB at 161,008 cells, 917 MiB at 640,792); three times that, for the margin.
 MEMORY_BYTES_PER_CELL = 2_000
 #: Coarsest level solved directly (nodes).
 _DIRECT_NODES = 6_000
@@ -72,8 +74,9 @@ class GridSummary:
     line_spacing_m : float or None
         Median line spacing estimated from the data [m].
     levels : list of dict
-        Per level, coarse to fine: ``cell_m``, ``nodes``, ``iterations``, ``residual``
-        (relative residual of the normal equations at the end).
+        Per level, coarse to fine: ``cell_m``, ``nodes``, ``n_data``, ``iterations``,
+        ``residual`` (relative residual of the normal equations at the end), ``seconds``
+        (building and solving the level).
     iterations : int
         Conjugate-gradient iterations at the finest level.
     residual : float
@@ -315,6 +318,7 @@ def _block_mean(x: np.ndarray, y: np.ndarray, v: np.ndarray, xg: np.ndarray, yg:
 def _solve_level(xg: np.ndarray, yg: np.ndarray, xd: np.ndarray, yd: np.ndarray,
                  vd: np.ndarray, tension: float, u0: np.ndarray | None, rtol: float,
                  maxiter: int) -> tuple[np.ndarray, dict]:
+    t0 = time.perf_counter()
     ny, nx = yg.size, xg.size
     a = _bilinear(xd, yd, xg, yg)
     q = _smoothness(ny, nx, tension) + DATA_WEIGHT * (a.T @ a)
@@ -337,6 +341,7 @@ def _solve_level(xg: np.ndarray, yg: np.ndarray, xd: np.ndarray, yd: np.ndarray,
         info.update(iterations=count[0])
     bnorm = float(np.linalg.norm(b)) or 1.0
     info["residual"] = float(np.linalg.norm(q @ u - b) / bnorm)
+    info["seconds"] = round(time.perf_counter() - t0, 3)
     return u.reshape(ny, nx), info
 
 
