@@ -36,7 +36,8 @@ from ..errors import FitError, InputError
 log = logging.getLogger(__name__)
 
 __all__ = ["DEFAULT_TENSION", "GridSummary", "MEMORY_BYTES_PER_CELL", "check_grid_memory",
-           "default_cell", "estimate_line_spacing", "grid_region", "minimum_curvature"]
+           "default_cell", "estimate_line_spacing", "grid_region", "minimum_curvature",
+           "missing_extra"]
 
 #: Default tension: GMT's recommendation for potential-field data (``surface -T0.25``).
 DEFAULT_TENSION = 0.25
@@ -109,6 +110,11 @@ class GridSummary:
         d = asdict(self)
         d["shape"] = list(self.shape)
         return d
+
+
+def missing_extra(module: str) -> InputError:
+    """The one-line refusal when a package of the ``survey`` extra is not installed."""
+    return InputError(f"gridding needs {module}: pip install 'aeromag[survey]'")
 
 
 # --------------------------------------------------------------------------- line spacing
@@ -389,7 +395,10 @@ def minimum_curvature(
     InputError
         Too few samples, a bad tension or cell, or a grid that would not fit in memory.
     """
-    import verde as vd
+    try:
+        import verde as vd
+    except ImportError:
+        raise missing_extra("verde") from None
 
     x, y, v = (np.asarray(a, dtype=float) for a in (x_m, y_m, values))
     ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(v)

@@ -15,6 +15,7 @@ import numpy as np
 import xarray as xr
 
 from ..errors import InputError
+from .gridding import missing_extra
 
 __all__ = ["MIN_RTP_INCLINATION_DEG", "Transform", "apply_transform", "parse_transforms"]
 
@@ -126,7 +127,10 @@ def apply_transform(grid: xr.DataArray, transform: Transform, *,
         ``rtp`` without a field direction, or at |inclination| below
         :data:`MIN_RTP_INCLINATION_DEG`.
     """
-    import xrft
+    try:
+        import xrft
+    except ImportError:
+        raise missing_extra("xrft") from None
 
     if transform.kind == "rtp":
         if inclination_deg is None or declination_deg is None:
@@ -159,7 +163,10 @@ def apply_transform(grid: xr.DataArray, transform: Transform, *,
 
 def _filter(padded: xr.DataArray, transform: Transform, inc: float | None,
             dec: float | None) -> tuple[xr.DataArray, str]:
-    import harmonica as hm
+    try:
+        import harmonica as hm
+    except ImportError:
+        raise missing_extra("harmonica") from None
 
     if transform.kind == "rtp":
         return hm.reduction_to_pole(padded, inclination=inc, declination=dec), "nT"
