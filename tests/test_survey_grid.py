@@ -360,3 +360,34 @@ def test_osborne_held_out_lines_beat_cubic_and_spline(osborne_window):
 def test_osborne_compressed_csv_through_the_column_map(osborne_window):
     assert len(osborne_window) > 20_000
     assert osborne_window.tmi.dtype.kind in "if" and osborne_window.line.dtype.kind == "i"
+
+
+# --------------------------------------------------------------------------- compressed CSV
+@settings(max_examples=15, deadline=None)
+@given(values=st.lists(st.tuples(st.integers(-10**6, 10**6),
+                                 st.floats(-1e6, 1e6, allow_nan=False, width=32)),
+                       min_size=3, max_size=40),
+       suffix=st.sampled_from([".xz", ".gz", ".bz2"]))
+def test_compressed_csv_round_trip(tmp_path_factory, values, suffix):
+    from aeromag.io import read_log
+
+    df = pd.DataFrame(values, columns=["flight_line", "anomaly"])
+    path = tmp_path_factory.mktemp("c") / f"log.csv{suffix}"
+    df.to_csv(path, index=False)  # pandas compresses by the suffix
+    back = read_log(path, columns={"line": "flight_line"}, required=("line",))
+    np.testing.assert_array_equal(back["line"].to_numpy(), df["flight_line"].to_numpy())
+    np.testing.assert_allclose(back["anomaly"].to_numpy(), df["anomaly"].to_numpy(),
+                               rtol=1e-6)
+
+
+def test_compressed_csv_refusals(tmp_path):
+    from aeromag.io import read_log
+
+    bad = tmp_path / "bad.csv.xz"
+    bad.write_text("a,b\n1,2\n")  # not xz
+    with pytest.raises(InputError, match=r"bad.csv.xz: not a readable .xz file"):
+        read_log(bad, required=())
+    dup = tmp_path / "dup.csv.gz"
+    pd.DataFrame([[1, 2, 3]] * 3, columns=["a", "b", "a"]).to_csv(dup, index=False)
+    with pytest.raises(InputError, match="'a' appears twice"):
+        read_log(dup, required=())

@@ -51,11 +51,6 @@ def read_compressed_csv(path: Path) -> pd.DataFrame:
                          " is it the right file?") from None
     except pa.ArrowInvalid as exc:
         raise InputError(f"{clean(path)}: not a CSV inside the compression ({exc})") from None
-    names = table.column_names
-    dup = sorted({n for n in names if names.count(n) > 1})
-    if dup:
-        raise InputError(f"{clean(path)}: column {dup[0]!r} appears twice in the header;"
-                         " rename one")
-    df = table.to_pandas()
+    df = table.to_pandas()  # a name used twice is refused by read_log (check_unique_names)
     df.attrs[ROWS_ATTR] = rows_numbered("row")
     return df
