@@ -391,3 +391,16 @@ def test_compressed_csv_refusals(tmp_path):
     pd.DataFrame([[1, 2, 3]] * 3, columns=["a", "b", "a"]).to_csv(dup, index=False)
     with pytest.raises(InputError, match="'a' appears twice"):
         read_log(dup, required=())
+
+
+def test_levelled_log_with_x_m_y_m_takes_the_crs_of_its_out_json(synthetic, tmp_path):
+    log = tmp_path / "lev.csv"
+    synthetic.rename(columns={"tmi": "tmi_lev"}).to_csv(log, index=False)
+    r = runner.invoke(app, ["grid", str(log), "-o", str(tmp_path / "g.nc")])
+    assert r.exit_code == 1 and "x_m/y_m without a CRS: give --crs EPSG" in r.output
+    (tmp_path / "lev.json").write_text(json.dumps({"crs": 32755, "lag_s": 0.0}))
+    r = runner.invoke(app, ["grid", str(log), "-o", str(tmp_path / "g.nc"), "--blank", "inf"])
+    assert r.exit_code == 0, r.output
+    doc = json.loads((tmp_path / "g.json").read_text())
+    assert doc["crs"] == 32755 and doc["value"] == "tmi_lev" and doc["blank_m"] is None
+    assert doc["n_blank"] == 0 and doc["cell_m"] == pytest.approx(40.0)
