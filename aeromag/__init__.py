@@ -108,6 +108,13 @@ _API: dict[str, str] = {
     "navigate": "aeromag.nav",
     "navigate_file": "aeromag.workflows.navigate",
     "simulate_quadrotor": "aeromag.synthetic.quadrotor",
+    # survey chain: gridding
+    "grid": "aeromag.survey.grids",
+    "GridResult": "aeromag.survey.grids",
+    "GridSummary": "aeromag.survey.gridding",
+    "minimum_curvature": "aeromag.survey.gridding",
+    "grid_file": "aeromag.workflows.grid",
+    "plot_grid_map": "aeromag.plot.grid_map",
 }
 
 __all__ = ["AeromagError", "FitError", "InputError", "__version__", *sorted(_API)]

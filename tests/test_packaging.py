@@ -20,7 +20,8 @@ ROOT = Path(__file__).resolve().parents[1]
 OPTIONAL = {"h5py": ("hdf5", "h5py"), "distributed": ("dask", "dask"), "dask": ("dask", "dask"),
             "pyulog": ("ulog", "pyulog"), "pymavlink": ("dataflash", "pymavlink"),
             "verde": ("survey", "verde"), "harmonica": ("survey", "harmonica"),
-            "rioxarray": ("survey", "rioxarray"), "h5netcdf": ("survey", "h5netcdf")}
+            "xrft": ("survey", "xrft"), "rioxarray": ("survey", "rioxarray"),
+            "h5netcdf": ("survey", "h5netcdf")}
 
 
 def _requirement_names(reqs: list[str]) -> set[str]:

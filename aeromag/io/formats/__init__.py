@@ -21,6 +21,7 @@ name           extensions          notes
                                    the ``magnav`` preset
 ``hdf5``       .h5 .hdf5           MagNav.jl / SGL HDF5: one 1-D dataset per channel (``tt``,
                                    ``mag_1_uc``, ``flux_a_x`` ...), ``magnav`` preset; h5py
+``csv_compressed`` .xz .gz .bz2    a compressed CSV (``NAME.csv.xz``), read as a stream
 ``magarrow``   (sniffed .csv)      Geometrics MagArrow native CSV
 ``magdrone``   (sniffed .csv)      SENSYS MagDrone R3 native CSV (fluxgate B1; ``magdrone_b2``
                                    takes B2)
@@ -45,6 +46,7 @@ from ...errors import InputError
 from ..csv import read_csv
 from ..csv_write import write_csv
 from ..rows import ROWS_ATTR
+from .compressed import read_compressed_csv
 from .hdf5 import check_scalar_channels, read_hdf5
 from .magarrow import read_magarrow
 from .magdrone import read_magdrone
@@ -136,6 +138,7 @@ register(Format("csv", (".csv", ".txt"), read=read_csv, write=write_csv, options
 register(Format("parquet", (".parquet", ".pq"), read=read_parquet, write=write_parquet))
 register(Format("xyz", (".xyz",), read=_read_xyz, write=write_xyz, options=_TEXT))
 register(Format("hdf5", (".h5", ".hdf5"), read=_read_hdf5))
+register(Format("csv_compressed", (".xz", ".gz", ".bz2"), read=read_compressed_csv))
 register(Format("magarrow", read=read_magarrow, sniff=_sniff_magarrow, options=_TEXT))
 register(Format("magdrone", read=read_magdrone, sniff=_sniff_magdrone, options=_TEXT))
 register(Format("magdrone_b2", read=lambda p, **kw: read_magdrone(p, sensor=2, **kw),
