@@ -312,16 +312,23 @@ def drop_transit_runs(labels: np.ndarray, ned: np.ndarray, time_s: np.ndarray,
 
 
 def _raw(ned: np.ndarray, vel: np.ndarray, t: np.ndarray, wps: np.ndarray, model: LegModel,
-         offs: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+         offs: tuple[np.ndarray, np.ndarray], ground: np.ndarray | None = None
+         ) -> tuple[np.ndarray, np.ndarray]:
     """Labels against the plan and against it reversed (reversed plan numbering).
 
     Each direction is decoded about its own lines (the waypoints moved by its offset).
+    Ground rows have the lowest evidence for every leg and no leg.
     """
     out = []
     for w, off in zip((wps, wps[::-1].copy()), offs, strict=True):
         w = shifted(w, off)
-        out.append(continue_legs(decode_legs(leg_evidence(ned, vel, w, model), t, model),
-                                 ned, vel, w, model))
+        ev = leg_evidence(ned, vel, w, model)
+        if ground is not None:
+            ev[ground] = model.floor
+        lab = continue_legs(decode_legs(ev, t, model), ned, vel, w, model)
+        if ground is not None:
+            lab[ground] = -1
+        out.append(lab)
     return out[0], out[1]
 
 
@@ -363,7 +370,8 @@ def _choose(ned: np.ndarray, t: np.ndarray, wps: np.ndarray, fwd: np.ndarray, re
 
 
 def assign_track_legs(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray,
-                      waypoints: np.ndarray, model: LegModel
+                      waypoints: np.ndarray, model: LegModel,
+                      ground: np.ndarray | None = None
                       ) -> tuple[np.ndarray, LegModel, dict[str, Any], list[str]]:
     """Assign legs to a whole log (see the module docstring).
 
@@ -379,6 +387,9 @@ def assign_track_legs(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray,
         Plan waypoints, NED, m.
     model : LegModel
         Parameters as given.
+    ground : ndarray of bool, shape (n,), optional
+        Rows on the ground (:func:`aeromag.track.ground.ground_rows`): never on a leg and no
+        evidence for an offset or a direction.
 
     Returns
     -------
@@ -395,9 +406,12 @@ def assign_track_legs(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray,
     t = np.asarray(time_s, dtype=np.float64)
     wps = np.asarray(waypoints, dtype=np.float64)
     used = model
+    gr = None if ground is None or not np.any(ground) else np.asarray(ground, dtype=bool)
+    # the offsets from the airborne rows only (a NaN row is no evidence)
+    air_ned = ned if gr is None else np.where(gr[:, None], np.nan, ned)
     # the position error from a first decoding (no run dropped: the gate depends on it)
-    offs = plan_offsets(ned, vel, wps, used)
-    raw = _raw(ned, vel, t, wps, used, offs)
+    offs = plan_offsets(air_ned, vel, wps, used)
+    raw = _raw(ned, vel, t, wps, used, offs, gr)
     lab, _, _ = _choose(ned, t, wps, *raw, offs, None)
     sig_h, sig_v, _, off_ne = line_error_sigma_m(ned, lab, wps)
     for _ in range(2):
@@ -414,7 +428,7 @@ def assign_track_legs(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray,
         used = dataclasses.replace(used, tolerance_m=max(tol_h, used.tolerance_m),
                                    vertical_tolerance_m=max(tol_v, used.vertical_tolerance_m),
                                    end_margin_m=max(model.end_margin_m, sig_h))
-        raw = _raw(ned, vel, t, wps, used, offs)
+        raw = _raw(ned, vel, t, wps, used, offs, gr)
         lab, _, _ = _choose(ned, t, wps, *raw, offs, None)
         sig_h, sig_v, _, off_ne = line_error_sigma_m(ned, lab, wps)
     gate_h = _gate(sig_h)
