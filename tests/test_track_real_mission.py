@@ -298,3 +298,32 @@ def test_property_ground_never_on_a_leg_and_every_pass_found(heading, first, sec
     _passes_found(res, truth_leg, 0.8)
     assert res.report["altitude_offset"]["applied_m"] == 0.0
     assert res.report["plan_check"]["assignment"]["direction"] == "as planned"
+
+
+def test_passes_at_the_plan_altitude_beat_a_datum_that_more_passes_show():
+    # four flights 30 m above the plan, two at it: the plan's own altitude explains passes,
+    # so nothing is removed (the high passes are deviations, off the legs), and a warning says
+    # why (before: "reversed", 2,048 ground rows on the legs, none of the passes)
+    log, plan, truth_leg, on_ground = day_log(seed=5)
+    t = log["time"].to_numpy()
+    starts = t[np.flatnonzero(np.diff(np.r_[0, (truth_leg == 0).astype(int)]) == 1)]
+    high = t >= starts[2] - 20.0
+    res = check_track(log.assign(alt=log["alt"] + np.where(high, 30.0, 0.0)), plan)
+    off = res.report["altitude_offset"]
+    assert off["estimated_m"] == pytest.approx(31.8, abs=0.3)
+    assert off["applied_m"] == 0.0 and off["n_passes_at_plan_altitude"] == 4
+    assert any("2 pass" not in w and "4 pass(es) are flown at the plan's own altitude" in w
+               for w in res.report["warnings"]), res.report["warnings"]
+    assert [row["n_passes"] for row in res.legs] == [2, 2]
+    _no_leg_on_ground(res, on_ground)
+
+
+def test_a_log_leg_column_is_cleared_where_the_log_says_the_vehicle_is_on_the_ground(day):
+    df, plan, _ = day
+    res = check_track(df.assign(leg=0), plan)
+    lab = res.data["leg"].fillna(-1).to_numpy(dtype=np.int64)
+    assert (lab[~df["armed"].to_numpy()] == -1).all()
+    assert (lab[df["armed"].to_numpy()] == 0).all()
+    # inferred ground does not override the autopilot's own leg column
+    res = check_track(df.drop(columns=["armed"]).assign(leg=0), plan)
+    assert res.data["leg"].notna().all()
