@@ -11,6 +11,7 @@ independent generator (other timing, noise, a GNSS altitude bias, terrain, two l
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -327,3 +328,30 @@ def test_a_log_leg_column_is_cleared_where_the_log_says_the_vehicle_is_on_the_gr
     # inferred ground does not override the autopilot's own leg column
     res = check_track(df.drop(columns=["armed"]).assign(leg=0), plan)
     assert res.data["leg"].notna().all()
+
+
+REAL_FLIGHT = (Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "flights"
+               / "px4_optical_flow.csv")  # ../shared
+
+
+def test_real_low_flight_is_not_taken_for_ground():
+    # a real PX4 flight 1-2 m above the ground (the rangefinder says so) whose GNSS height
+    # wanders over 40 m, landing at the end: no row flown before the landing is ground (a
+    # rule of "the lowest heights are the ground" would take whole stretches of it)
+    if not REAL_FLIGHT.exists():
+        pytest.skip("../shared/data/real/flights (the real PX4 flight) is absent")
+    from aeromag._core.geodesy import geodetic_to_ned
+    from aeromag.track.ground import ground_rows
+    from aeromag.track.legs import LegModel, velocity_for_legs
+
+    d = pd.read_csv(REAL_FLIGHT)
+    g = d.dropna(subset=["lat", "lon", "alt"]).reset_index(drop=True)
+    o = (float(g["lat"][0]), float(g["lon"][0]), float(g["alt"][0]))
+    ned = geodetic_to_ned(g["lat"].to_numpy(), g["lon"].to_numpy(), g["alt"].to_numpy(), o)
+    t = g["time"].to_numpy()
+    assert np.ptp(ned[:, 2]) > 30.0          # the GNSS height wanders
+    vel, _ = velocity_for_legs(t, ned, LegModel(), g[["vel_n", "vel_e", "vel_d"]].to_numpy())
+    ground, info = ground_rows(t, ned, vel, g)
+    rng = d[["time", "range_m"]].dropna()
+    landed = float(rng["time"][rng["range_m"] < 0.3].min())
+    assert not ground[t < landed].any(), info
