@@ -130,6 +130,12 @@ def test_ground_rows_are_no_evidence_even_without_the_ground_rule(day):
     _as_planned(res)
     assert res.legs[0]["n_passes"] == 6
     _no_leg_on_ground(res, np.isin(df["truth_phase"].to_numpy(), ["ground", "carry"]))
+    # horizontally, the carries are the leg reversed by motion, with 3 times the rows of the
+    # passes: the direction is chosen by the distance covered too (before: "reversed", 5
+    # passes of carries)
+    res = check_track(df.assign(armed=True), plan, horizontal=True)
+    _as_planned(res)
+    assert res.legs[0]["n_passes"] == 6
 
 
 def test_a_bad_state_value_is_a_one_line_error(day):

@@ -19,6 +19,7 @@ import dataclasses
 
 import numpy as np
 
+from .assign import covered_m
 from .geometry import cross_track
 from .legs import LegModel, decode_legs, leg_evidence, samples_along_legs
 
@@ -309,7 +310,8 @@ def plan_warnings(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray, waypoint
                 " (site, lat/lon order) and its altitude reference")
             return warns
     margin = max(10, int(0.01 * n_ok))
-    n_rev = int((_decoded(ned, vel, time_s, waypoints[::-1], model, ground) >= 0).sum())
+    rev_lab = _decoded(ned, vel, time_s, waypoints[::-1], model, ground)
+    n_rev = int((rev_lab >= 0).sum())
     wide_model = dataclasses.replace(
         model, tolerance_m=model.tolerance_m * OFFSET_TOLERANCE_FACTOR)
     wide = _decoded(ned, vel, time_s, waypoints, wide_model, ground)
@@ -328,7 +330,10 @@ def plan_warnings(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray, waypoint
     steady = side.size > 0 and (
         1.4826 * float(np.median(np.abs(side - off))) < OFFSET_MAX_SPREAD * off)
     offset_like = n_on < 0.5 * n_wide and n_wide - n_on > margin and steady
-    reversed_like = n_rev > MISMATCH_RATIO * n_on and n_rev - n_on > margin
+    # and by the distance covered: slow rows (a vehicle walked back along a line) are many
+    reversed_like = (n_rev > MISMATCH_RATIO * n_on and n_rev - n_on > margin
+                     and covered_m(rev_lab, ned, waypoints[::-1])
+                     > MISMATCH_RATIO * covered_m(labels, ned, waypoints))
     if reversed_like and not (offset_like and n_wide > MISMATCH_RATIO * n_rev):
         info["mismatch"] = "reversed"
         warns.append(
