@@ -58,8 +58,15 @@ def _wrap_rad(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
-#: Flight phases of the simulator (``truth_phase``).
-_PHASES = ("ground", "climb", "hover", "leg", "transit", "land")
+#: Flight phases of the simulator (``truth_phase``); ``carry``: the disarmed vehicle carried
+#: on the ground between two flights (``flights`` > 1).
+_PHASES = ("ground", "climb", "hover", "leg", "transit", "land", "carry")
+
+#: Height at which a person carries the vehicle above the ground, m (and the bob of the walk).
+CARRY_HEIGHT_M = 0.8
+CARRY_BOB_M = 0.1
+#: How far the walker strays either side of the straight line, m.
+CARRY_WANDER_M = 1.5
 
 
 def _body_rates(rec: np.ndarray, dt: float, noise_rad_s: float, seed: int
@@ -103,6 +110,20 @@ def _body_rates(rec: np.ndarray, dt: float, noise_rad_s: float, seed: int
     if noise_rad_s > 0:
         rates = rates + np.random.default_rng([seed, 17]).normal(0.0, noise_rad_s, rates.shape)
     return {"gyro_x": rates[:, 0], "gyro_y": rates[:, 1], "gyro_z": rates[:, 2]}
+
+
+def _armed(phase: np.ndarray, fs_hz: float) -> np.ndarray:
+    """Armed per row: in flight, from 2 s before each take-off to 1 s after touchdown."""
+    on_ground = np.isin(phase, [_PHASES.index("ground"), _PHASES.index("carry")])
+    armed = ~on_ground
+    pre, post = int(round(2.0 * fs_hz)), int(round(1.0 * fs_hz))
+    edges = np.flatnonzero(np.diff(on_ground.astype(np.int8)))
+    for i in edges:
+        if on_ground[i]:                 # take-off after row i
+            armed[max(0, i + 1 - pre):i + 1] = True
+        else:                            # touchdown at row i + 1
+            armed[i + 1:i + 1 + post] = True
+    return armed
 
 
 def plan_waypoints_ned(n_lines: int = 6, line_m: float = 450.0, spacing_m: float = 20.0
@@ -161,6 +182,9 @@ def simulate_mission(
     ground_s: float = 0.0,
     refly_legs: tuple[int, ...] = (),
     wp_radius_m: float = 0.0,
+    flights: int = 1,
+    carry_speed_m_s: float = 1.2,
+    armed_column: bool = False,
 ) -> tuple[pd.DataFrame, pd.DataFrame, dict[str, Any]]:
     """Simulate a lawn-mower survey mission with magnetic heading disturbances.
 
@@ -222,21 +246,39 @@ def simulate_mission(
         The leg ends when the vehicle is this close to its last waypoint, m (ArduCopter's
         ``WPNAV_RADIUS``; it then settles there in the hover phase); 0: the leg lasts until
         the vehicle has stopped at the waypoint.
+    flights : int
+        The mission is flown this many times in one log (a day's work): after each landing
+        the vehicle rests ``ground_s`` (at least 5 s) on the ground, disarmed, is carried on
+        the ground (``CARRY_HEIGHT_M`` above it, walking at ``carry_speed_m_s`` [m/s] with a
+        bob of ``CARRY_BOB_M``, straying ``CARRY_WANDER_M`` either side) back to its take-off
+        point, rests again and takes off for the next flight.  Without ``home_ne_m`` it lands
+        under the last waypoint and is carried back under the first: along the plan's line
+        reversed, ``height_m`` below it.
+    carry_speed_m_s : float
+        Walking speed of the carry between flights, m/s.
+    armed_column : bool
+        Add ``armed`` (bool): true from 2 s before each take-off to 1 s after its touchdown,
+        as an autopilot logs it (ArduPilot ``EV`` arm/disarm, PX4 ``vehicle_status``).
 
     Returns
     -------
     log, plan : DataFrame
         The mission log (canonical columns + ``truth_*``; with any of ``waypoints_ned``,
         ``home_ne_m``, ``ground_s``, ``refly_legs`` also ``truth_phase``: ``ground``,
-        ``climb``, ``hover``, ``leg``, ``transit``, ``land``) and the plan (``lat``, ``lon``,
-        ``alt``).
+        ``climb``, ``hover``, ``leg``, ``transit``, ``land``, and ``carry`` with ``flights``
+        > 1) and the plan (``lat``, ``lon``, ``alt``).
     truth : dict
         ``{"legs": [{"leg", "disturbance", "rate_G_s", "onset_time"}...], ...}``.
     """
     rng = np.random.default_rng(seed)
     dist = DEFAULT_DISTURBANCES if disturbances is None else dict(disturbances)
+    flights = int(flights)
+    if flights < 1 or not carry_speed_m_s > 0:
+        raise ValueError("flights must be >= 1 and carry_speed_m_s > 0")
+    if flights > 1:
+        ground_s = max(ground_s, 5.0)
     extended = (waypoints_ned is not None or home_ne_m is not None or ground_s > 0
-                or bool(refly_legs))
+                or bool(refly_legs) or flights > 1)
     if waypoints_ned is None:
         wps = plan_waypoints_ned(n_lines, line_m, spacing_m)
     else:
@@ -262,6 +304,11 @@ def simulate_mission(
                       + 2.0 * (np.hypot(*home) + np.linalg.norm(wps[-1, :2] - np.array(home))))
         max_steps = int((200.0 + 2.0 * ground_s + 2.0 * total / speed_m_s
                          + (n_legs + 2 * len(refly)) * (3.0 * hover_s + 30.0)) * fs_hz)
+    if flights > 1:
+        span = float(np.linalg.norm(np.asarray(home) - (wps[-1, :2] if home_ne_m is None
+                                                         else np.asarray(home))))
+        max_steps = flights * (max_steps + int((2.0 * ground_s + span / carry_speed_m_s
+                                                + 10.0) * fs_hz))
     gust_a = math.exp(-dt / gust_tau_s)
     gust_b = gust_m_s * math.sqrt(1.0 - gust_a * gust_a)
     white = rng.standard_normal((max_steps, 2))
@@ -280,6 +327,10 @@ def simulate_mission(
     tr_a = tr_b = wps[0]
     after_transit = "hover"
     landed_t = -1.0
+    flights_done = 0
+    carry_from = np.zeros(2)
+    carry_t = s_c = 0.0
+    u_c = np.zeros(2)
     ground_ne: tuple[float, float] | None = None
     onset: dict[int, float] = {}
     start_t: dict[int, float] = {}
@@ -293,10 +344,21 @@ def simulate_mission(
         an_c = ae_c = 0.0
         if phase == "ground":
             vd_c = 0.0
-            if landed_t < 0 and t >= ground_s:
+            if landed_t < 0 and t >= (ground_s if flights_done == 0 else phase_t + ground_s):
                 phase, phase_t = "climb", t
+                reflown.clear()
             elif landed_t >= 0 and t - landed_t >= ground_s:
-                break
+                if flights_done >= flights:
+                    break
+                phase, carry_t, carry_from, s_c = "carry", t, np.array([pn, pe]), 0.0
+        elif phase == "carry":
+            vd_c = 0.0
+            to = np.asarray(home) - carry_from
+            dist_c = float(np.hypot(*to))
+            s_c = min(carry_speed_m_s * (t - carry_t), dist_c)
+            u_c = to / dist_c if dist_c > 0 else np.zeros(2)
+            if s_c >= dist_c:
+                phase, phase_t, landed_t, leg = "ground", t, -1.0, -1
         elif phase == "climb":
             vd_c = -2.0 if pd_ > 1.0 else -max(0.3, 2.0 * pd_)
             if pd_ <= 0.05:
@@ -360,6 +422,7 @@ def simulate_mission(
                 if ground_s <= 0:
                     break
                 phase, landed_t = "ground", t
+                flights_done += 1
         # ---------------------------------------------------------------- disturbance
         if phase == "leg" and leg in onset and onset[leg] <= t < onset[leg] + hold_s:
             rate = (FAST_RATE_G_S if dist[leg] == "fast" else SLOW_RATE_G_S) * 1e5
@@ -397,9 +460,16 @@ def simulate_mission(
         if phase == "ground":   # on the ground: still, level, no yaw
             pn, pe, pd_ = ground_ne[0], ground_ne[1], height_m
             vn, ve, vd, theta, phi = 0.0, 0.0, 0.0, 0.0, 0.0
+        elif phase == "carry":   # carried by hand: walking pace, held level, a bob
+            # the walker strays up to CARRY_WANDER_M either side of the straight line
+            wander = CARRY_WANDER_M * math.sin(2.0 * math.pi * (t - carry_t) / 60.0)
+            pn = carry_from[0] + s_c * u_c[0] - wander * u_c[1]
+            pe = carry_from[1] + s_c * u_c[1] + wander * u_c[0]
+            pd_ = height_m - CARRY_HEIGHT_M - CARRY_BOB_M * math.sin(2.0 * math.pi * 1.8 * t)
+            vn, ve, vd, theta, phi = 0.0, 0.0, 0.0, 0.0, 0.0
         # yaw loop on the estimated heading; gyro is perfect
         rate_cmd = max(-0.5, min(0.5, 1.0 * _wrap_rad(psi_des - psi_est)))
-        if phase == "ground":
+        if phase in ("ground", "carry"):
             rate_cmd = 0.0
         psi = _wrap_rad(psi + rate_cmd * dt)
         # ---------------------------------------------------------------- magnetometer
@@ -445,6 +515,8 @@ def simulate_mission(
     })
     if extended:
         df["truth_phase"] = np.asarray(_PHASES, dtype=object)[rec[:, 16].astype(int)]
+    if armed_column:
+        df["armed"] = _armed(rec[:, 16].astype(int), fs_hz)
     plan = pd.DataFrame({"lat": plan_geo[:, 0], "lon": plan_geo[:, 1], "alt": plan_geo[:, 2]})
     legs = []
     for k in range(n_legs):

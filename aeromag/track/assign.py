@@ -60,7 +60,7 @@ from .offset import OFFSET_DECODE_MIN_M, plan_offsets, shifted
 __all__ = ["GATE_SIGMAS", "MAX_TOLERANCE_FACTOR", "MIN_ON_LINE_S", "ON_LINE_FRACTION",
            "ON_LINE_GATE_M", "PARALLEL_MAX_SLOPE", "PARALLEL_MIN_ALONG_M",
            "PARALLEL_NOISE_FACTOR", "REVERSED_RATIO", "assign_legs", "assign_track_legs",
-           "drop_transit_runs", "has_parallel_stretch", "line_error_sigma_m"]
+           "covered_m", "drop_transit_runs", "has_parallel_stretch", "line_error_sigma_m"]
 
 log = logging.getLogger(__name__)
 
@@ -311,17 +311,54 @@ def drop_transit_runs(labels: np.ndarray, ned: np.ndarray, time_s: np.ndarray,
     return lab, dropped
 
 
+def covered_m(labels: np.ndarray, ned: np.ndarray, waypoints: np.ndarray) -> float:
+    """Distance along their legs covered by the runs of a labelling, m.
+
+    Each run of leg ``k`` counts the extent of its positions along the leg (``max - min`` of
+    the distance from waypoint ``k``): a pass counts its length however fast or slowly, and
+    however often it was sampled.
+
+    Parameters
+    ----------
+    labels : ndarray of int, shape (n,)
+        Leg per sample (numbered along ``waypoints``), -1 for none.
+    ned : ndarray, shape (n, 3)
+        Positions, NED, m.
+    waypoints : ndarray, shape (m, 3)
+        Waypoints, NED, m.
+
+    Returns
+    -------
+    float
+    """
+    total = 0.0
+    for s0, s1, k in zip(*run_bounds(labels), strict=True):
+        p = ned[s0:s1]
+        p = p[np.isfinite(p).all(axis=1)]
+        if len(p):
+            _, _, _, along = cross_track(p, waypoints[k], waypoints[k + 1])
+            total += float(along.max() - along.min())
+    return total
+
+
 def _raw(ned: np.ndarray, vel: np.ndarray, t: np.ndarray, wps: np.ndarray, model: LegModel,
-         offs: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+         offs: tuple[np.ndarray, np.ndarray], ground: np.ndarray | None = None
+         ) -> tuple[np.ndarray, np.ndarray]:
     """Labels against the plan and against it reversed (reversed plan numbering).
 
     Each direction is decoded about its own lines (the waypoints moved by its offset).
+    Ground rows have the lowest evidence for every leg and no leg.
     """
     out = []
     for w, off in zip((wps, wps[::-1].copy()), offs, strict=True):
         w = shifted(w, off)
-        out.append(continue_legs(decode_legs(leg_evidence(ned, vel, w, model), t, model),
-                                 ned, vel, w, model))
+        ev = leg_evidence(ned, vel, w, model)
+        if ground is not None:
+            ev[ground] = model.floor
+        lab = continue_legs(decode_legs(ev, t, model), ned, vel, w, model)
+        if ground is not None:
+            lab[ground] = -1
+        out.append(lab)
     return out[0], out[1]
 
 
@@ -348,13 +385,18 @@ def _choose(ned: np.ndarray, t: np.ndarray, wps: np.ndarray, fwd: np.ndarray, re
     n_f, n_r = int((fwd >= 0).sum()), int((rev >= 0).sum())
     margin = max(10, int(0.01 * np.isfinite(ned).all(axis=1).sum()))
     counts = {"n_forward": n_f, "n_reversed": n_r}
+    # a direction must also cover more of its legs: rows carried slowly along a line (a
+    # vehicle walked back on the ground) are many per metre, passes flown fast are few
+    c_f, c_r = covered_m(fwd, ned, w_f), covered_m(rev, ned, w_r)
     a_f, a_r = float(np.hypot(*offs[0])), float(np.hypot(*offs[1]))
     if abs(a_f - a_r) < OFFSET_DECODE_MIN_M and max(a_f, a_r) > 0:
-        take_rev = n_r > n_f + margin
+        take_rev = n_r > n_f + margin and c_r > c_f
     elif a_r < a_f:
-        take_rev = not (n_f > REVERSED_RATIO * n_r and n_f - n_r > margin)
+        take_rev = not (n_f > REVERSED_RATIO * n_r and n_f - n_r > margin
+                        and c_f > REVERSED_RATIO * c_r)
     else:
-        take_rev = n_r > REVERSED_RATIO * n_f and n_r - n_f > margin
+        take_rev = (n_r > REVERSED_RATIO * n_f and n_r - n_f > margin
+                    and c_r > REVERSED_RATIO * c_f)
     if take_rev:
         counts["n_dropped_runs"] = d_r
         return np.where(rev >= 0, len(wps) - 2 - rev, -1), True, counts
@@ -363,7 +405,8 @@ def _choose(ned: np.ndarray, t: np.ndarray, wps: np.ndarray, fwd: np.ndarray, re
 
 
 def assign_track_legs(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray,
-                      waypoints: np.ndarray, model: LegModel
+                      waypoints: np.ndarray, model: LegModel,
+                      ground: np.ndarray | None = None
                       ) -> tuple[np.ndarray, LegModel, dict[str, Any], list[str]]:
     """Assign legs to a whole log (see the module docstring).
 
@@ -379,6 +422,9 @@ def assign_track_legs(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray,
         Plan waypoints, NED, m.
     model : LegModel
         Parameters as given.
+    ground : ndarray of bool, shape (n,), optional
+        Rows on the ground (:func:`aeromag.track.ground.ground_rows`): never on a leg and no
+        evidence for an offset or a direction.
 
     Returns
     -------
@@ -395,9 +441,12 @@ def assign_track_legs(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray,
     t = np.asarray(time_s, dtype=np.float64)
     wps = np.asarray(waypoints, dtype=np.float64)
     used = model
+    gr = None if ground is None or not np.any(ground) else np.asarray(ground, dtype=bool)
+    # the offsets from the airborne rows only (a NaN row is no evidence)
+    air_ned = ned if gr is None else np.where(gr[:, None], np.nan, ned)
     # the position error from a first decoding (no run dropped: the gate depends on it)
-    offs = plan_offsets(ned, vel, wps, used)
-    raw = _raw(ned, vel, t, wps, used, offs)
+    offs = plan_offsets(air_ned, vel, wps, used)
+    raw = _raw(ned, vel, t, wps, used, offs, gr)
     lab, _, _ = _choose(ned, t, wps, *raw, offs, None)
     sig_h, sig_v, _, off_ne = line_error_sigma_m(ned, lab, wps)
     for _ in range(2):
@@ -414,7 +463,7 @@ def assign_track_legs(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray,
         used = dataclasses.replace(used, tolerance_m=max(tol_h, used.tolerance_m),
                                    vertical_tolerance_m=max(tol_v, used.vertical_tolerance_m),
                                    end_margin_m=max(model.end_margin_m, sig_h))
-        raw = _raw(ned, vel, t, wps, used, offs)
+        raw = _raw(ned, vel, t, wps, used, offs, gr)
         lab, _, _ = _choose(ned, t, wps, *raw, offs, None)
         sig_h, sig_v, _, off_ne = line_error_sigma_m(ned, lab, wps)
     gate_h = _gate(sig_h)

@@ -65,6 +65,7 @@ from . import diagnose
 from .assign import assign_track_legs
 from .deviation import leg_summary, track_alarm
 from .geometry import cross_track
+from .ground import ground_rows
 from .legs import LegModel, labels_from_column, leg_passes, velocity_for_legs
 from .offset import OFFSET_DECODE_MIN_M
 from .plan import validate_plan
@@ -235,19 +236,26 @@ def check_track(
         gv = data[["vel_n", "vel_e", "vel_d"]].apply(pd.to_numeric, errors="coerce").to_numpy(
             dtype=np.float64)
     vel, vel_info = velocity_for_legs(t, ned, model, gv)
+    # rows on the ground (the log's armed/landed columns, or inferred): never on a leg and
+    # never evidence for a datum, an offset or a direction
+    ground, ground_info = ground_rows(t, ned, vel, data, src)
 
     warnings: list[str] = []
-    applied, alt_info, w = diagnose.altitude_offset(ned, vel, wps, model, offset_spec)
+    applied, alt_info, w = diagnose.altitude_offset(ned, vel, wps, model, offset_spec,
+                                                    time_s=t, ground=ground)
     warnings += w
     if applied:
         ned[:, 2] += applied   # the log's height above the plan removed (down is positive)
 
     plan_check: dict[str, Any] = {"mismatch": None}
+    assign_info = None
     if "leg" in data.columns:
         labels = labels_from_column(data, n_legs, src)
         how = "log column"
+        if ground_info["source"] != "inferred":
+            labels[ground] = -1   # the log says the vehicle is on the ground there
     else:
-        labels, model, assign_info, w = assign_track_legs(ned, vel, t, wps, model)
+        labels, model, assign_info, w = assign_track_legs(ned, vel, t, wps, model, ground)
         labels[~ok] = -1   # as reported: the plan diagnosis names the legs with no sample
         how = "assigned"
         warnings += w
@@ -258,7 +266,8 @@ def check_track(
             warnings += diagnose.plan_warnings(ned, vel, t, wps[::-1].copy(),
                                                np.where(labels >= 0, n_k - labels, -1), model,
                                                plan_src, info=plan_check,
-                                               leg_numbers=np.arange(n_legs)[::-1])
+                                               leg_numbers=np.arange(n_legs)[::-1],
+                                               ground=ground)
             if plan_check.get("mismatch") is None:
                 plan_check["mismatch"] = "reversed"
             # counted against the plan as given: on its legs, and on them backwards
@@ -266,9 +275,8 @@ def check_track(
                               n_reversed=assign_info["n_reversed"])
         else:
             warnings += diagnose.plan_warnings(ned, vel, t, wps, labels, model, plan_src,
-                                               info=plan_check)
+                                               info=plan_check, ground=ground)
         plan_check["assignment"] = assign_info
-        warnings += _offset_warning(assign_info, plan_check, plan_src)
     labels[~ok] = -1
 
     xt, xh, xv, al = (np.full(n, np.nan) for _ in range(4))
@@ -277,6 +285,8 @@ def check_track(
         d, h, v, a = cross_track(ned[m], wps[k], wps[k + 1])
         xt[m], xh[m], xv[m], al[m] = (np.abs(h) if horizontal else d), h, v, a
     pass_id, passes = leg_passes(labels, t, al)
+    if assign_info is not None:
+        warnings += _offset_warning(assign_info, plan_check, plan_src, passes, t)
     tr = track_alarm(xt, pass_id, t, threshold_m=threshold_m, min_duration_s=min_duration_s)
 
     data["leg"] = pd.array(np.where(labels >= 0, labels, 0), dtype="Int64")
@@ -333,6 +343,7 @@ def check_track(
         "leg_model": model.to_dict() if how == "assigned" else None,
         "n_passes": int(len(passes)),
         "altitude_offset": alt_info,
+        "ground": ground_info,
         "origin": {"lat": origin[0], "lon": origin[1], "alt": origin[2]},
         "position_input": "log" if position is None else "given",
         "velocity": vel_info,
@@ -376,12 +387,13 @@ def _unchecked_warning(ned: np.ndarray, t: np.ndarray, labels: np.ndarray, src: 
             " flagged means no check here, not a clean flight"]
 
 
-def _offset_warning(assign_info: dict[str, Any], plan_check: dict[str, Any], plan_src: str
-                    ) -> list[str]:
+def _offset_warning(assign_info: dict[str, Any], plan_check: dict[str, Any], plan_src: str,
+                    passes: pd.DataFrame, t: np.ndarray) -> list[str]:
     """Say so when the legs were decoded about lines moved sideways (a plan offset).
 
     Sets ``plan_check["mismatch"]`` to ``"offset"`` (unless the plan was found reversed, which
-    stays the mismatch) and ``plan_check["offset_m"]`` (horizontal size of the offset, m).
+    stays the mismatch) and ``plan_check["offset_m"]`` (horizontal size of the offset, m); the
+    warning names the (airborne) passes flown at the offset (leg and time span).
     """
     dec = np.asarray(assign_info.get("decode_offset_ne_m", (0.0, 0.0)), dtype=np.float64)
     if not float(np.hypot(*dec)) > 0:
@@ -395,10 +407,16 @@ def _offset_warning(assign_info: dict[str, Any], plan_check: dict[str, Any], pla
     plan_check["offset_m"] = size
     if plan_check.get("mismatch") is None:
         plan_check["mismatch"] = "offset"
+    spans = [f"leg {int(r.leg)} {t[int(r.start)]:.1f}-{t[int(r.stop) - 1]:.1f} s"
+             for r in passes.itertuples()]
+    named = ", ".join(spans[:diagnose.PASSES_NAMED])
+    if len(spans) > diagnose.PASSES_NAMED:
+        named += f" and {len(spans) - diagnose.PASSES_NAMED} more"
     return [f"the flight runs a constant {size:.1f} m beside {plan_src} (north {total[0]:+.1f} m,"
-            f" east {total[1]:+.1f} m) along its legs: the legs are assigned about the moved"
-            " lines and checked against the plan as given (they alarm); the plan may be offset"
-            " or for another field (check the site and the plan's coordinates)"]
+            f" east {total[1]:+.1f} m) along its legs ({len(spans)} airborne pass(es) at it:"
+            f" {named}): the legs are assigned about the moved lines and checked against the"
+            " plan as given (they alarm); the plan may be offset or for another field (check"
+            " the site and the plan's coordinates)"]
 
 
 def _offset_spec(spec: str | float) -> str | float:

@@ -47,7 +47,8 @@ from .continuation import continue_legs
 from .geometry import cross_track
 
 __all__ = ["DEFAULT_WAYPOINT_RADIUS_M", "LegModel", "decode_legs",
-           "estimate_altitude_offset", "position_jitter_m", "velocity_for_legs",
+           "estimate_altitude_offset", "position_jitter_m", "samples_along_legs",
+           "velocity_for_legs",
            "leg_evidence", "labels_from_column", "leg_passes", "motion_velocity", "viterbi",
            "continue_legs"]
 
@@ -413,14 +414,13 @@ def decode_legs(evidence: np.ndarray, time_s: np.ndarray, model: LegModel = LegM
     return np.repeat(viterbi(blocks, model.switch_cost, model.order_cost), b)[:n]
 
 
-def estimate_altitude_offset(
-    ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray, model: LegModel = LegModel()
-) -> tuple[float, float, int]:
-    """Constant vertical offset of the log against the plan, from the samples flown on legs.
+def samples_along_legs(ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray,
+                       model: LegModel = LegModel(), mask: np.ndarray | None = None
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The samples flown along a leg horizontally, whatever their height.
 
-    Samples whose horizontal evidence (motion along a leg, close to its line, within its
-    ends) is strong are taken as flown on that leg; the offset is the median of their height
-    above the leg's line and the spread is 1.4826 times the median absolute deviation.
+    A sample is flown along its best leg when its horizontal evidence (motion along the leg,
+    close to its line, within its ends) is above half the bonus.
 
     Parameters
     ----------
@@ -432,6 +432,61 @@ def estimate_altitude_offset(
         Plan waypoints, NED, m.
     model : LegModel
         Parameters.
+    mask : ndarray of bool, shape (n,), optional
+        Rows that may count (e.g. the airborne ones); default all.
+
+    Returns
+    -------
+    idx : ndarray of int
+        Rows flown along a leg (increasing).
+    leg : ndarray of int
+        Their leg (numbered along ``waypoints``).
+    up : ndarray
+        Their height above the leg's line, m.
+    along : ndarray
+        Their distance along the leg from its first waypoint, m.
+    """
+    ev = leg_evidence(ned, vel, waypoints, model, horizontal_only=True)
+    empty = np.zeros(0, dtype=np.int64)
+    if ev.shape[1] == 0:
+        return empty, empty, np.zeros(0), np.zeros(0)
+    k = np.argmax(ev, axis=1)
+    strong = ev[np.arange(len(ev)), k] > 0.5 * model.bonus
+    if mask is not None:
+        strong &= np.asarray(mask, dtype=bool)
+    idx = np.flatnonzero(strong)
+    up = np.empty(idx.size)
+    along = np.empty(idx.size)
+    for leg in np.unique(k[idx]):
+        sel = k[idx] == leg
+        _, _, up[sel], along[sel] = cross_track(ned[idx[sel]], waypoints[leg],
+                                                waypoints[leg + 1])
+    return idx, k[idx].astype(np.int64), up, along
+
+
+def estimate_altitude_offset(
+    ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray, model: LegModel = LegModel(),
+    mask: np.ndarray | None = None,
+) -> tuple[float, float, int]:
+    """Constant vertical offset of the log against the plan, from the samples flown on legs.
+
+    Samples whose horizontal evidence (motion along a leg, close to its line, within its
+    ends) is strong are taken as flown on that leg (:func:`samples_along_legs`); the offset is
+    the median of their height above the leg's line and the spread is 1.4826 times the median
+    absolute deviation.
+
+    Parameters
+    ----------
+    ned : ndarray, shape (n, 3)
+        Positions, NED, m.
+    vel : ndarray, shape (n, 3)
+        Velocities, m/s.
+    waypoints : ndarray, shape (m, 3)
+        Plan waypoints, NED, m.
+    model : LegModel
+        Parameters.
+    mask : ndarray of bool, shape (n,), optional
+        Rows that may count (the airborne ones); default all.
 
     Returns
     -------
@@ -441,19 +496,9 @@ def estimate_altitude_offset(
     n : int
         Samples used.
     """
-    ev = leg_evidence(ned, vel, waypoints, model, horizontal_only=True)
-    if ev.shape[1] == 0:
-        return float("nan"), float("nan"), 0
-    k = np.argmax(ev, axis=1)
-    strong = ev[np.arange(len(ev)), k] > 0.5 * model.bonus
-    if strong.sum() < 3:
-        return float("nan"), float("nan"), int(strong.sum())
-    up = np.empty(int(strong.sum()))
-    idx = np.flatnonzero(strong)
-    for leg in np.unique(k[idx]):
-        sel = k[idx] == leg
-        _, _, v, _ = cross_track(ned[idx[sel]], waypoints[leg], waypoints[leg + 1])
-        up[sel] = v
+    _, _, up, _ = samples_along_legs(ned, vel, waypoints, model, mask)
+    if up.size < 3:
+        return float("nan"), float("nan"), int(up.size)
     med = float(np.median(up))
     spread = 1.4826 * float(np.median(np.abs(up - med)))
     return med, spread, int(up.size)
