@@ -310,7 +310,8 @@ class CompensationConfig:
             self.extras = tuple(c.strip() for c in self.extras.split(",") if c.strip())
         self.extras = tuple(str(c) for c in (self.extras or ()))
         if self.estimator not in ESTIMATORS:
-            raise ConfigError("estimator", self.estimator, f"must be one of {', '.join(ESTIMATORS)}")
+            raise ConfigError("estimator", self.estimator,
+                              f"must be one of {', '.join(ESTIMATORS)}")
         if self.estimator == "mlp" and self.reference is None:
             raise ConfigError("estimator", self.estimator,
                               "the network corrects a fit against a reference: add --reference "

@@ -92,9 +92,10 @@ def require_columns(df: pd.DataFrame, names: tuple[str, ...], source: str, what:
     """
     missing = [c for c in names if c not in df.columns]
     if missing:
+        more = "..." if df.shape[1] > 12 else ""
         raise InputError(f"{source}: no column {', '.join(missing)} ({what}); the log has "
-                         f"{', '.join(map(str, df.columns[:12]))}{'...' if df.shape[1] > 12 else ''};"
-                         " map one with --col NAME=SOURCE")
+                         f"{', '.join(map(str, df.columns[:12]))}{more}; map one with --col "
+                         "NAME=SOURCE")
 
 
 def extended_inputs(df: pd.DataFrame, extras: tuple[str, ...], reference: str | None,
@@ -235,7 +236,7 @@ def fold_blocks(n_segments: int, n_folds: int = MAX_FOLDS) -> list[np.ndarray]:
 
 def _standardise(G: np.ndarray, b: np.ndarray, n: float, intercept: bool,
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Centred, standardised normal equations: (Gs, bs, mean, scale) of the non-intercept columns."""
+    """Centred, standardised normal equations (Gs, bs, mean, scale) of the non-intercept columns."""
     if intercept:
         mean = G[0, 1:] / n
         y_mean = b[0] / n
@@ -496,7 +497,8 @@ def train_mlp(X: np.ndarray, y: np.ndarray, *, seed: int = 0, hidden: tuple[int,
     best, best_err, wait, epochs = None, np.inf, 0, 0
     rng = np.random.default_rng(seed)
     train = np.arange(0, a, step)
-    for epochs in range(1, max_epochs + 1):
+    while epochs < max_epochs:
+        epochs += 1
         net.partial_fit(Z[rng.permutation(train)], y[train] / ys)
         err = float(np.mean((net.predict(Z[a:b]) - y[a:b] / ys) ** 2))
         if err < best_err:

@@ -168,7 +168,7 @@ def extended_outcome(prep: Prepared, cfg: CompensationConfig, inputs: ExtendedIn
         if cfg.estimator == "mlp":
             res = y - X @ full.coef
             mlp, mrec = train_mlp(X[:, 1:], res, seed=0)
-            record["mlp"] = mrec
+            record["mlp_training"] = mrec
             if mlp is None:
                 log.warning("%s: --estimator mlp: the network does not lower the held-out "
                             "error (%.4g nT against %.4g nT linear on the last 20 %% of the "
@@ -193,7 +193,7 @@ def extended_outcome(prep: Prepared, cfg: CompensationConfig, inputs: ExtendedIn
     coef = np.zeros(len(terms))
     coef[[terms.index(t) for t in fit_terms]] = coef_tl
     mlp_model = None
-    if ref_mode and cfg.estimator == "mlp" and record["mlp"].get("kept"):
+    if ref_mode and cfg.estimator == "mlp" and record["mlp_training"].get("kept"):
         mlp_model = mlp
     ext = ExtendedModel(cfg.reference, names, np.asarray(coef_ex, dtype=np.float64), center,
                         scale, float(c0 + center @ coef_ex) if e else float(c0),

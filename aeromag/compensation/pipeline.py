@@ -106,6 +106,8 @@ def compensate(
     report = applied_report(AppliedRun(prep.source, model, cfg, prep.fs,
                                        dict(zip(seg_ids.tolist(), counts.tolist(), strict=True)),
                                        metrics))
+    if model.extended is not None:
+        report["extended"] = model.extended.to_dict()
     return CompensationResult(data, model, report, None, None, config=cfg, comp_bp_nT=comp_bp,
                               segment=prep.segment, fs_hz=prep.fs)
 

@@ -1,4 +1,4 @@
-"""Interference from aircraft current loops, with the currents logged (ground truth for ``--extra``).
+"""Interference from aircraft current loops, with the currents logged (truth for ``--extra``).
 
 A wire loop carrying a current ``I(t)`` makes a field ``I(t) * v`` at the sensor, ``v`` a fixed
 body-frame vector [nT/A]; a scalar magnetometer measures its projection on the total field's
