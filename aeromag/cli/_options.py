@@ -185,9 +185,7 @@ OPTIONS: list[Option] = [
        config="reference"),
     _o("extra", "--extra", str | None, None, "More regressors beside the TL terms, comma-"
        "separated (aircraft currents, voltages...): fitted like them and saved in the model.",
-       _FIT, metavar="COL,...", config="extras",
-       to_config=lambda v: () if v is None else tuple(c.strip() for c in v.split(",")
-                                                      if c.strip())),
+       _FIT, metavar="COL,...", config="extras"),  # split by CompensationConfig
     _o("estimator", "--estimator", str, "ridge", "Fit of --reference/--extra: ridge, pls, or "
        "mlp (a small network correcting the linear fit; with --reference; kept only when it "
        "lowers the held-out error).", _FIT, metavar="ridge|pls|mlp", config="estimator"),

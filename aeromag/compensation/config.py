@@ -312,15 +312,12 @@ class CompensationConfig:
         if self.estimator not in ESTIMATORS:
             raise ConfigError("estimator", self.estimator,
                               f"must be one of {', '.join(ESTIMATORS)}")
-        if self.estimator == "mlp" and self.reference is None:
-            raise ConfigError("estimator", self.estimator,
-                              "the network corrects a fit against a reference: add --reference "
-                              "COL (a non-linear correction does not commute with the band-pass "
-                              "of a self-fit)")
+        if self.estimator == "mlp" and self.reference is None:  # no band-pass of a non-linearity
+            raise ConfigError("estimator", self.estimator, "the network corrects a fit against "
+                              "a reference: add --reference COL")
         if self.estimator != "ridge" and self.reference is None and not self.extras:
-            raise ConfigError("estimator", self.estimator,
-                              "chooses the fit with --extra or --reference; add one, or drop "
-                              "--estimator")
+            raise ConfigError("estimator", self.estimator, "chooses the fit with --extra or "
+                              "--reference; add one, or drop --estimator")
         if self.reference is not None and self.reference in self.extras:
             raise ConfigError("extras", ",".join(self.extras),
                               f"the reference {self.reference} cannot also be a regressor")
@@ -564,7 +561,8 @@ def refuse_unused_options(cfg: CompensationConfig, *, model: bool = False,
         raise InputError(found[0].message())
 
 
-def _config_dict(cfg: CompensationConfig) -> dict[str, Any]:
+def config_dict(cfg: CompensationConfig) -> dict[str, Any]:
+    """``cfg`` as a JSON-ready dict; ``reference``, ``extras``, ``estimator`` only when set."""
     d = dataclasses.asdict(cfg)
     d["band_hz"] = list(cfg.band_hz)
     for key in _EXTENDED_KEYS:  # written only when used (reports without them unchanged)
@@ -574,6 +572,8 @@ def _config_dict(cfg: CompensationConfig) -> dict[str, Any]:
         d["extras"] = list(d["extras"])
     return d
 
+
+_config_dict = config_dict
 
 #: The extended fit's keywords (:mod:`aeromag.compensation.extended`).
 _EXTENDED_KEYS = ("reference", "extras", "estimator")

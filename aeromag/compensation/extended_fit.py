@@ -14,6 +14,7 @@ import dataclasses
 import logging
 
 import numpy as np
+import pandas as pd
 
 from .._core.fit_diagnostics import diagnostics_from_stats
 from .._core.lstsq import scaled_condition
@@ -26,18 +27,80 @@ from .extended import (
     ExtendedInputs,
     ExtendedModel,
     cv_linear,
+    extended_inputs,
     reference_normal_equations,
     sub_stats,
     train_mlp,
 )
+from .fit import FitOutcome, solve_fit
+from .model import TLModel
 from .normal import SegmentStats, _residual_std, segment_normal_equations
 from .prepare import Prepared
+from .report import fit_report
+from .result import CompensationResult
 from .screening import screen_segments
 from .terms import design_matrix, parse_terms
 
 log = logging.getLogger(__name__)
 
-__all__ = ["extended_outcome"]
+__all__ = ["extended_inputs_for", "extended_outcome", "extended_result"]
+
+
+def extended_inputs_for(df: pd.DataFrame, cfg: CompensationConfig,
+                        source: str) -> ExtendedInputs | None:
+    """The extras and reference of ``cfg`` read from ``df`` (None when it asks for neither).
+
+    Parameters
+    ----------
+    df : DataFrame
+        The log.
+    cfg : CompensationConfig
+        ``extras`` and ``reference``.
+    source : str
+        File name for messages.
+
+    Returns
+    -------
+    ExtendedInputs or None
+        None also when every extra was dropped and there is no reference (the TL fit runs).
+    """
+    if not cfg.extras and cfg.reference is None:
+        return None
+    inputs = extended_inputs(df, cfg.extras, cfg.reference, source)
+    if not inputs.names and inputs.reference is None:
+        log.warning("%s: no usable --extra: the 16-term fit runs alone", source)
+        return None
+    return inputs
+
+
+def extended_result(prep: Prepared, cfg: CompensationConfig,
+                    inputs: ExtendedInputs) -> CompensationResult:
+    """:func:`aeromag.compensation.fit.fit_result` with the extended fit.
+
+    Parameters
+    ----------
+    prep : Prepared
+        Arrays of the log.
+    cfg : CompensationConfig
+        Options.
+    inputs : ExtendedInputs
+        From :func:`extended_inputs_for`.
+
+    Returns
+    -------
+    CompensationResult
+        ``data`` is None; ``model`` carries the report as its metadata and the extended part
+        as ``model.extended``; the report has an ``extended`` block.
+    """
+    fit, ext = extended_outcome(prep, cfg, inputs)
+    report = fit_report(fit)
+    report["extended"] = ext.model.to_dict()
+    model = TLModel(fit.terms, fit.coef, meta={k: v for k, v in report.items()
+                                               if k not in ("terms", "coef", "scale_nT",
+                                                            "extended")},
+                    extended=ext.model)
+    return CompensationResult(None, model, report, fit.screening.screen,
+                              pd.DataFrame(report["segments"]), fit=fit)
 
 
 def _select(stats: SegmentStats, mask: np.ndarray) -> SegmentStats:
@@ -85,8 +148,6 @@ def extended_outcome(prep: Prepared, cfg: CompensationConfig, inputs: ExtendedIn
         coefficients.
     extended : ExtendedFit
     """
-    from .fit import FitOutcome, solve_fit  # fit.py calls this module: imported here
-
     terms = parse_terms(cfg.terms)
     fit_terms = tuple(t for t in terms if t != "bias")
     if not fit_terms:

@@ -19,7 +19,6 @@ from .._core.lstsq import scaled_condition, solve_normal
 from ..errors import FitError, InputError
 from .config import CompensationConfig
 from .decimation import fit_arrays
-from .extended import ExtendedInputs, extended_inputs
 from .model import TLModel
 from .normal import SegmentStats, _residual_std, segment_normal_equations
 from .prepare import Prepared, prepare
@@ -30,8 +29,8 @@ from .terms import design_matrix, parse_terms
 
 log = logging.getLogger(__name__)
 
-__all__ = ["FitOutcome", "check_interference", "extended_inputs_for", "fit_model", "fit_outcome",
-           "fit_result", "solve_fit"]
+__all__ = ["FitOutcome", "check_interference", "fit_model", "fit_outcome", "fit_result",
+           "solve_fit"]
 
 
 def solve_fit(gram: np.ndarray, rhs: np.ndarray, *, ridge: float, max_condition: float,
@@ -235,34 +234,10 @@ def fit_model(
         ``data`` is None; ``model`` carries the report as its metadata.
     """
     cfg = cfg or CompensationConfig()
-    prep = prepare(df, cfg, source=source)
-    return fit_result(prep, cfg, extended_inputs_for(df, cfg, prep.source))
+    return fit_result(prepare(df, cfg, source=source), cfg)
 
 
-def extended_inputs_for(df: pd.DataFrame, cfg: CompensationConfig,
-                        source: str) -> ExtendedInputs | None:
-    """The extras and reference of ``cfg`` read from ``df`` (None when it asks for neither).
-
-    Parameters
-    ----------
-    df : DataFrame
-        The log.
-    cfg : CompensationConfig
-        ``extras`` and ``reference``.
-    source : str
-        File name for messages.
-
-    Returns
-    -------
-    ExtendedInputs or None
-    """
-    if not cfg.extras and cfg.reference is None:
-        return None
-    return extended_inputs(df, cfg.extras, cfg.reference, source)
-
-
-def fit_result(prep: Prepared, cfg: CompensationConfig,
-               inputs: ExtendedInputs | None = None) -> CompensationResult:
+def fit_result(prep: Prepared, cfg: CompensationConfig) -> CompensationResult:
     """:func:`fit_model` on arrays already prepared (what the pipeline calls).
 
     Parameters
@@ -271,28 +246,15 @@ def fit_result(prep: Prepared, cfg: CompensationConfig,
         Arrays of the log.
     cfg : CompensationConfig
         Options.
-    inputs : ExtendedInputs, optional
-        The extras and reference read from the log (:func:`extended_inputs`); with any, the
-        extended fit runs (:func:`aeromag.compensation.extended_fit.extended_outcome`).
 
     Returns
     -------
     CompensationResult
         ``data`` is None; ``model`` carries the report as its metadata.
     """
-    ext = None
-    if inputs is not None and (inputs.names or inputs.reference is not None):
-        from .extended_fit import extended_outcome
-
-        fit, ext = extended_outcome(prep, cfg, inputs)
-    else:
-        fit = fit_outcome(prep, cfg)
+    fit = fit_outcome(prep, cfg)
     report = fit_report(fit)
-    if ext is not None:
-        report["extended"] = ext.model.to_dict()
     model = TLModel(fit.terms, fit.coef, meta={k: v for k, v in report.items()
-                                               if k not in ("terms", "coef", "scale_nT",
-                                                            "extended")},
-                    extended=None if ext is None else ext.model)
+                                               if k not in ("terms", "coef", "scale_nT")})
     return CompensationResult(None, model, report, fit.screening.screen,
                               pd.DataFrame(report["segments"]), fit=fit)

@@ -35,7 +35,8 @@ import pandas as pd
 
 from .apply import _apply, _check_plausible
 from .config import CompensationConfig, _resolve_gap, refuse_unused_options
-from .fit import extended_inputs_for, fit_result
+from .extended_fit import extended_inputs_for, extended_result
+from .fit import fit_result
 from .model import TLModel
 from .prepare import check_total_field, prepare
 from .report import AppliedRun, applied_report
@@ -81,7 +82,8 @@ def compensate(
     cfg = _resolve_gap(cfg, df)
     prep = prepare(df, cfg, source=source)
     if model is None:
-        fit = fit_result(prep, cfg, extended_inputs_for(df, cfg, prep.source))
+        inputs = extended_inputs_for(df, cfg, prep.source)
+        fit = fit_result(prep, cfg) if inputs is None else extended_result(prep, cfg, inputs)
         kept_ids = np.array([s["id"] for s in fit.report["segments"] if s["kept"]], dtype=np.int64)
         data, metrics, comp_bp = _apply(df, fit.model, cfg, prep=prep, kept_segments=kept_ids,
                                         source=source, release_flux=True)
