@@ -137,9 +137,12 @@ def _independent_flight(seed: int, currents: bool = True, quadratic: float = 0.0
     i2 = 3 + 2 * np.clip(np.cumsum(rng.normal(0, 0.05, n)) / 10, -1, 1) + \
         0.8 * np.sin(2 * np.pi * t / 1.7)
     i3 = 8 + 3 * (rng.random(n // 97 + 1).repeat(97)[:n] > 0.5)
-    v = np.array([[0.0002, -0.0001, 0.03], [0.0001, 0.0003, -0.05], [-0.0002, 0.0, 0.02]])
+    # nT/A: the scalar sees I (v . b), and a single coefficient per current models only its
+    # mean projection; with twice these loops the attitude's change of the projection leaves
+    # 1.16 x the noise floor on this flight (docs/compensation.md).
+    v = np.array([[0.0001, -0.0001, 0.015], [0.0001, 0.0002, -0.025], [-0.0001, 0.0, 0.01]])
     cur_field = i1 * (c @ v[0]) + i2 * (c @ v[1]) + i3 * (c @ v[2])
-    cur_field += quadratic * (i1 - 8) ** 2
+    cur_field += quadratic * (i2 - 3) ** 2
     # Noise: white plus a little red (a first-order autoregressive part), 0.015 nT rms.
     red = np.zeros(n)
     w = rng.normal(0, 0.004, n)
@@ -219,16 +222,15 @@ def test_constant_and_empty_extras_dropped_with_warning(sim, caplog):
 
 
 def test_reference_with_gaps_rows_left_out(sim, caplog):
-    cur, _, truth, _ = sim
-    df = cur.assign(ref=cur["truth_mag_clean"])
+    _, logged, truth, _ = sim
+    df = logged.assign(ref=logged["truth_mag_clean"])
     df.loc[1000:1400, "ref"] = np.nan
     with caplog.at_level(logging.WARNING):
         res = calibrate(df, CompensationConfig(reference="ref", fom=False), source="sim")
     assert "401 of 6000 rows have no value in ref: left out of the fit" in caplog.text
     assert res.report["extended"]["rows_left_out"] == 401
     true = np.asarray(truth["coef"])
-    # the currents are not modelled here: the fit is worse but sane
-    assert np.abs(res.model.coef - true).max() < 0.1 * np.abs(true).max()
+    assert np.abs(res.model.coef - true).max() < 0.01 * np.abs(true).max()
 
 
 def test_config_refusals():
@@ -284,7 +286,7 @@ def test_cli_subprocess_extra_and_report(sim, tmp_path):
     assert rep["config"]["extras"] == list(EXTRAS)
     from aeromag.workflows.report import render_html
 
-    page = render_html({}, rep, {}, title="t")
+    page = render_html({"band_hz": [0.1, 0.9]}, rep, {}, title="t")
     assert "Beyond the 16 terms" in page and "cur_1" in page
 
 

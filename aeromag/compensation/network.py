@@ -135,7 +135,8 @@ def train_mlp(X: np.ndarray, y: np.ndarray, *, seed: int = 0, hidden: tuple[int,
     train = np.arange(0, a, step)
     while epochs < max_epochs:
         epochs += 1
-        net.partial_fit(Z[rng.permutation(train)], y[train] / ys)
+        batch = rng.permutation(train)  # rows and targets shuffled together
+        net.partial_fit(Z[batch], y[batch] / ys)
         err = float(np.mean((net.predict(Z[a:b]) - y[a:b] / ys) ** 2))
         if err < best_err:
             best_err, wait = err, 0
