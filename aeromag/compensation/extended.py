@@ -66,6 +66,9 @@ class ExtendedInputs:
 
 
 def _numeric(df: pd.DataFrame, col: str, source: str, what: str) -> np.ndarray:
+    if pd.api.types.is_float_dtype(df[col].dtype) or pd.api.types.is_integer_dtype(
+            df[col].dtype):
+        return df[col].to_numpy(dtype=np.float64, na_value=np.nan)
     try:
         return pd.to_numeric(df[col], errors="raise").to_numpy(dtype=np.float64)
     except (ValueError, TypeError):
@@ -128,19 +131,23 @@ def extended_inputs(df: pd.DataFrame, extras: tuple[str, ...], reference: str | 
     if reference is not None:
         require_columns(df, (reference,), source, "--reference")
     kept, vals, dropped = [], [], []
+    n = len(df)
     for c in extras:
         v = _numeric(df, c, source, "--extra")
-        fin = v[np.isfinite(v)]
-        if fin.size == 0 or np.ptp(fin) == 0:
+        lo, hi = (np.nanmin(v), np.nanmax(v)) if np.isfinite(v).any() else (np.nan, np.nan)
+        if not lo < hi:
             log.warning("%s: --extra %s is %s: dropped from the fit", source, c,
-                        "empty (no finite value)" if fin.size == 0 else "constant")
+                        "empty (no finite value)" if np.isnan(lo) else "constant")
             dropped.append(c)
             continue
         kept.append(c)
         vals.append(v)
-    n = len(df)
-    values = np.vstack(vals) if vals else np.zeros((0, n))
-    usable = np.isfinite(values).all(axis=0)
+    values = np.empty((len(vals), n))
+    usable = np.ones(n, dtype=bool)
+    for j, v in enumerate(vals):
+        values[j] = v
+        usable &= np.isfinite(v)
+    del vals
     ref = None
     if reference is not None:
         ref = _numeric(df, reference, source, "--reference")
@@ -298,12 +305,6 @@ def _solve(G: np.ndarray, b: np.ndarray, n: float, intercept: bool, estimator: s
     return np.r_[c0, beta]
 
 
-def _sse(stats: SegmentStats, idx: np.ndarray, coef: np.ndarray) -> float:
-    G = stats.gram[idx].sum(axis=0)
-    b = stats.rhs[idx].sum(axis=0)
-    return float(stats.yy[idx].sum() - 2 * coef @ b + coef @ G @ coef)
-
-
 @dataclass
 class CVResult:
     """A cross-validated linear fit.
@@ -363,14 +364,17 @@ def cv_linear(stats: SegmentStats, *, intercept: bool, estimator: str = "ridge",
     n = float(stats.n.sum())
     scores: list[tuple[float, float]] = []
     if folds:
-        n_out = float(sum(stats.n[f].sum() for f in folds))
+        # Each block's sums once (the blocks are contiguous runs of segments).
+        fG = np.stack([stats.gram[f].sum(axis=0) for f in folds])
+        fb = np.stack([stats.rhs[f].sum(axis=0) for f in folds])
+        fy = np.array([stats.yy[f].sum() for f in folds])
+        fn = np.array([float(stats.n[f].sum()) for f in folds])
+        n_out = float(fn.sum())
         for p in grid:
             sse = 0.0
-            for f in folds:
-                Gt = G - stats.gram[f].sum(axis=0)
-                bt = b - stats.rhs[f].sum(axis=0)
-                c = _solve(Gt, bt, n - float(stats.n[f].sum()), intercept, estimator, p)
-                sse += _sse(stats, f, c)
+            for j in range(len(folds)):
+                c = _solve(G - fG[j], b - fb[j], n - fn[j], intercept, estimator, p)
+                sse += float(fy[j] - 2 * c @ fb[j] + c @ fG[j] @ c)
             scores.append((p, float(np.sqrt(max(sse, 0.0) / n_out))))
         best, cv = min(scores, key=lambda s: s[1])
     else:  # one segment: no held-out block; the least regularisation, said
@@ -440,15 +444,12 @@ class ExtendedModel:
         ndarray, shape (n,)
         """
         require_columns(df, self.extras, source, "extras the model was fitted with")
-        n = len(df)
-        out = np.full(n, self.intercept_nT)
-        X = np.empty((n, len(self.extras)))
-        for j, c in enumerate(self.extras):
-            X[:, j] = _numeric(df, c, source, "an extra of the model")
-        if len(self.extras):
-            out += (X - self.extra_center) @ self.extra_coef
+        out = np.full(len(df), self.intercept_nT)
+        cols = [_numeric(df, c, source, "an extra of the model") for c in self.extras]
+        for x, coef, center in zip(cols, self.extra_coef, self.extra_center, strict=True):
+            out += coef * (x - center)
         if self.mlp is not None:
-            out += self.mlp.predict(np.hstack([tl_design(), X]))
+            out += self.mlp.predict(np.column_stack([tl_design(), *cols]))
         return out
 
     def to_dict(self) -> dict[str, Any]:

@@ -119,7 +119,8 @@ def _held_out(stats: SegmentStats, k_tl: int, names: tuple[str, ...], intercept:
     contrib = []
     for j, name in enumerate(names):
         cols = [c for c in range(stats.gram.shape[1]) if c != off + k_tl + j]
-        r = cv_linear(sub_stats(stats, cols), intercept=intercept, estimator=estimator)
+        r = cv_linear(sub_stats(stats, cols), intercept=intercept, estimator=estimator,
+                      param=full.param)  # at the full fit's regularisation
         inc = r.cv_std_nT - full.cv_std_nT
         contrib.append({"name": name, "held_out_std_without_nT": r.cv_std_nT,
                         "increase_nT": inc,
