@@ -296,3 +296,17 @@ def test_reports_without_the_options_unchanged(sim):
     assert "extended" not in res.report
     assert not {"reference", "extras", "estimator"} & set(res.report["config"])
     assert "extended" not in res.model.to_dict()
+
+
+def test_malformed_extended_block_is_one_line(sim, tmp_path):
+    cur, _, _, _ = sim
+    d = calibrate(cur, CompensationConfig(extras=EXTRAS[:1], fom=False),
+                  source="sim").model.to_dict()
+    for bad in ({"extras": 5}, {"extras": [{"name": "cur_1", "coef_nT_per_unit": "x",
+                                            "center": 0, "scale": 1}]},
+                {"extras": [], "mlp": {"weights": [[[1.0]]], "biases": [[0.0]],
+                                       "x_center": [0.0], "x_scale": [1.0], "y_scale": 1.0}}):
+        path = tmp_path / "m.json"
+        path.write_text(json.dumps({**d, "extended": bad}))
+        with pytest.raises(InputError, match="extended"):
+            TLModel.load(path)
