@@ -32,13 +32,10 @@ from .extended import (
     sub_stats,
     train_mlp,
 )
-from .fit import FitOutcome, solve_fit
-from .model import TLModel
+from .fit import FitOutcome, fit_result, screen_stats, solve_fit
 from .normal import SegmentStats, _residual_std, segment_normal_equations
 from .prepare import Prepared
-from .report import fit_report
 from .result import CompensationResult
-from .screening import screen_segments
 from .terms import design_matrix, parse_terms
 
 log = logging.getLogger(__name__)
@@ -79,10 +76,8 @@ def extended_result(prep: Prepared, cfg: CompensationConfig,
 
     Parameters
     ----------
-    prep : Prepared
-        Arrays of the log.
-    cfg : CompensationConfig
-        Options.
+    prep, cfg : Prepared, CompensationConfig
+        The log's arrays and the run's options.
     inputs : ExtendedInputs
         From :func:`extended_inputs_for`.
 
@@ -93,14 +88,7 @@ def extended_result(prep: Prepared, cfg: CompensationConfig,
         as ``model.extended``; the report has an ``extended`` block.
     """
     fit, ext = extended_outcome(prep, cfg, inputs)
-    report = fit_report(fit)
-    report["extended"] = ext.model.to_dict()
-    model = TLModel(fit.terms, fit.coef, meta={k: v for k, v in report.items()
-                                               if k not in ("terms", "coef", "scale_nT",
-                                                            "extended")},
-                    extended=ext.model)
-    return CompensationResult(None, model, report, fit.screening.screen,
-                              pd.DataFrame(report["segments"]), fit=fit)
+    return fit_result(prep, cfg, fit=fit, extended=ext.model)
 
 
 def _select(stats: SegmentStats, mask: np.ndarray) -> SegmentStats:
@@ -176,18 +164,8 @@ def extended_outcome(prep: Prepared, cfg: CompensationConfig, inputs: ExtendedIn
     else:
         fit_prep, q, design = fit_arrays(prep, cfg, fit_terms)
         stats = segment_normal_equations(fit_prep, fit_terms, cfg, design)
-    if len(stats.ids) == 0:
-        from ..errors import FitError
-
-        raise FitError(f"{prep.source}: every segment is too short to fit; use a longer "
-                       "segment_seconds=... or check the line column")
-    for sid, cnt in stats.too_short.items():
-        log.warning("%s: segment %d too short to fit (%d usable samples): left out",
-                    prep.source, sid, cnt)
-    out = screen_segments(stats, cfg)
+    out, G, b = screen_stats(stats, cfg, prep.source)
     kept = out.kept
-    G = stats.gram[kept].sum(axis=0)
-    b = stats.rhs[kept].sum(axis=0)
     if not ref_mode:
         # The self-fit's refusal of an ill-conditioned TL fit stands (a reference, which
         # holds the low frequencies, lifts it).
