@@ -310,3 +310,21 @@ def test_malformed_extended_block_is_one_line(sim, tmp_path):
         path.write_text(json.dumps({**d, "extended": bad}))
         with pytest.raises(InputError, match="extended"):
             TLModel.load(path)
+
+
+def test_simulate_currents_calibration_carries_to_the_survey(tmp_path):
+    r = CliRunner().invoke(app, ["simulate", "-o", str(tmp_path), "--small", "--currents", "3"])
+    assert r.exit_code == 0, r.output
+    truth = json.loads((tmp_path / "truth.json").read_text())
+    assert len(truth["survey"]["current_loops"]) == 3
+    cal = pd.read_csv(tmp_path / "calibration.csv")
+    sur = pd.read_csv(tmp_path / "survey.csv")
+    assert {"cur_1", "cur_2", "cur_3", "volt_bus", "truth_mag_current"} <= set(sur.columns)
+    errs = {}
+    for label, extras in (("tl", ()), ("extras", ("cur_1", "cur_2", "cur_3"))):
+        model = calibrate(cal, CompensationConfig(extras=extras, fom=False), source="cal").model
+        out = compensate(sur, CompensationConfig(filter_output=False), model=model).data
+        e = (out["mag_comp"] - sur["truth_mag_clean"]).to_numpy()
+        errs[label] = float(np.std(e - np.mean(e)))
+    # The calibration's extras remove most of the survey's current interference.
+    assert errs["extras"] < 0.6 * errs["tl"], errs
