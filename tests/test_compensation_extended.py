@@ -16,6 +16,8 @@ import sys
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.signal import butter, sosfiltfilt
 from typer.testing import CliRunner
 
@@ -328,3 +330,28 @@ def test_simulate_currents_calibration_carries_to_the_survey(tmp_path):
         errs[label] = float(np.std(e - np.mean(e)))
     # The calibration's extras remove most of the survey's current interference.
     assert errs["extras"] < 0.6 * errs["tl"], errs
+
+
+_json = st.recursive(st.none() | st.booleans() | st.floats(allow_nan=True) | st.integers()
+                     | st.just(10 ** 400)
+                     | st.text(max_size=5),
+                     lambda inner: st.lists(inner, max_size=4)
+                     | st.dictionaries(st.text(max_size=5), inner, max_size=4), max_leaves=20)
+_extra = st.fixed_dictionaries({"name": st.text(min_size=1, max_size=6),
+                                "coef_nT_per_unit": _json, "center": _json, "scale": _json})
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.fixed_dictionaries({}, optional={
+    "reference": _json, "extras": st.lists(_extra, max_size=3) | _json, "intercept_nT": _json,
+    "param": _json, "estimator": _json, "mlp": _json}))
+def test_extended_block_parser_never_crashes(block):
+    from aeromag.compensation.extended import ExtendedModel
+
+    try:
+        m = ExtendedModel.from_dict(block, 16, "m.json")
+    except InputError as exc:
+        assert "m.json" in str(exc)
+        return
+    assert np.isfinite(m.extra_coef).all() and np.isfinite(m.intercept_nT)
+    assert len(m.extras) == len(m.extra_coef)

@@ -482,7 +482,7 @@ class ExtendedModel:
                               float(e["scale"])] for e in ex]).reshape(-1, 3)
             icpt = float(d.get("intercept_nT", 0.0))
             param = float(d.get("param", 0.0))
-        except (KeyError, TypeError, ValueError):
+        except (KeyError, TypeError, ValueError, OverflowError):
             raise InputError(f"{bad} (extras); write the model again with 'aeromag calibrate'"
                              ) from None
         if not (np.isfinite(vals).all() and np.isfinite(icpt)):

@@ -70,7 +70,7 @@ class MLPCorrection:
             xc = np.asarray(d["x_center"], dtype=np.float64)
             xs = np.asarray(d["x_scale"], dtype=np.float64)
             ys = float(d["y_scale"])
-        except (KeyError, TypeError, ValueError):
+        except (KeyError, TypeError, ValueError, OverflowError):
             raise bad from None
         if d.get("activation", "relu") != "relu" or not W or len(W) != len(c):
             raise bad
