@@ -150,7 +150,10 @@ def test_library_message_maps_to_flags():
 def test_cli_no_screen_refuses_exactly_the_screening_options(tmp_path, opt):
     if opt.config == "screen":
         pytest.skip("--no-screen itself")
-    value = [] if opt.type is bool else ["9" if opt.config == "terms" else "0.5"]
+    # the extended fit's options take column names: values that fail fast (no such column)
+    text = {"reference": "nosuch", "extras": "nosuch", "estimator": "pls"}
+    value = [] if opt.type is bool else [text.get(opt.config) or
+                                         ("9" if opt.config == "terms" else "0.5")]
     out = tmp_path / "m.json"
     r = runner.invoke(app, ["calibrate", str(SAMPLES / "calibration.csv"), "-o", str(out),
                             "--no-screen", opt.flags[-1], *value])
@@ -164,7 +167,9 @@ def test_cli_no_screen_refuses_exactly_the_screening_options(tmp_path, opt):
         assert "--no-screen skips it" not in r.output
         # the library ran the same configuration: it refuses what the CLI refuses, no more
         kw = {opt.config: opt.to_config(True) if opt.to_config else
-              (value[0] if opt.config == "terms" else 0.5)}
+              (value[0] if opt.config in ("terms", "reference", "extras") else 0.5)}
+        if opt.config == "estimator":
+            kw = {"estimator": "pls", "extras": ("nosuch",)}
         assert unused_options(CompensationConfig(screen=False, **kw)) == []
 
 

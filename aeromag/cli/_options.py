@@ -42,6 +42,8 @@ _READERS = frozenset({"compensate", "calibrate", "batch"})
 #: Commands that fit or apply the TL model.
 _COMP = frozenset({"compensate", "calibrate", "batch"})
 _APPLY = frozenset({"compensate", "batch"})
+#: Commands that fit on one log (the extended fit's options).
+_FIT = frozenset({"compensate", "calibrate"})
 
 # Same as aeromag.workflows.batch.LOG_EXTENSIONS (a test checks it); literal here so that
 # 'aeromag --help' does not import pandas.
@@ -176,6 +178,17 @@ OPTIONS: list[Option] = [
     _o("max_interference", "--max-interference", float, 0.25, "Refuse a fitted model whose "
        "|mag_tl| (99th percentile) exceeds this fraction of the Earth field (non-physical: the "
        "flight did not determine it).", _COMP, metavar="FRACTION", config="max_interference"),
+    # compensation beyond the 16 terms (aeromag.compensation.extended)
+    _o("reference", "--reference", str | None, None, "Fit the interference against mag - COL "
+       "(a reference total field, nT: a compensated stinger, a map) over the full band, with an "
+       "intercept, instead of the band-passed self-fit.", _FIT, metavar="COL",
+       config="reference"),
+    _o("extra", "--extra", str | None, None, "More regressors beside the TL terms, comma-"
+       "separated (aircraft currents, voltages...): fitted like them and saved in the model.",
+       _FIT, metavar="COL,...", config="extras"),  # split by CompensationConfig
+    _o("estimator", "--estimator", str, "ridge", "Fit of --reference/--extra: ridge, pls, or "
+       "mlp (a small network correcting the linear fit; with --reference; kept only when it "
+       "lowers the held-out error).", _FIT, metavar="ridge|pls|mlp", config="estimator"),
     # screening
     _o("shrink", "--shrink", float, 1.0, "Shrinkage of per-segment fits toward the pooled fit "
        "during screening (0 = none).", _COMP, config="shrink"),

@@ -66,6 +66,10 @@ def simulate(
         "--online", help="Also write the logs of the online estimators: compass.csv (the "
         "compass-calibration study's manoeuvre at Taiyuan, interference switched at 15 s) and "
         "online_tl.csv (a survey whose TL coefficients jump), with *_truth.json.")] = False,
+    currents: Annotated[int, typer.Option(
+        "--currents", min=0, metavar="N", help="N aircraft current loops: their field in mag, "
+        "the currents logged as cur_1..cur_N and volt_bus, the loops in truth.json (for "
+        "--extra).")] = 0,
     verbose: Annotated[bool, typer.Option("-v", "--verbose", help="Log progress details.")]
     = False,
 ) -> None:
@@ -74,7 +78,8 @@ def simulate(
     from ..workflows.simulate import write_simulation
 
     with user_errors():
-        paths = write_simulation(output, seed=seed, faults=faults, rate_hz=rate, small=small)
+        paths = write_simulation(output, seed=seed, faults=faults, rate_hz=rate, small=small,
+                                 currents=currents)
         paths.update(_mission_files(output, seed, small))
         if quadrotor:
             from ..workflows.quadrotor import write_quadrotor_files

@@ -80,6 +80,8 @@ def _apply(
         fstretch = find_stretches(t, ok, cfg.max_gap_s)
         mag_tl = np.full(len(t), np.nan)
         mag_tl[ok] = model.predict(prep.flux[ok], t[ok], fstretch[ok])
+    if model.extended is not None:
+        mag_tl = mag_tl + extended_part(df, model, prep, cfg)
     if release_flux:
         prep.flux = None  # type: ignore[assignment]
     comp = np.subtract(prep.mag, mag_tl)
@@ -127,6 +129,37 @@ def _apply(
                                                else seg, missing),
              "segment_kept": kept}
     return _with_columns(df, added), metrics, comp_bp
+
+
+def extended_part(df: pd.DataFrame, model: TLModel, prep: Prepared,
+                  cfg: CompensationConfig) -> np.ndarray:
+    """The model's interference beyond ``A @ coef``: extras, intercept, network [nT].
+
+    Parameters
+    ----------
+    df : DataFrame
+        The log (rows as ``prep``'s).
+    model : TLModel
+        A model with ``extended``.
+    prep : Prepared
+        Its arrays (``flux`` still held).
+    cfg : CompensationConfig
+        Options (the gap that splits stretches).
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        NaN where an extra has no value.
+    """
+    from .terms import design_matrix
+
+    fit_terms = tuple(t for t in model.terms if t != "bias")
+
+    def tl_design() -> np.ndarray:
+        st = find_stretches(prep.time, prep.flux_ok, cfg.max_gap_s)
+        return design_matrix(prep.flux, prep.time, fit_terms, stretch=st)
+
+    return model.extended.predict(df, tl_design, prep.source)
 
 
 #: Key of the report's ``metrics`` counting the rows without a measured total field.

@@ -154,6 +154,9 @@ class FitChecks:
         _positive("max_interference", self.max_interference)
 
 
+#: The estimators of the extended fit (``--estimator``).
+ESTIMATORS = ("ridge", "pls", "mlp")
+
 _GROUPS = {"filter": FilterOptions, "segments": SegmentOptions, "screening": ScreeningOptions,
            "checks": FitChecks}
 
@@ -255,6 +258,17 @@ class CompensationConfig:
         below 144 Hz are never decimated); the coefficients are applied to every original
         sample.
         ``--no-decimate`` fits every sample.
+    reference : str or None
+        Column of a reference total field [nT] (``--reference COL``): the interference is
+        fitted against ``mag - COL`` over the full band, with an intercept, by a regularised
+        fit chosen by cross-validation over blocks of time (:mod:`aeromag.compensation.extended`).
+    extras : tuple of str
+        More regressors beside the TL terms (``--extra COL,...``: currents, voltages), band-passed
+        like them in a self-fit, over the full band with a reference.
+    estimator : str
+        ``ridge`` (default), ``pls`` (partial least squares) or ``mlp`` (a small network that
+        corrects the linear prediction; needs ``reference``).  Used with ``reference`` or
+        ``extras`` only.
     """
 
     # Defaults come from the option groups (one place for each).
@@ -286,9 +300,27 @@ class CompensationConfig:
     inlier_own_excess: float = ScreeningOptions.inlier_own_excess
     decimate: bool = FilterOptions.decimate
     mag_from_fluxgate: bool = False
+    reference: str | None = None
+    extras: tuple[str, ...] = ()
+    estimator: str = "ridge"
 
     def __post_init__(self) -> None:
         self.band_hz = (float(self.band_hz[0]), float(self.band_hz[1]))
+        if isinstance(self.extras, str):
+            self.extras = tuple(c.strip() for c in self.extras.split(",") if c.strip())
+        self.extras = tuple(str(c) for c in (self.extras or ()))
+        if self.estimator not in ESTIMATORS:
+            raise ConfigError("estimator", self.estimator,
+                              f"must be one of {', '.join(ESTIMATORS)}")
+        if self.estimator == "mlp" and self.reference is None:  # no band-pass of a non-linearity
+            raise ConfigError("estimator", self.estimator, "the network corrects a fit against "
+                              "a reference: add --reference COL")
+        if self.estimator != "ridge" and self.reference is None and not self.extras:
+            raise ConfigError("estimator", self.estimator, "chooses the fit with --extra or "
+                              "--reference; add one, or drop --estimator")
+        if self.reference is not None and self.reference in self.extras:
+            raise ConfigError("extras", ",".join(self.extras),
+                              f"the reference {self.reference} cannot also be a regressor")
         for name in _GROUPS:  # each group checks its own parameters
             getattr(self, name)
         parse_terms(self.terms)
@@ -347,7 +379,8 @@ class CompensationConfig:
 FIT_ONLY = ("terms", "decimate", "screen", "shrink", "pca_variance", "screen_quantile",
             "max_iter", "min_segments", "min_excess", "min_excess_nT", "noise_factor",
             "gross_excess",
-            "inlier_excess", "inlier_own_excess", "ridge", "max_condition")
+            "inlier_excess", "inlier_own_excess", "ridge", "max_condition",
+            "reference", "extras", "estimator")
 
 
 #: CompensationConfig keywords that only the screening reads: with ``screen=False`` they decide
@@ -528,10 +561,22 @@ def refuse_unused_options(cfg: CompensationConfig, *, model: bool = False,
         raise InputError(found[0].message())
 
 
-def _config_dict(cfg: CompensationConfig) -> dict[str, Any]:
+def config_dict(cfg: CompensationConfig) -> dict[str, Any]:
+    """``cfg`` as a JSON-ready dict; ``reference``, ``extras``, ``estimator`` only when set."""
     d = dataclasses.asdict(cfg)
     d["band_hz"] = list(cfg.band_hz)
+    for key in _EXTENDED_KEYS:  # written only when used (reports without them unchanged)
+        if d[key] == CompensationConfig.__dataclass_fields__[key].default:
+            del d[key]
+    if "extras" in d:
+        d["extras"] = list(d["extras"])
     return d
+
+
+_config_dict = config_dict
+
+#: The extended fit's keywords (:mod:`aeromag.compensation.extended`).
+_EXTENDED_KEYS = ("reference", "extras", "estimator")
 
 
 def _resolve_gap(cfg: CompensationConfig, df: pd.DataFrame) -> CompensationConfig:

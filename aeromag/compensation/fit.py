@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -30,7 +31,7 @@ from .terms import design_matrix, parse_terms
 log = logging.getLogger(__name__)
 
 __all__ = ["FitOutcome", "check_interference", "fit_model", "fit_outcome", "fit_result",
-           "solve_fit"]
+           "screen_stats", "solve_fit"]
 
 
 def solve_fit(gram: np.ndarray, rhs: np.ndarray, *, ridge: float, max_condition: float,
@@ -163,6 +164,37 @@ class FitOutcome:
     decimation: int = 1
 
 
+def screen_stats(stats: SegmentStats, cfg: CompensationConfig, source: str,
+                 ) -> tuple[ScreeningOutcome, np.ndarray, np.ndarray]:
+    """Refuse no fittable segment, warn about short ones, screen; the kept segments' sums.
+
+    Parameters
+    ----------
+    stats : SegmentStats
+        Per-segment band-passed normal equations of the TL terms.
+    cfg : CompensationConfig
+        Options (the screening's).
+    source : str
+        File name quoted in messages.
+
+    Returns
+    -------
+    screening : ScreeningOutcome
+    gram, rhs : ndarray
+        Normal equations summed over the kept segments.
+    """
+    if len(stats.ids) == 0:
+        raise FitError(
+            f"{source}: every segment is too short to fit ({len(stats.too_short)} segment(s));"
+            " use a longer segment_seconds=... or check the line column"
+        )
+    for sid, cnt in stats.too_short.items():
+        log.warning("%s: segment %d too short to fit (%d usable samples): left out",
+                    source, sid, cnt)
+    out = screen_segments(stats, cfg)
+    return out, stats.gram[out.kept].sum(axis=0), stats.rhs[out.kept].sum(axis=0)
+
+
 def fit_outcome(prep: Prepared, cfg: CompensationConfig) -> FitOutcome:
     """Fit on prepared arrays: normal equations, screening, refusals, bias, diagnostics.
 
@@ -185,18 +217,8 @@ def fit_outcome(prep: Prepared, cfg: CompensationConfig) -> FitOutcome:
     # coefficients are applied to every original sample (docs/compensation.md).
     fit_prep, q, design = fit_arrays(prep, cfg, fit_terms)
     stats = segment_normal_equations(fit_prep, fit_terms, cfg, design)
-    if len(stats.ids) == 0:
-        raise FitError(
-            f"{prep.source}: every segment is too short to fit ({len(stats.too_short)} segment(s));"
-            " use a longer segment_seconds=... or check the line column"
-        )
-    for sid, cnt in stats.too_short.items():
-        log.warning("%s: segment %d too short to fit (%d usable samples): left out",
-                    prep.source, sid, cnt)
-    out = screen_segments(stats, cfg)
+    out, G, b = screen_stats(stats, cfg, prep.source)
     kept = out.kept
-    G = stats.gram[kept].sum(axis=0)
-    b = stats.rhs[kept].sum(axis=0)
     coef_fit, cond, cond_s = solve_fit(G, b, ridge=cfg.ridge, max_condition=cfg.max_condition,
                                        source=prep.source)
     coef = np.zeros(len(terms))
@@ -237,7 +259,8 @@ def fit_model(
     return fit_result(prepare(df, cfg, source=source), cfg)
 
 
-def fit_result(prep: Prepared, cfg: CompensationConfig) -> CompensationResult:
+def fit_result(prep: Prepared, cfg: CompensationConfig, *, fit: FitOutcome | None = None,
+               extended: Any = None) -> CompensationResult:
     """:func:`fit_model` on arrays already prepared (what the pipeline calls).
 
     Parameters
@@ -246,15 +269,23 @@ def fit_result(prep: Prepared, cfg: CompensationConfig) -> CompensationResult:
         Arrays of the log.
     cfg : CompensationConfig
         Options.
+    fit : FitOutcome, optional
+        An outcome already fitted (the extended fit's:
+        :func:`aeromag.compensation.extended_fit.extended_result`); default :func:`fit_outcome`.
+    extended : ExtendedModel, optional
+        Its extras, reference and network: the model's ``extended`` and the report's block.
 
     Returns
     -------
     CompensationResult
         ``data`` is None; ``model`` carries the report as its metadata.
     """
-    fit = fit_outcome(prep, cfg)
+    fit = fit if fit is not None else fit_outcome(prep, cfg)
     report = fit_report(fit)
+    if extended is not None:
+        report["extended"] = extended.to_dict()
     model = TLModel(fit.terms, fit.coef, meta={k: v for k, v in report.items()
-                                               if k not in ("terms", "coef", "scale_nT")})
+                                               if k not in ("terms", "coef", "scale_nT",
+                                                            "extended")}, extended=extended)
     return CompensationResult(None, model, report, fit.screening.screen,
                               pd.DataFrame(report["segments"]), fit=fit)

@@ -159,12 +159,16 @@ class TLModel:
         The ``|B|`` scale of the induced/eddy terms (50000 nT).
     meta : dict
         Provenance and fit report (band, segments, metrics...).
+    extended : ExtendedModel or None
+        The reference, extras and network of an extended fit
+        (:mod:`aeromag.compensation.extended`); saved under ``extended``.
     """
 
     terms: tuple[str, ...]
     coef: np.ndarray
     scale_nT: float = FIELD_SCALE_NT
     meta: dict[str, Any] = field(default_factory=dict)
+    extended: Any = None
 
     def __post_init__(self) -> None:
         self.terms = tuple(self.terms)
@@ -206,6 +210,8 @@ class TLModel:
                 "scale_nT": float(self.scale_nT),
             }
         )
+        if self.extended is not None:
+            d["extended"] = self.extended.to_dict()
         return d
 
     @classmethod
@@ -226,8 +232,13 @@ class TLModel:
             raise InputError(f"{source}: {len(terms)} terms but {len(coef)} coefficients")
         if not np.all(np.isfinite(coef)):
             raise InputError(f"{source}: the model has non-finite coefficients")
-        meta = {k: v for k, v in d.items() if k not in ("terms", "coef", "scale_nT")}
-        return cls(terms, coef, float(d.get("scale_nT", FIELD_SCALE_NT)), meta)
+        meta = {k: v for k, v in d.items() if k not in ("terms", "coef", "scale_nT", "extended")}
+        ext = None
+        if d.get("extended") is not None:
+            from .extended import ExtendedModel
+
+            ext = ExtendedModel.from_dict(d["extended"], len(terms), source)
+        return cls(terms, coef, float(d.get("scale_nT", FIELD_SCALE_NT)), meta, ext)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> TLModel:

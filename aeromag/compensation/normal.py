@@ -34,6 +34,7 @@ class SegmentStats:
 def segment_normal_equations(
     prep: Prepared, terms: tuple[str, ...], cfg: CompensationConfig,
     design: np.ndarray | None = None, *, batch_samples: int = 65_536,
+    extra: np.ndarray | None = None,
 ) -> SegmentStats:
     """Band-pass the design matrix and target per segment piece; normal equations per segment.
 
@@ -54,6 +55,10 @@ def segment_normal_equations(
         each filter-pool thread holds about 0.5 kB per sample of its batch (17 design rows
         and the filter's padded copies), 33 MB at the default; the values do not depend on
         it.
+    extra : ndarray, shape (e, n), optional
+        More regressors (``--extra``), one row per column, one value per sample of ``prep``
+        (finite on its valid samples); band-passed and trimmed like the terms and placed after
+        them, so the statistics have ``len(terms) + e`` columns.
 
     Returns
     -------
@@ -131,11 +136,26 @@ def segment_normal_equations(
     # np.add.at over all pieces adds them, and a piece's cross products do not depend on
     # which pieces share its filter batch.
     ids, inv = np.unique(p_seg, return_inverse=True)
-    gram = np.zeros((len(ids), k, k))
-    rhs = np.zeros((len(ids), k))
-    yy = np.zeros(len(ids))
     n_used = np.zeros(len(p_start), dtype=np.int64)
     build = rows if design is None else design
+    if extra is not None and len(extra):
+        ex = extra[:, v]
+        e = ex.shape[0]
+        base = build
+
+        def build(idx: np.ndarray) -> np.ndarray:  # terms, extras, target
+            r = base(idx) if callable(base) else base[:, idx]
+            out = np.empty((k + e + 1,) + idx.shape)
+            out[:k] = r[:k]
+            out[k:k + e] = ex[:, idx]
+            out[k + e] = r[k]
+            return out
+        k_all = k + e
+    else:
+        k_all = k
+    gram = np.zeros((len(ids), k_all, k_all))
+    rhs = np.zeros((len(ids), k_all))
+    yy = np.zeros(len(ids))
     cum = np.cumsum(p_stop - p_start)
     cuts = np.searchsorted(cum, np.arange(_BLOCK_SAMPLES, cum[-1] if len(cum) else 0,
                                           _BLOCK_SAMPLES), side="right")
@@ -144,9 +164,9 @@ def segment_normal_equations(
             continue
         M, n_used[a:b] = piece_normal_equations(build, t, p_start[a:b], p_stop[a:b], sos,
                                                 trim, batch_samples=batch_samples)
-        np.add.at(gram, inv[a:b], M[:, :k, :k])
-        np.add.at(rhs, inv[a:b], M[:, :k, k])
-        np.add.at(yy, inv[a:b], M[:, k, k])
+        np.add.at(gram, inv[a:b], M[:, :k_all, :k_all])
+        np.add.at(rhs, inv[a:b], M[:, :k_all, k_all])
+        np.add.at(yy, inv[a:b], M[:, k_all, k_all])
         del M
     if not n_used.any():
         nmin = min_filter_length(sos) / prep.fs
@@ -158,7 +178,7 @@ def segment_normal_equations(
     # Sum the pieces of each segment (a line flown twice, or cut by a gap, has several).
     counts = np.bincount(inv, weights=n_used).astype(np.int64)
     min_s = (1.0 / cfg.band_hz[0]) if cfg.min_segment_seconds is None else cfg.min_segment_seconds
-    nmin = max(int(np.ceil(min_s * prep.fs)), 3 * k)
+    nmin = max(int(np.ceil(min_s * prep.fs)), 3 * k_all)
     ok = counts >= nmin
     too_short = {int(i): int(c) for i, c in zip(ids[~ok], counts[~ok], strict=True)}
     # Segments with no valid sample at all are too short too.

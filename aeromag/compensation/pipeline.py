@@ -35,6 +35,7 @@ import pandas as pd
 
 from .apply import _apply, _check_plausible
 from .config import CompensationConfig, _resolve_gap, refuse_unused_options
+from .extended_fit import extended_inputs_for, extended_result
 from .fit import fit_result
 from .model import TLModel
 from .prepare import check_total_field, prepare
@@ -81,7 +82,8 @@ def compensate(
     cfg = _resolve_gap(cfg, df)
     prep = prepare(df, cfg, source=source)
     if model is None:
-        fit = fit_result(prep, cfg)
+        inputs = extended_inputs_for(df, cfg, prep.source)
+        fit = fit_result(prep, cfg) if inputs is None else extended_result(prep, cfg, inputs)
         kept_ids = np.array([s["id"] for s in fit.report["segments"] if s["kept"]], dtype=np.int64)
         data, metrics, comp_bp = _apply(df, fit.model, cfg, prep=prep, kept_segments=kept_ids,
                                         source=source, release_flux=True)
@@ -94,6 +96,11 @@ def compensate(
                                   fit=fit.fit, config=cfg, comp_bp_nT=comp_bp,
                                   segment=prep.segment, fs_hz=prep.fs)
     check_total_field(model, prep.mag_from_flux, prep.source)
+    if model.extended is not None:  # the columns the model needs, before anything is computed
+        from .extended import require_columns
+
+        require_columns(df, model.extended.extras, prep.source,
+                        "extras the model was fitted with: the log must log them too")
     data, metrics, comp_bp = _apply(df, model, cfg, prep=prep, kept_segments=None,
                                     source=source, release_flux=True)
     _check_plausible(data, metrics, prep, cfg, fitted=False)
@@ -101,6 +108,8 @@ def compensate(
     report = applied_report(AppliedRun(prep.source, model, cfg, prep.fs,
                                        dict(zip(seg_ids.tolist(), counts.tolist(), strict=True)),
                                        metrics))
+    if model.extended is not None:
+        report["extended"] = model.extended.to_dict()
     return CompensationResult(data, model, report, None, None, config=cfg, comp_bp_nT=comp_bp,
                               segment=prep.segment, fs_hz=prep.fs)
 

@@ -9,6 +9,7 @@ Writing the files is :func:`aeromag.workflows.simulate.write_simulation`.
 from __future__ import annotations
 
 from .calibration import simulate_calibration
+from .currents import add_current_interference, current_channels
 from .physics import (
     CAL_HEADINGS_DEG,
     DEFAULT_ORIGIN,
@@ -45,6 +46,8 @@ __all__ = [
     "MANOEUVRES",
     "TERM_NAMES",
     "EarthField",
+    "add_current_interference",
+    "current_channels",
     "band_noise",
     "body_field",
     "default_aircraft_coef",

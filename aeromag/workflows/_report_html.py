@@ -91,3 +91,46 @@ def _headline_words(check: dict[str, Any]) -> str:
             f" {verdict} with {src} (largest relative difference"
             f" {check.get('max_relative_difference', 0.0):.2g}, tolerance"
             f" {check.get('relative_tolerance', 0.0):g}; sample counts compared exactly).")
+
+
+def extended_html(ext: dict[str, Any] | None) -> str:
+    """The section of an extended fit (``--reference``, ``--extra``): held-out errors, extras.
+
+    Parameters
+    ----------
+    ext : dict or None
+        The report's ``extended`` block (:mod:`aeromag.compensation.extended`).
+
+    Returns
+    -------
+    str
+        HTML ("" without an extended fit).
+    """
+    if not ext:
+        return ""
+    held = ext.get("held_out") or {}
+    rows = [["target", f"mag − {ext['reference']} (full band, intercept)"
+             if ext.get("reference") else "band-passed mag (self-fit)"],
+            ["estimator", ext.get("estimator")], ["regularisation", ext.get("param")],
+            ["held-out residual std, with the extras (nT)", held.get("residual_std_nT")],
+            ["held-out residual std, TL terms only (nT)", held.get("tl_only_residual_std_nT")],
+            ["rows left out (no value in an extra or the reference)", ext.get("rows_left_out")]]
+    if ext.get("dropped_extras"):
+        rows.append(["extras dropped (constant or empty)", ", ".join(ext["dropped_extras"])])
+    mlp = ext.get("mlp_training")
+    if mlp:
+        rows.append(["network kept", mlp.get("kept")])
+        rows.append(["network / linear held-out std, last 20 % (nT)",
+                     f"{_fmt(mlp.get('mlp_std_nT'))} / {_fmt(mlp.get('linear_std_nT'))}"])
+    parts = ["<h2>Beyond the 16 terms</h2>", _table(rows, ["", "value"]),
+             f"<p class='small'>{html.escape(str(held.get('method', '')))}</p>"]
+    contrib = {c["name"]: c for c in held.get("contributions") or []}
+    extras = ext.get("extras") or []
+    if extras:
+        parts.append(_table(
+            [[e["name"], e["coef_nT_per_unit"], e["center"], e["scale"],
+              contrib.get(e["name"], {}).get("increase_nT"),
+              contrib.get(e["name"], {}).get("increase_pct")] for e in extras],
+            ["extra", "coefficient (nT per unit)", "mean", "std",
+             "held-out increase without it (nT)", "increase (%)"]))
+    return "".join(parts)

@@ -168,8 +168,10 @@ def batch_fingerprint(
         ``units``, ``format``, ``chunk_rows``, ``track``.
     """
     from .. import __version__
+    from ..compensation.config import CompensationConfig, config_dict
 
-    config = dataclasses.asdict(cfg) if dataclasses.is_dataclass(cfg) else repr(cfg)
+    config = (config_dict(cfg) if isinstance(cfg, CompensationConfig)
+              else dataclasses.asdict(cfg) if dataclasses.is_dataclass(cfg) else repr(cfg))
     parts: dict[str, Any] = {
         "aeromag": __version__,
         "config": config,

@@ -181,6 +181,9 @@ def apply_model_chunked(
         mpath = Path(model)
         model = TLModel.load(mpath)
         model.meta["path"] = str(mpath)
+    if model.extended is not None:  # extras, an intercept or a network: the whole-log path
+        raise InputError(f"{model.meta.get('path', 'the model')}: a model with --extra or "
+                         "--reference is applied to the whole log: drop --chunk-rows")
     colmap = dict(columns or {})
 
     drop = np.zeros(0, dtype=np.int64)  # exact duplicate rows, found in pass 1

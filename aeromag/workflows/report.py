@@ -37,7 +37,7 @@ from ..errors import AeromagError, InputError
 from ..io import atomic_path, json_path_for, write_json
 from ..plot import compensation as pc
 from ..qc import QCResult, compute_qc, kept_mask, segment_labels
-from ._report_html import _CSS, _fmt, _fom_rows, _headline_words, _table, _time
+from ._report_html import _CSS, _fmt, _fom_rows, _headline_words, _table, _time, extended_html
 from ._report_read import read_columns
 from .report_check import headline_from_data, headline_record
 
@@ -530,6 +530,7 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
         parts.append(_table(
             [[t, c] for t, c in zip(report["terms"], report["coef"], strict=True)],
             ["term", "coefficient (nT; eddy nT·s)"]))
+    parts.append(extended_html(report.get("extended")))
     # Per line.
     segs = metrics.get("segments") or []
     if segs:

@@ -9,6 +9,7 @@ from typing import Any
 from ..errors import InputError
 from ..io import write_csv, write_json
 from ..synthetic.calibration import simulate_calibration
+from ..synthetic.currents import add_current_interference
 from ..synthetic.faults import _check_positive
 from ..synthetic.survey import round_log, simulate_survey, survey_plan
 
@@ -22,6 +23,7 @@ def write_simulation(
     faults: float | None = 0.0,
     rate_hz: float = 10.0,
     small: bool = False,
+    currents: int = 0,
 ) -> dict[str, Path]:
     """Write a calibration flight, a survey, its plan and the ground truth.
 
@@ -39,6 +41,10 @@ def write_simulation(
         The shipped sample size: one calibration box of 20 s maneuvers (12 segments) and
         ten 160 m survey lines (enough segments for PCA screening); otherwise two boxes of
         25 s and eight 400 m lines.
+    currents : int
+        Current loops on the aircraft (:func:`aeromag.synthetic.add_current_interference`):
+        both flights get their field in ``mag`` and log ``cur_1``... and ``volt_bus``; the same
+        loops (field vectors) on both, other currents; 0: none.
 
     Returns
     -------
@@ -55,6 +61,11 @@ def write_simulation(
     sur_kw: dict[str, Any] = {"n_lines": 10, "line_length_m": 160.0} if small else {}
     cal, cal_truth = simulate_calibration(seed=seed, rate_hz=rate_hz, faults=faults, **cal_kw)
     sur, sur_truth = simulate_survey(seed=seed, rate_hz=rate_hz, faults=faults, **sur_kw)
+    if currents:
+        cal, cal_truth = add_current_interference(cal, cal_truth, seed=seed, n_loops=currents)
+        vectors = [loop["field_nT_per_A"] for loop in cal_truth["current_loops"]]
+        sur, sur_truth = add_current_interference(sur, sur_truth, seed=seed + 1,
+                                                  n_loops=currents, field_nT_per_A=vectors)
     plan = survey_plan(sur_truth).round({"lat": 9, "lon": 9, "alt": 3})
     out.mkdir(parents=True, exist_ok=True)
     paths = {
