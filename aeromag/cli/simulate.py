@@ -66,6 +66,11 @@ def simulate(
         "--online", help="Also write the logs of the online estimators: compass.csv (the "
         "compass-calibration study's manoeuvre at Taiyuan, interference switched at 15 s) and "
         "online_tl.csv (a survey whose TL coefficients jump), with *_truth.json.")] = False,
+    survey: Annotated[bool, typer.Option(
+        "--survey", help="Also write a levelling survey for 'aeromag level': level_survey.csv "
+        "(east-west lines and north-south ties, lagged magnetometer, diurnal, IGRF, line "
+        "errors; truth_anomaly, truth_diurnal, truth_igrf, truth_line_error), level_base.csv "
+        "(its base station, time,mag) and level_truth.json.")] = False,
     verbose: Annotated[bool, typer.Option("-v", "--verbose", help="Log progress details.")]
     = False,
 ) -> None:
@@ -84,5 +89,9 @@ def simulate(
             from ..workflows.simulate_online import write_online_simulation
 
             paths.update(write_online_simulation(output, seed=seed, small=small))
+        if survey:
+            from ..workflows.simulate_level import write_level_simulation
+
+            paths.update(write_level_simulation(output, seed=seed, small=small))
     for path in paths.values():
         typer.echo(str(path))
