@@ -108,6 +108,11 @@ _API: dict[str, str] = {
     "navigate": "aeromag.nav",
     "navigate_file": "aeromag.workflows.navigate",
     "simulate_quadrotor": "aeromag.synthetic.quadrotor",
+    # the survey chain: levelling (lag, diurnal, IGRF, tie lines, micro-levelling)
+    "level": "aeromag.workflows.level",
+    "level_file": "aeromag.workflows.level",
+    "LevelResult": "aeromag.survey.chain",
+    "simulate_level_survey": "aeromag.synthetic.level_survey",
 }
 
 __all__ = ["AeromagError", "FitError", "InputError", "__version__", *sorted(_API)]

@@ -111,6 +111,7 @@ class LevelResult:
             "line_spacing_m": _f(self.geometry.line_spacing_m),
             "levelling": ({"method": lev.method, "passes": [p.to_dict() for p in lev.passes],
                            "n_unlevelled_pieces": lev.n_unlevelled,
+                           "n_networks": lev.n_networks,
                            "n_rejected": lev.passes[-1].n_rejected if lev.passes else 0}
                           if lev is not None else {"method": "none"}),
             "decorrugation": self.decorrugation.to_dict() if self.decorrugation else None,
@@ -379,7 +380,9 @@ def level_survey(df: pd.DataFrame, *, value: str | None = None, base: BaseRecord
         cx = find_crossings(geom, tmi, h)
     report(5, steps, "levelling")
     if method != "none":
-        lres = level_network(cx, geom.n_pieces, geom.piece_is_tie, method=method, source=src)
+        counts = np.bincount(geom.piece[geom.piece >= 0], minlength=geom.n_pieces)
+        lres = level_network(cx, geom.n_pieces, geom.piece_is_tie, method=method,
+                             piece_samples=counts, source=src)
         out["tmi_lev"] = tmi + lres.correction(geom.piece, geom.along_m)
     else:
         out["tmi_lev"] = tmi

@@ -2,10 +2,10 @@
 
 After Minty (1991): the corrugation is what a grid of the levelled data holds at short
 wavelengths *across* the lines (a high-pass at a few line spacings) and long wavelengths
-*along* them (a low-pass).  Here the grid is the natural one of line data: one row per line
-piece (sorted by its across-line position, so the row step is the line spacing), columns at
-half a line spacing along the dominant line direction, each row interpolated from its own
-samples only.  Both directional filters are Gaussian (normalised convolution, so rows that
+*along* them (a low-pass).  Here the grid has cells of half a line spacing in the lines' own frame
+(along and across the dominant line direction), filled by linear (Delaunay) interpolation of
+the lines' straight parts at their true positions; the ties are left out (they are the
+datum).  Both directional filters are Gaussian (normalised convolution, so rows that
 do not reach the whole survey are filtered over their own extent); the filtered grid is
 sampled back onto each line's samples and subtracted.
 
@@ -20,6 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.interpolate import RegularGridInterpolator, griddata
 from scipy.ndimage import gaussian_filter1d
 
 from .geometry import SurveyGeometry
@@ -106,7 +107,7 @@ def decorrugate(geom: SurveyGeometry, value: np.ndarray, *, limit_nT: float,
     th = np.deg2rad(float(np.median(geom.piece_direction_deg[lines])))
     u = geom.x_m * np.sin(th) + geom.y_m * np.cos(th)
     v = geom.x_m * np.cos(th) - geom.y_m * np.sin(th)
-    sel = (geom.piece >= 0) & ~geom.is_tie & np.isfinite(value)
+    sel = (geom.piece >= 0) & ~geom.is_tie & geom.straight & np.isfinite(value)
     idx = np.flatnonzero(sel)
     order = np.argsort(geom.piece[idx], kind="stable")
     idx = idx[order]
@@ -114,30 +115,29 @@ def decorrugate(geom: SurveyGeometry, value: np.ndarray, *, limit_nT: float,
     groups = [g for g in groups if g.size >= 2]
     if len(groups) < 3:
         return DecorrugationResult(corr, limit_nT, np.nan, np.nan, {}, 0.0)
-    du = spacing / 2.0
-    u0, u1 = float(u[idx].min()), float(u[idx].max())
-    nodes = np.arange(u0, u1 + du, du)
-    across = np.array([np.mean(v[g]) for g in groups])
-    rows = np.argsort(across)
-    grid = np.full((len(groups), nodes.size), np.nan)
-    for r, gi in enumerate(rows):
-        g = groups[gi]
-        o = np.argsort(u[g])
-        ug, vg = u[g][o], value[g][o]
-        inside = (nodes >= ug[0]) & (nodes <= ug[-1])
-        grid[r, inside] = np.interp(nodes[inside], ug, vg)
-    sig_across = _SIGMA_PER_WAVELENGTH * across_lines  # rows
-    sig_along = _SIGMA_PER_WAVELENGTH * along_lines * spacing / du  # columns
+    # The grid: cells of half a line spacing in the lines' frame (u along, v across), filled
+    # by linear interpolation (Delaunay) from the samples at their true positions (a line's
+    # wander across its nominal track is geology seen elsewhere, not corrugation), thinned
+    # along the lines to about a quarter cell.
+    cell = spacing / 2.0
+    step = np.hypot(np.diff(geom.x_m[idx]), np.diff(geom.y_m[idx]))
+    med = float(np.median(step[np.isfinite(step) & (step > 0)])) if step.size else cell
+    keep = np.concatenate([g[:: max(1, int(cell / 4.0 / max(med, 1e-6)))] for g in groups])
+    u_nodes = np.arange(float(u[idx].min()), float(u[idx].max()) + cell, cell)
+    v_nodes = np.arange(float(v[idx].min()), float(v[idx].max()) + cell, cell)
+    vv, uu = np.meshgrid(v_nodes, u_nodes, indexing="ij")
+    grid = griddata(np.column_stack([v[keep], u[keep]]), value[keep], (vv, uu),
+                    method="linear")
+    sig_across = _SIGMA_PER_WAVELENGTH * across_lines * spacing / cell  # rows (v)
+    sig_along = _SIGMA_PER_WAVELENGTH * along_lines * spacing / cell  # columns (u)
     high = grid - _smooth(grid, sig_across, axis=0)
-    corrug = _smooth(high, sig_along, axis=1)
+    corrug = np.nan_to_num(_smooth(high, sig_along, axis=1))
+    at = RegularGridInterpolator((v_nodes, u_nodes), corrug, bounds_error=False,
+                                 fill_value=0.0)
     removed: dict[float, float] = {}
     n_clip = n_tot = 0
-    for r, gi in enumerate(rows):
-        g = groups[gi]
-        ok = np.isfinite(corrug[r])
-        if ok.sum() < 2:
-            continue
-        c = np.interp(u[g], nodes[ok], corrug[r, ok])
+    for g in groups:
+        c = at(np.column_stack([v[g], u[g]]))
         n_clip += int(np.count_nonzero(np.abs(c) > limit_nT))
         n_tot += c.size
         c = np.clip(c, -limit_nT, limit_nT)

@@ -70,7 +70,7 @@ def parse_date(date: str) -> _dt.date:
     try:
         d = _dt.datetime.strptime(str(date).strip(), "%Y-%m-%d").date()
     except ValueError:
-        raise InputError(f"--date {date!r}: not a date; write YYYY-MM-DD, e.g. --date "
+        raise InputError(f"--date {date}: not a date; write YYYY-MM-DD, e.g. --date "
                          "2014-11-02") from None
     if not (IGRF_YEARS[0] <= d.year < IGRF_YEARS[1]):
         raise InputError(f"--date {date}: outside IGRF-14 ({IGRF_YEARS[0]:.0f}-"

@@ -13,8 +13,11 @@ all knot values are solved at once (Yarger et al., 1978; GMT's x2sys_solve), wei
 * robust: iteratively reweighted (Huber passes, then Tukey bisquare passes, scale from the
   median absolute deviation of the weighted residuals); a crossing given no weight by the
   bisquare counts as rejected;
-* one datum fixed: the weighted mean of the ties' corrections is zero (the ties are the datum),
-  and a small damping of the slopes (differences of adjacent knots) removes the tilt a
+* one datum fixed per connected network (pieces linked through crossings; two blocks flown
+  with their own ties are two networks): the mean correction over the network's samples is
+  zero (each piece weighted by its samples, its correction by the mean of its knots), so the
+  survey keeps its level and only the relative levels of lines and ties change; a small
+  damping of the slopes (differences of adjacent knots) removes the tilt a
   crossing network cannot see (all lines tilted alike, ties shifted to match), choosing the
   least-tilted solution.
 
@@ -31,6 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import spsolve
 
 from ..errors import InputError
@@ -110,6 +114,8 @@ class LevellingResult:
         The passes.
     n_unlevelled : int
         Pieces without a crossing (no correction).
+    n_networks : int
+        Connected networks of pieces (each with its own datum).
     """
 
     method: str
@@ -119,6 +125,7 @@ class LevellingResult:
     weight: np.ndarray
     passes: list[LevellingPass] = field(default_factory=list)
     n_unlevelled: int = 0
+    n_networks: int = 1
 
     def correction(self, piece: np.ndarray, along_m: np.ndarray) -> np.ndarray:
         """The correction at samples (0 where the piece was not levelled).
@@ -198,7 +205,9 @@ def level_network(cx: Crossings, n_pieces: int, is_tie: np.ndarray, *, method: s
                   sigma0_nT: float = 1.0, position_m: float = 5.0, trend_min: int = 3,
                   knot_m: float = 5000.0, tie_trend: bool = False, passes: int = 6,
                   huber_k: float = 1.5, bisquare_c: float = 4.685, damping: float = 1e-3,
-                  source: str = "<survey>") -> LevellingResult:
+                  piece_samples: np.ndarray | None = None, trend_prior_nT: float = 20.0,
+                  source: str = "<survey>"
+                  ) -> LevellingResult:
     """Solve the corrections of all pieces from the crossings' misties.
 
     Parameters
@@ -227,6 +236,12 @@ def level_network(cx: Crossings, n_pieces: int, is_tie: np.ndarray, *, method: s
         Robust tuning constants (in robust standard deviations).
     damping : float
         Weight of the slope damping relative to the median crossing weight.
+    piece_samples : ndarray, optional
+        Samples per piece: the datum's weights (default: equal).
+    trend_prior_nT : float
+        Prior std of the change of a correction between adjacent knots (a line's
+        end-to-end trend) [nT]: a trend is fitted as far as the crossings' noise allows,
+        never more (a line with three crossings on steep gradients keeps a small trend).
     source : str
         Name for messages.
 
@@ -267,14 +282,28 @@ def level_network(cx: Crossings, n_pieces: int, is_tie: np.ndarray, *, method: s
     g = np.nan_to_num(cx.gradient_nT_m)
     dh = np.nan_to_num(cx.dh_m)
     w0 = 1.0 / (sigma0_nT ** 2 + (g * position_m) ** 2 + (g * dh) ** 2)
-    # Constraints: datum (weighted mean of the tie knots = 0), slope damping, tiny ridge.
-    tie_cols = np.concatenate([np.arange(offs[k], offs[k + 1]) for k in range(n_pieces)
-                               if is_tie[k] and knots[k].size] or [np.array([], dtype=int)])
-    if tie_cols.size == 0:  # no tie got a crossing (cannot happen with crossings) - lines
-        tie_cols = np.arange(n_par)
+    # Constraints: one datum per connected network (sample-weighted mean correction = 0),
+    # slope damping, a tiny ridge.
+    link = sp.coo_matrix((np.ones(m), (cx.line_piece, cx.tie_piece)), shape=(n_pieces,) * 2)
+    n_net, net = connected_components(link, directed=False)
+    wpiece = (np.ones(n_pieces) if piece_samples is None
+              else np.asarray(piece_samples, dtype=float))
+    c_r, c_c, c_v = [], [], []
+    used = np.zeros(n_net, dtype=bool)
+    for k in range(n_pieces):
+        if knots[k].size:
+            used[net[k]] = True
+    net_row = np.cumsum(used) - 1
+    tot = np.bincount(net, weights=wpiece * np.array([k.size > 0 for k in knots]),
+                      minlength=n_net)
+    for k in range(n_pieces):
+        nk = knots[k].size
+        if nk:
+            c_r += [net_row[net[k]]] * nk
+            c_c += list(range(offs[k], offs[k + 1]))
+            c_v += [wpiece[k] / tot[net[k]] / nk] * nk
     wref = float(np.median(w0))
-    C_rows = [sp.csr_matrix((np.full(tie_cols.size, 1.0 / tie_cols.size),
-                             (np.zeros(tie_cols.size, dtype=int), tie_cols)), shape=(1, n_par))]
+    C_rows = [sp.csr_matrix((c_v, (c_r, c_c)), shape=(int(used.sum()), n_par))]
     d_r, d_c, d_v = [], [], []
     nr = 0
     for k in range(n_pieces):
@@ -286,8 +315,9 @@ def level_network(cx: Crossings, n_pieces: int, is_tie: np.ndarray, *, method: s
             nr += 1
     D = sp.csr_matrix((d_v, (d_r, d_c)), shape=(nr, n_par))
     C = sp.vstack(C_rows)
-    big = 1e6 * wref * m
-    reg = big * (C.T @ C) + damping * wref * (D.T @ D) + 1e-9 * wref * sp.identity(n_par)
+    CC = C.T @ C
+    DD = D.T @ D
+    ridge = sp.identity(n_par)
     weights = w0.copy()
     res_passes: list[LevellingPass] = []
     robust_w = np.ones(m)
@@ -307,7 +337,12 @@ def level_network(cx: Crossings, n_pieces: int, is_tie: np.ndarray, *, method: s
             else:
                 kind = "huber"
                 robust_w = np.where(u <= huber_k, 1.0, huber_k / np.maximum(u, 1e-12))
-            weights = w0 * robust_w
+            # Weights in 1/nT^2: the crossings' noise scale is the robust std of the
+            # normalised residuals, so the prior on the slopes keeps its meaning in nT.
+            weights = w0 * robust_w / max(scale, 1e-6) ** 2
+        wmed = float(np.median(weights[weights > 0])) if np.any(weights > 0) else wref
+        reg = (1e6 * wmed * m) * CC + (damping * wmed + 1.0 / trend_prior_nT ** 2) * DD \
+            + 1e-9 * wmed * ridge
         W = sp.diags(weights)
         N = (A.T @ W @ A + reg).tocsc()
         x = spsolve(N, A.T @ (weights * b))
@@ -319,4 +354,5 @@ def level_network(cx: Crossings, n_pieces: int, is_tie: np.ndarray, *, method: s
     values = [x[offs[k]:offs[k + 1]] for k in range(n_pieces)]
     n_unlev = sum(1 for k in knots if k.size == 0)
     return LevellingResult(method, knots, values, cx.mistie_nT + A @ x,
-                           weights / max(float(weights.max()), 1e-300), res_passes, n_unlev)
+                           weights / max(float(weights.max()), 1e-300), res_passes, n_unlev,
+                           int(used.sum()))
