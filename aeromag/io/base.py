@@ -78,7 +78,7 @@ def read_iaga2002(path: str | os.PathLike[str]) -> pd.DataFrame:
     out = pd.DataFrame({"time": (when - pd.Timestamp("1970-01-01", tz="UTC")).dt.total_seconds()
                         .to_numpy()})
     for name, e in zip(names[3:], elems, strict=True):
-        v = pd.to_numeric(df[name], errors="coerce").to_numpy(dtype=float)
+        v = pd.to_numeric(df[name], errors="coerce").to_numpy(dtype=float, copy=True)
         v[np.isin(v, _MISSING) | (v >= 88880.0)] = np.nan
         out[e] = v
     f_src = "F"

@@ -1,12 +1,12 @@
 """Diurnal correction from a base-station record.
 
 The base record (read by :mod:`aeromag.io.base`: CSV ``time,mag`` or IAGA-2002) is cleaned of
-spikes (a running median and its median absolute deviation: a sample more than ``spike_mad``
-robust deviations and ``spike_min_nT`` from the running median is a spike, removed and
-reported), interpolated linearly in UTC to each survey sample, and referred to a datum (the
-base's mean over the survey, or a given value).  A sample outside the base's coverage (before
-its first, after its last sample, or inside a gap longer than ``max_gap_s``) is never
-extrapolated: it is an error, or, when allowed, a warning with that sample's diurnal NaN.
+spikes (a sample more than ``spike_mad`` local robust deviations and ``spike_min_nT`` from
+the running median is a spike, removed and reported; see :func:`clean_base`), interpolated
+linearly in UTC to each survey sample, and referred to a datum (the base's mean over the
+survey, or a given value).  A sample outside the base's coverage (before its first, after
+its last sample, or inside a gap longer than ``max_gap_s``) is never extrapolated: it is an
+error, or, when allowed, a warning with that sample's diurnal NaN.
 
 A survey not covered by its base record is often a base in another time base: local time
 instead of UTC, or a day off.  When shifting the survey by whole hours (up to 14) or one day
@@ -90,9 +90,16 @@ class DiurnalResult:
                 if np.isfinite(self.diurnal_nT).any() else None}
 
 
-def clean_base(base: BaseRecord, *, window: int = 11, spike_mad: float = 6.0,
-               spike_min_nT: float = 2.0) -> tuple[BaseRecord, np.ndarray]:
-    """Remove spikes from a base record (robust: running median and MAD).
+def clean_base(base: BaseRecord, *, window: int = 5, scale_window: int = 15,
+               spike_mad: float = 6.0, spike_min_nT: float = 2.0
+               ) -> tuple[BaseRecord, np.ndarray]:
+    """Remove spikes from a base record (robust: running median and a local MAD).
+
+    A spike (a car, a person with keys) departs from the running median of ``window``
+    samples by more than ``spike_mad`` local robust deviations (1.4826 x the running median
+    of the sample-to-sample steps over ``scale_window`` samples) and by ``spike_min_nT``.  The
+    local scale grows during a magnetically active spell, so real pulsations (smooth swings
+    of several nT over minutes, as in Boulder's 2 November 2014) stay.
 
     Parameters
     ----------
@@ -100,8 +107,10 @@ def clean_base(base: BaseRecord, *, window: int = 11, spike_mad: float = 6.0,
         The record.
     window : int
         Running-median window, samples (odd).
+    scale_window : int
+        Window of the local robust scale, samples (odd).
     spike_mad : float
-        Threshold in robust standard deviations (1.4826 MAD of the residual).
+        Threshold in local robust standard deviations.
     spike_min_nT : float
         Smallest departure that counts as a spike [nT].
 
@@ -115,12 +124,12 @@ def clean_base(base: BaseRecord, *, window: int = 11, spike_mad: float = 6.0,
     v = np.asarray(base.mag_nT, dtype=np.float64)
     ok = np.isfinite(v)
     spikes = np.zeros(v.size, dtype=bool)
-    if ok.sum() >= window:
+    if ok.sum() >= scale_window:
         vv = v[ok]
-        med = median_filter(vv, size=window, mode="nearest")
-        r = vv - med
-        mad = 1.4826 * np.median(np.abs(r - np.median(r)))
-        thr = max(spike_mad * mad, spike_min_nT)
+        r = vv - median_filter(vv, size=window, mode="nearest")
+        step = np.abs(np.diff(vv, prepend=vv[0]))
+        scale = 1.4826 * median_filter(step, size=scale_window, mode="nearest")
+        thr = np.maximum(spike_mad * scale, spike_min_nT)
         spikes[np.flatnonzero(ok)[np.abs(r) > thr]] = True
     out = v.copy()
     out[spikes] = np.nan
@@ -139,19 +148,18 @@ def _covered(t: np.ndarray, bt: np.ndarray, max_gap_s: float) -> np.ndarray:
 def _time_base_hint(t: np.ndarray, bt: np.ndarray, max_gap_s: float) -> str:
     """Say what shift would make the base cover the survey (local time, a day off)."""
     frac0 = _covered(t, bt, max_gap_s).mean()
-    best = (frac0, 0.0)
-    for shift_h in [24, -24, *range(-14, 15)]:
-        if shift_h == 0:
-            continue
-        f = _covered(t + shift_h * 3600.0, bt, max_gap_s).mean()
-        if f > best[0] + 0.5:
-            best = (f, float(shift_h))
-    if best[1] == 0:
+    cover = {h: _covered(t + h * 3600.0, bt, max_gap_s).mean()
+             for h in [24, -24, *range(-14, 15)] if h != 0}
+    good = [h for h, f in cover.items() if f > frac0 + 0.5 and f >= max(cover.values()) - 1e-9]
+    if not good:
         return ""
-    h = best[1]
-    what = "a day off (wrong date?)" if abs(h) == 24 else "in local time instead of UTC?"
-    return (f"; shifted by {h:+g} h the survey would fall inside it: is the base or the survey "
-            f"{what}")
+    hours = sorted((h for h in good if abs(h) < 24), key=lambda h: (abs(h), h))
+    said = []
+    if hours:
+        said.append(f"by {hours[0]:+d} h (local time instead of UTC?)")
+    said += [f"by {h:+d} h (a day off: wrong date?)" for h in good if abs(h) == 24]
+    return (f"; shifted {' or '.join(said)} the survey would fall inside it: check the time "
+            "base of the base record and of the survey")
 
 
 def diurnal_correction(time_s: np.ndarray, base: BaseRecord, *, datum_nT: float | None = None,
