@@ -127,16 +127,21 @@ class LevelResult:
         lev, dec = self.levelling, self.decorrugation
         out: list[dict[str, Any]] = []
         corr = self.data["tmi_lev"].to_numpy() - self.data["tmi"].to_numpy()
+        on = g.piece >= 0
+        num_of = pd.Series(g.piece_line[g.piece[on]])
+        c_on = pd.Series(corr[on])
+        n_all = num_of.value_counts()
+        stats = c_on.groupby(num_of.to_numpy()).agg(["mean", "std", "count"])
         for num in np.unique(g.piece_line):
             ks = np.flatnonzero(g.piece_line == num)
-            sel = np.isin(g.piece, ks)
-            c = corr[sel]
-            c = c[np.isfinite(c)]
+            st = stats.loc[num] if num in stats.index else None
+            ok = st is not None and st["count"] > 0
             row: dict[str, Any] = {
                 "line": _num(num), "type": "tie" if g.piece_is_tie[ks[0]] else "line",
-                "n": int(sel.sum()), "n_pieces": int(ks.size),
-                "correction_mean_nT": float(c.mean()) if c.size else None,
-                "correction_std_nT": float(c.std()) if c.size else None,
+                "n": int(n_all.get(num, 0)), "n_pieces": int(ks.size),
+                "correction_mean_nT": float(st["mean"]) if ok else None,
+                "correction_std_nT": float(np.nan_to_num(st["std"] * np.sqrt(
+                    (st["count"] - 1) / st["count"]))) if ok else None,
             }
             if lev is not None:
                 row["pieces"] = [{"knots_m": lev.knots_m[k].tolist(),

@@ -2,12 +2,12 @@
 
 After Minty (1991): the corrugation is what a grid of the levelled data holds at short
 wavelengths *across* the lines (a high-pass at a few line spacings) and long wavelengths
-*along* them (a low-pass).  Here the grid has cells of half a line spacing in the lines' own frame
-(along and across the dominant line direction), filled by linear (Delaunay) interpolation of
-the lines' straight parts at their true positions; the ties are left out (they are the
-datum).  Both directional filters are Gaussian (normalised convolution, so rows that
-do not reach the whole survey are filtered over their own extent); the filtered grid is
-sampled back onto each line's samples and subtracted.
+*along* them (a low-pass).  Here the grid has cells of half a line spacing in the lines' own
+frame (along and across the dominant line direction), filled from the lines' straight parts
+at their true positions (each line resampled along, then each column interpolated across
+the lines); the ties are left out (they are the datum).  Both directional filters are
+Gaussian (normalised convolution, so the survey's edges and gaps are filtered over the data
+there is); the filtered grid is sampled back onto each line's samples and subtracted.
 
 Bounded so that it cannot remove geology: a correction is clipped to ``limit_nT`` (by
 default three times the robust mistie std left by the tie-line levelling: the size of level
@@ -20,7 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import RegularGridInterpolator, griddata
+from scipy.interpolate import RegularGridInterpolator
 from scipy.ndimage import gaussian_filter1d
 
 from .geometry import SurveyGeometry
@@ -115,19 +115,33 @@ def decorrugate(geom: SurveyGeometry, value: np.ndarray, *, limit_nT: float,
     groups = [g for g in groups if g.size >= 2]
     if len(groups) < 3:
         return DecorrugationResult(corr, limit_nT, np.nan, np.nan, {}, 0.0)
-    # The grid: cells of half a line spacing in the lines' frame (u along, v across), filled
-    # by linear interpolation (Delaunay) from the samples at their true positions (a line's
-    # wander across its nominal track is geology seen elsewhere, not corrugation), thinned
-    # along the lines to about a quarter cell.
+    # The grid: cells of half a line spacing in the lines' frame (u along, v across).  Each
+    # line is resampled at the u nodes (its value and its true across position v: a line's
+    # wander off its nominal track is geology seen elsewhere, not corrugation), then each
+    # column is interpolated linearly across the lines onto the v nodes (no bridging of a
+    # gap wider than two line spacings).
     cell = spacing / 2.0
-    step = np.hypot(np.diff(geom.x_m[idx]), np.diff(geom.y_m[idx]))
-    med = float(np.median(step[np.isfinite(step) & (step > 0)])) if step.size else cell
-    keep = np.concatenate([g[:: max(1, int(cell / 4.0 / max(med, 1e-6)))] for g in groups])
     u_nodes = np.arange(float(u[idx].min()), float(u[idx].max()) + cell, cell)
     v_nodes = np.arange(float(v[idx].min()), float(v[idx].max()) + cell, cell)
-    vv, uu = np.meshgrid(v_nodes, u_nodes, indexing="ij")
-    grid = griddata(np.column_stack([v[keep], u[keep]]), value[keep], (vv, uu),
-                    method="linear")
+    lv = np.full((len(groups), u_nodes.size), np.nan)
+    lval = np.full((len(groups), u_nodes.size), np.nan)
+    for r, g in enumerate(groups):
+        o = np.argsort(u[g])
+        ug = u[g][o]
+        inside = (u_nodes >= ug[0]) & (u_nodes <= ug[-1])
+        lv[r, inside] = np.interp(u_nodes[inside], ug, v[g][o])
+        lval[r, inside] = np.interp(u_nodes[inside], ug, value[g][o])
+    grid = np.full((v_nodes.size, u_nodes.size), np.nan)
+    for c in range(u_nodes.size):
+        ok = np.isfinite(lv[:, c])
+        if ok.sum() < 2:
+            continue
+        o = np.argsort(lv[ok, c])
+        vs, zs = lv[ok, c][o], lval[ok, c][o]
+        col = np.interp(v_nodes, vs, zs, left=np.nan, right=np.nan)
+        j = np.clip(np.searchsorted(vs, v_nodes), 1, vs.size - 1)
+        col[(vs[j] - vs[j - 1]) > 2.0 * spacing] = np.nan
+        grid[:, c] = col
     sig_across = _SIGMA_PER_WAVELENGTH * across_lines * spacing / cell  # rows (v)
     sig_along = _SIGMA_PER_WAVELENGTH * along_lines * spacing / cell  # columns (u)
     high = grid - _smooth(grid, sig_across, axis=0)
