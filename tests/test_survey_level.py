@@ -348,3 +348,19 @@ def test_level_as_a_subprocess(sim_files, tmp_path):
     assert r.returncode == 0, r.stderr
     assert "no diurnal correction" in r.stderr
     assert json.loads(out.with_suffix(".json").read_text())["igrf"] is None
+
+
+def test_shipped_level_samples_match_the_recipe(tmp_path):
+    from pathlib import Path
+
+    from aeromag.workflows.simulate_level import write_level_simulation
+
+    samples = Path(__file__).resolve().parents[1] / "data_samples"
+    if not (samples / "level_survey.csv").exists():
+        pytest.skip("data_samples not generated (cli/make_samples.sh)")
+    assert "--survey" in (samples.parent / "cli" / "make_samples.sh").read_text()
+    write_level_simulation(tmp_path, seed=1, small=True)
+    for name in ("level_survey.csv", "level_base.csv"):
+        assert (samples / name).stat().st_size < 500_000
+        pd.testing.assert_frame_equal(pd.read_csv(samples / name), pd.read_csv(tmp_path / name),
+                                      check_exact=False, atol=2e-3, rtol=0)

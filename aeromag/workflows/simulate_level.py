@@ -39,6 +39,11 @@ def write_level_simulation(out_dir: str | os.PathLike[str], *, seed: int = 0,
     out = sim_folder(out_dir)
     kw = {"n_lines": 8, "line_length_m": 2000.0, "n_ties": 3, "rate_hz": 5.0} if small else {}
     survey, base, truth = simulate_level_survey(seed, **kw)
+    # Written to the sensors' resolution: 1e-7 deg (1 cm), 1 mm, 1 pT; the base to 0.01 nT.
+    survey = survey.round({"time": 3, "lat": 7, "lon": 7, "alt": 3, "mag": 3,
+                           "truth_anomaly": 3, "truth_diurnal": 3, "truth_igrf": 3,
+                           "truth_line_error": 3})
+    base = base.round({"time": 3, "mag": 2})
     return write_sim_set(out, {"level_survey": ("level_survey.csv", survey),
                                "level_base": ("level_base.csv", base),
                                "level_truth": ("level_truth.json", truth)})
