@@ -7,7 +7,7 @@ Figures (every second sample of the survey; full survey in benchmarks/bench_leve
 re-levelling the archive, the robust crossover std goes 14.4 -> 10.3 nT (the archive's tie
 lines sit about 23-29 nT above its lines at the crossings: its own datum); with per-line
 shifts (sigma 25 nT) and end-to-end trends (sigma 15 nT) added to the flight lines (ties:
-shifts), the levelled lines differ from the archive's by 0.41-0.42x the added error (rms,
+shifts), the levelled lines differ from the archive's by 0.38-0.41x the added error (rms,
 datum constant removed).
 """
 
