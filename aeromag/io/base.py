@@ -5,7 +5,9 @@ IAGA-2002 (INTERMAGNET's exchange format): header lines ending in ``|``, then a 
 be HDZF, XYZF, XYZG...), then one row per sample; 99999 (missing) and 88888 (not recorded)
 are empty values.  The total field is the ``F`` column; a file without one (or with it empty)
 gives F from the vector components (sqrt(X^2 + Y^2 + Z^2), or sqrt(H^2 + Z^2); D is an angle).
-Times are UTC.  The rows are read by pandas; only the header is looked at here.
+Times are UTC.  The rows are read by pandas; only the header is looked at here.  IAGA-2002
+is a format of the one registry (:mod:`aeromag.io.formats`, extensions ``.min``, ``.sec``),
+so :func:`aeromag.io.read_log` reads it like any log.
 """
 
 from __future__ import annotations
@@ -18,8 +20,8 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
+from .formats import Format, register
 from .log import read_log
-from .outputs import register_input
 
 __all__ = ["IAGA_EXTENSIONS", "read_base", "read_iaga2002"]
 
@@ -47,7 +49,6 @@ def read_iaga2002(path: str | os.PathLike[str]) -> pd.DataFrame:
         No column line, no usable total field, or an unreadable row.
     """
     p = Path(path)
-    register_input(p, "base record")
     names = None
     skip = 0
     try:
@@ -122,11 +123,7 @@ def read_base(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
         paths = [paths]
     ts, vs = [], []
     for path in paths:
-        p = Path(path)
-        if p.suffix.lower() in IAGA_EXTENSIONS:
-            df = read_iaga2002(p)
-        else:
-            df = read_log(p, required=("time", "mag"))
+        df = read_log(Path(path), required=("time", "mag"))
         ts.append(df["time"].to_numpy(dtype=float))
         vs.append(df["mag"].to_numpy(dtype=float))
     t = np.concatenate(ts)
@@ -135,3 +132,6 @@ def read_base(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
     t, v = t[order], v[order]
     keep = np.r_[True, np.diff(t) > 0]
     return t[keep], v[keep], ", ".join(str(p) for p in paths)
+
+
+register(Format("iaga2002", IAGA_EXTENSIONS, read=read_iaga2002))
