@@ -8,7 +8,6 @@ itself inline in Jupyter.
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -19,7 +18,7 @@ from ..survey.chain import LevelResult
 from ..survey.levelling import robust_std
 from ._style import new_figure, save_figure
 
-__all__ = ["plot_level_qc", "plot_mistie_histogram", "plot_stacked_profiles"]
+__all__ = ["plot_mistie_histogram", "plot_stacked_profiles"]
 
 _PathLike = str | os.PathLike[str]
 
@@ -129,30 +128,3 @@ def plot_stacked_profiles(result: LevelResult, *, column: str = "tmi_lev", n_lin
     ax.set_title(f"Stacked profiles: {column} (blue) over tmi (grey)")
     ax.grid(alpha=0.3)
     return _done(fig, path)
-
-
-def plot_level_qc(result: LevelResult, out_dir: _PathLike) -> list[Path]:
-    """Write the levelling QC figures into a folder.
-
-    Parameters
-    ----------
-    result : LevelResult
-        A levelled survey.
-    out_dir : path-like
-        Folder (created).
-
-    Returns
-    -------
-    list of Path
-        ``misties.png`` (when there are crossings) and ``profiles.png``.
-    """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    written = []
-    if result.crossings is not None and result.crossings.n:
-        plot_mistie_histogram(result, path=out / "misties.png")
-        written.append(out / "misties.png")
-    col = "tmi_mlev" if "tmi_mlev" in result.data.columns else "tmi_lev"
-    plot_stacked_profiles(result, column=col, path=out / "profiles.png")
-    written.append(out / "profiles.png")
-    return written
