@@ -364,3 +364,42 @@ def test_shipped_level_samples_match_the_recipe(tmp_path):
         assert (samples / name).stat().st_size < 500_000
         pd.testing.assert_frame_equal(pd.read_csv(samples / name), pd.read_csv(tmp_path / name),
                                       check_exact=False, atol=2e-3, rtol=0)
+
+
+@settings(max_examples=20, deadline=None)
+@given(values=st.lists(st.one_of(st.floats(20000, 70000), st.just(99999.0), st.just(88888.0)),
+                       min_size=3, max_size=40),
+       elements=st.sampled_from(["HDZF", "XYZF", "XYZG", "HDZG"]))
+def test_iaga2002_round_trip(tmp_path_factory, values, elements):
+    """Written IAGA-2002 rows read back: UTC times, F (or F from the components), 88888/99999
+    empty (a file whose F is all empty gets F from the components: not drawn here)."""
+    from aeromag.io.base import read_iaga2002
+
+    values = [50000.0, *values]
+    path = tmp_path_factory.mktemp("iaga") / "x.min"
+    head = [f" Format                 IAGA-2002{'|':>37}",
+            f" Reported               {elements}{'|':>42}",
+            "DATE       TIME         DOY     ABC" + "      ABC".join(elements) + "   |"]
+    rows = []
+    for i, v in enumerate(values):
+        comps = [20000.0, -5.0 if elements[1] == "D" else 100.0, 45000.0, v]
+        if elements[3] == "G":
+            comps[3] = 0.5  # a G (delta-F) column is not F
+        hh, mm = divmod(i, 60)
+        rows.append(f"2014-11-01 {hh:02d}:{mm:02d}:00.000 305  "
+                    + "  ".join(f"{c:9.2f}" for c in comps))
+    path.write_text("\n".join(head + rows) + "\n")
+    df = read_iaga2002(path)
+    assert np.all(np.diff(df["time"]) == 60.0)
+    assert df["time"].iloc[0] == 1414800000.0
+    if elements[3] == "F":
+        want = np.where(np.isin(values, [88888.0, 99999.0]), np.nan, np.round(values, 2))
+        np.testing.assert_allclose(df["mag"], want, atol=1e-6)
+        assert df.attrs["f_source"] == "F"
+    else:
+        assert df.attrs["f_source"].startswith("sqrt")
+        if elements.startswith("XYZ"):
+            expect = np.sqrt(20000.0 ** 2 + 100.0 ** 2 + 45000.0 ** 2)
+        else:
+            expect = np.hypot(20000.0, 45000.0)
+        np.testing.assert_allclose(df["mag"], expect)
