@@ -403,3 +403,28 @@ def test_iaga2002_round_trip(tmp_path_factory, values, elements):
         else:
             expect = np.hypot(20000.0, 45000.0)
         np.testing.assert_allclose(df["mag"], expect)
+
+
+def test_methods_progress_and_lag_spelling():
+    df = _independent_survey(6)
+    steps = []
+    shift = am.level(df, igrf=False, method="shift", progress=lambda d, t, s: steps.append(s))
+    smooth = am.level(df, igrf=False, method="smooth")
+    assert steps[0] == "geometry" and steps[-1] == "done" and len(steps) == 7
+    for res in (shift, smooth):
+        assert res.mistie_std_nT["after"] < 0.5 * res.mistie_std_nT["before"]
+    # 5 crossings per line: at most 5 // 3 knots, i.e. smooth falls back to a trend there.
+    assert max(len(k) for k in smooth.levelling.knots_m) == 2
+    from aeromag.survey.levelling import level_network
+
+    g = smooth.geometry
+    fine = level_network(smooth.crossings, g.n_pieces, g.piece_is_tie, method="smooth",
+                         knot_m=1000.0, tie_trend=True)
+    # the ties (13 crossings over 3.2 km): ceil(3.2) + 1 = 5 knots, capped at 13 // 3 = 4
+    assert max(len(k) for k in fine.knots_m) == 4
+    assert np.std(fine.mistie_lev_nT) < 0.5 * np.std(smooth.crossings.mistie_nT)
+    assert {len(k) for k in shift.levelling.knots_m} == {1}
+    with pytest.raises(InputError, match="--lag soon: give seconds"):
+        am.level(df, igrf=False, lag="soon")
+    with pytest.raises(InputError, match="--lag 0.3 needs a time column"):
+        am.level(df, igrf=False, lag=0.3)

@@ -226,7 +226,7 @@ def _lag_value(lag: float | str) -> float | str:
         try:
             return float(lag)
         except ValueError:
-            raise InputError(f"--lag {lag!r}: give seconds (e.g. --lag 0.4) or auto") from None
+            raise InputError(f"--lag {lag}: give seconds (e.g. --lag 0.4) or auto") from None
     return float(lag)
 
 
