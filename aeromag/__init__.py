@@ -115,6 +115,11 @@ _API: dict[str, str] = {
     "minimum_curvature": "aeromag.survey.gridding",
     "grid_file": "aeromag.workflows.grid",
     "plot_grid_map": "aeromag.plot.grid_map",
+    # the survey chain: levelling (lag, diurnal, IGRF, tie lines, micro-levelling)
+    "level": "aeromag.workflows.level",
+    "level_file": "aeromag.workflows.level",
+    "LevelResult": "aeromag.survey.chain",
+    "simulate_level_survey": "aeromag.synthetic.level_survey",
 }
 
 __all__ = ["AeromagError", "FitError", "InputError", "__version__", *sorted(_API)]

@@ -20,7 +20,7 @@ from .conftest import hand_flight
 runner = CliRunner()
 
 COMMANDS = ("compensate", "calibrate", "simulate", "track", "batch", "report", "compass", "detect",
-            "navigate", "grid")
+            "navigate", "grid", "level")
 
 
 def _help(*args: str) -> str:

@@ -8,7 +8,7 @@ from .app import app
 
 # Each module registers its command(s) on ``app`` when imported.
 _COMMAND_MODULES = ("compensate", "simulate", "track", "batch", "report", "compass", "detect",
-                    "navigate", "grid")
+                    "navigate", "grid", "level")
 for _name in _COMMAND_MODULES:
     try:
         importlib.import_module(f"{__name__}.{_name}")

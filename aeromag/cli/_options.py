@@ -38,7 +38,7 @@ __all__ = ["OPTIONS", "Option", "Options", "add_option", "command", "config_erro
 _REQUIRED = inspect.Parameter.empty
 
 #: Log-reading commands (``--col``, ``--map``, ``--units``, ``--format``).
-_READERS = frozenset({"compensate", "calibrate", "batch"})
+_READERS = frozenset({"compensate", "calibrate", "batch", "level"})
 #: Commands that fit or apply the TL model.
 _COMP = frozenset({"compensate", "calibrate", "batch"})
 _APPLY = frozenset({"compensate", "batch"})
@@ -111,8 +111,10 @@ def _o(name: str, flags: str | tuple[str, ...], typ: Any, default: Any, help: st
 #: The table.  Order is the order of the options in each command's help.
 OPTIONS: list[Option] = [
     # positional arguments
-    _o("survey", (), Path, _REQUIRED, "Survey log (CSV, or another --format).", {"compensate"},
-       metavar="SURVEY.csv"),
+    _o("survey", (), Path, _REQUIRED,
+       {"compensate": "Survey log (CSV, or another --format).",
+        "level": "Survey log with time, lat, lon, alt, line and a total field (CSV, or another "
+                 "--format)."}, {"compensate", "level"}, metavar="SURVEY.csv"),
     _o("cal", (), Path, _REQUIRED, "Calibration flight log (CSV, or another --format).",
        {"calibrate"}, metavar="CAL.csv"),
     _o("inputs", (), list[str], _REQUIRED, "Logs: files, globs or folders (a folder's "
@@ -121,8 +123,11 @@ OPTIONS: list[Option] = [
     _o("output", "-o", Path, _REQUIRED,
        {"compensate": "Output CSV (the report goes to OUT.json).",
         "calibrate": "Output model file (JSON).",
-        "batch": "Output folder (NAME_comp.csv/.json per log, batch_summary.csv/.json)."},
-       _COMP, metavar={"compensate": "OUT.csv", "calibrate": "MODEL.json", "batch": "OUTDIR"}),
+        "batch": "Output folder (NAME_comp.csv/.json per log, batch_summary.csv/.json).",
+        "level": "Output log: .csv, .parquet or .xyz (Geosoft XYZ with a Line/Tie header per "
+                 "line); the report goes to OUT.json."},
+       _COMP | {"level"}, metavar={"compensate": "OUT.csv", "calibrate": "MODEL.json",
+                                   "batch": "OUTDIR", "level": "OUT.csv"}),
     _o("model", "--model", Path | None, None,
        {"compensate": "Apply a saved model (from 'aeromag calibrate') instead of fitting.",
         "batch": "Apply this saved model to every log (default: self-calibrate each log like "
@@ -138,6 +143,39 @@ OPTIONS: list[Option] = [
        "aeromag version).", {"batch"}),
     _o("threshold", "--threshold", float, 1.0, "Track alarm threshold, metres (with --plan).",
        {"batch"}, metavar="M"),
+    # survey levelling ('aeromag level'; --value and --crs are shared with 'grid')
+    _o("value", "--value", str | None, None,
+       {"level": "The column to level (default: mag_comp when the log has it, else mag).",
+        "grid": "The column to grid (default: tmi_mlev, else tmi_lev, else tmi)."},
+       {"level", "grid"}, metavar="COL"),
+    _o("base", "--base", list[Path] | None, None, "Base-station record: CSV with time (UTC s "
+       "since 1970 or ISO 8601) and mag (nT), or IAGA-2002 .min/.sec (F, or F from the vector "
+       "components); repeatable for consecutive days. Without it: no diurnal correction (a "
+       "warning says so).", {"level"}, metavar="FILE"),
+    _o("base_datum", "--base-datum", float | None, None, "Datum of the diurnal correction, nT "
+       "(default: the base's mean over the survey).", {"level"}, metavar="NT"),
+    _o("allow_base_gaps", "--allow-base-gaps", bool, False, "Samples outside the base record's "
+       "coverage get an empty diurnal (and tmi) with a warning, instead of an error (never "
+       "extrapolated).", {"level"}),
+    _o("date", "--date", str | None, None, "The UTC date of a log whose time is seconds since "
+       "midnight.", {"level"}, metavar="YYYY-MM-DD"),
+    _o("lag", "--lag", str, "0", "The magnetometer's lag behind the position, s (positive when "
+       "the reading at time t is the field at the position of time t - lag), or auto: "
+       "estimated from adjacent lines flown in opposite directions.", {"level"},
+       metavar="S|auto"),
+    _o("no_igrf", "--no-igrf", bool, False, "The value is already an anomaly: no IGRF removed.",
+       {"level"}),
+    _o("ties", "--ties", str, "auto", "Which lines are tie lines: auto (a line_type column when "
+       "the log has one, else lines roughly perpendicular to the dominant direction) or "
+       "ID,ID,...", {"level"}, metavar="auto|ID,..."),
+    _o("level_method", "--level", str, "trend", "Tie-line levelling: trend (a shift per tie, a "
+       "shift and a linear trend per line with 3+ crossings), shift, smooth (piecewise linear "
+       "along lines, knots every 5 km), or none (tmi_lev = tmi).", {"level"},
+       metavar="METHOD"),
+    _o("decorrugate", "--decorrugate", bool, False, "Also micro-level (remove the "
+       "line-parallel corrugation that tie-line levelling leaves): tmi_mlev.", {"level"}),
+    _o("crs", "--crs", int | None, None, "Projected coordinate system, EPSG code (default: the "
+       "UTM zone of the survey's centre).", {"level", "grid"}, metavar="EPSG"),
     # filters, terms, segments
     _o("band", "--band", tuple[float, float], (0.1, 0.9),
        "Band-pass applied before fitting, Hz (zero-phase Butterworth).", _COMP,
@@ -221,7 +259,11 @@ OPTIONS: list[Option] = [
        "calibration-style flight).", {"compensate"}, config="fom",
        to_config=lambda v: v or None),
     _o("plot", "--plot", Path | None, None,
-       "Also write the QC figures (PNG) and report.html into DIR.", {"compensate", "calibrate"},
+       {"compensate": "Also write the QC figures (PNG) and report.html into DIR.",
+        "calibrate": "Also write the QC figures (PNG) and report.html into DIR.",
+        "level": "Also write the levelling QC figures (misties.png: mistie histograms before "
+                 "and after; profiles.png: stacked line profiles) into DIR."},
+       {"compensate", "calibrate", "level"},
        metavar="DIR"),
     _o("chunk_rows", "--chunk-rows", int | None, None,
        {"compensate": "With --model: apply it in chunks of N rows, memory bounded by the chunk "
@@ -236,9 +278,9 @@ OPTIONS: list[Option] = [
         "batch": "Treat every warning of a log as its error: that log fails with the warning "
                  "as its reason and no outputs; the others go on (exit 1 when any failed)."},
        {"compensate", "calibrate", "batch"}),
-    _o("no_progress", "--no-progress", bool, False, "No progress bar.", {"batch"}),
+    _o("no_progress", "--no-progress", bool, False, "No progress bar.", {"batch", "level"}),
     _o("verbose", ("-v", "--verbose"), bool, False,
-       "Log progress details (DEBUG messages of aeromag's loggers).", _COMP),
+       "Log progress details (DEBUG messages of aeromag's loggers).", _COMP | {"level"}),
 ]
 
 

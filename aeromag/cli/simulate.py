@@ -70,6 +70,11 @@ def simulate(
         "--currents", min=0, metavar="N", help="N aircraft current loops: their field in mag, "
         "the currents logged as cur_1..cur_N and volt_bus, the loops in truth.json (for "
         "--extra).")] = 0,
+    survey: Annotated[bool, typer.Option(
+        "--survey", help="Also write a levelling survey for 'aeromag level': level_survey.csv "
+        "(east-west lines and north-south ties, lagged magnetometer, diurnal, IGRF, line "
+        "errors; truth_anomaly, truth_diurnal, truth_igrf, truth_line_error), level_base.csv "
+        "(its base station, time,mag) and level_truth.json.")] = False,
     verbose: Annotated[bool, typer.Option("-v", "--verbose", help="Log progress details.")]
     = False,
 ) -> None:
@@ -89,5 +94,9 @@ def simulate(
             from ..workflows.simulate_online import write_online_simulation
 
             paths.update(write_online_simulation(output, seed=seed, small=small))
+        if survey:
+            from ..workflows.simulate_level import write_level_simulation
+
+            paths.update(write_level_simulation(output, seed=seed, small=small))
     for path in paths.values():
         typer.echo(str(path))

@@ -20,10 +20,14 @@ module             what it holds
 ``messages``       echoed names without control characters
 ``warm``           prefetching a CSV while the command line starts
 ``plans``          mission plans (``.csv``, QGroundControl ``.plan``, ``.waypoints``)
+``base``           base-station records: CSV ``time,mag`` and IAGA-2002 (``.min``, ``.sec``)
 =================  ===============================================================
 """
 
-from . import uav_logs  # noqa: F401 - registers the ulog and dataflash formats
+from . import (
+    base,  # noqa: F401 - registers the iaga2002 format (base-station records)
+    uav_logs,  # noqa: F401 - registers the ulog and dataflash formats
+)
 from .columns import (
     CANONICAL_COLUMNS,
     FIELD_UNITS_TO_NT,

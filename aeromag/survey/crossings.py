@@ -1,0 +1,219 @@
+"""Line-tie crossings: found through a spatial index, values interpolated at the crossing.
+
+The straight part of every piece is a polyline of segments between consecutive samples.
+Candidate (line segment, tie segment) pairs come from a k-d tree of the tie segments'
+midpoints queried with the line segments' midpoints within half the two longest segments'
+lengths (``scipy.spatial.cKDTree.sparse_distance_matrix``): about one candidate per true
+crossing, never all pairs.  Each candidate is tested exactly (segment intersection); at a
+crossing the value, the height and the along-track gradient of each of the two lines are
+interpolated linearly along its segment.  A (line piece, tie piece) pair crossing more than
+once (a wiggle) keeps one crossing, the one nearest to the middle of the crossings.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .geometry import SurveyGeometry
+
+__all__ = ["Crossings", "along_gradient", "find_crossings"]
+
+
+@dataclass
+class Crossings:
+    """Line-tie intersections.
+
+    Attributes
+    ----------
+    line_piece, tie_piece : ndarray of int
+        Piece indices of the line and the tie.
+    line, tie : ndarray
+        Their line numbers.
+    x_m, y_m : ndarray
+        Position of the crossing [m].
+    line_along_m, tie_along_m : ndarray
+        Along-piece distance of the crossing on the line and on the tie [m].
+    line_value, tie_value : ndarray
+        Values interpolated at the crossing [nT].
+    mistie_nT : ndarray
+        ``line_value - tie_value`` [nT].
+    dh_m : ndarray
+        Height of the line minus height of the tie at the crossing [m] (NaN: no height).
+    gradient_nT_m : ndarray
+        Horizontal gradient magnitude at the crossing from the two along-track gradients
+        [nT/m].
+    line_index, tie_index : ndarray of int
+        First sample of the segment holding the crossing on the line and on the tie.
+    line_frac, tie_frac : ndarray
+        Fraction along that segment.
+    """
+
+    line_piece: np.ndarray
+    tie_piece: np.ndarray
+    line: np.ndarray
+    tie: np.ndarray
+    x_m: np.ndarray
+    y_m: np.ndarray
+    line_along_m: np.ndarray
+    tie_along_m: np.ndarray
+    line_value: np.ndarray
+    tie_value: np.ndarray
+    mistie_nT: np.ndarray
+    dh_m: np.ndarray
+    gradient_nT_m: np.ndarray
+    line_index: np.ndarray
+    tie_index: np.ndarray
+    line_frac: np.ndarray
+    tie_frac: np.ndarray
+
+    @property
+    def n(self) -> int:
+        """Number of crossings."""
+        return int(self.mistie_nT.size)
+
+    def values_at(self, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Another column interpolated at the crossings (line side, tie side).
+
+        Parameters
+        ----------
+        value : ndarray, shape (n_samples,)
+            Per-sample values.
+
+        Returns
+        -------
+        line_value, tie_value : ndarray
+        """
+        a, f = self.line_index, self.line_frac
+        b, g = self.tie_index, self.tie_frac
+        return (value[a] + f * (value[a + 1] - value[a]),
+                value[b] + g * (value[b + 1] - value[b]))
+
+
+def along_gradient(geom: SurveyGeometry, value: np.ndarray, half_width: int = 3) -> np.ndarray:
+    """Along-track derivative of a value inside each piece [value unit per m].
+
+    A central difference over ``2 half_width`` samples, shortened at the piece's ends.
+
+    Parameters
+    ----------
+    geom : SurveyGeometry
+        Geometry.
+    value : ndarray
+        Per-sample values.
+    half_width : int
+        Samples each side.
+
+    Returns
+    -------
+    ndarray
+        NaN where no two samples of the piece are available.
+    """
+    n = value.size
+    i = np.arange(n)
+    p = geom.piece
+    out = np.full(n, np.nan)
+    lo = np.clip(i - half_width, 0, n - 1)
+    hi = np.clip(i + half_width, 0, n - 1)
+    # Pull each end back inside the sample's piece.
+    for _ in range(half_width):
+        bad = p[lo] != p
+        lo[bad] += 1
+        bad = p[hi] != p
+        hi[bad] -= 1
+    ds = np.hypot(geom.x_m[hi] - geom.x_m[lo], geom.y_m[hi] - geom.y_m[lo])
+    ok = (hi > lo) & (p >= 0) & (ds > 0)
+    out[ok] = (value[hi[ok]] - value[lo[ok]]) / ds[ok]
+    return out
+
+
+def _segments(geom: SurveyGeometry, tie: bool, valid: np.ndarray) -> np.ndarray:
+    """First sample of each segment of straight parts of the line (or tie) pieces."""
+    p = geom.piece
+    i = np.arange(p.size - 1)
+    ok = (p[:-1] >= 0) & (p[:-1] == p[1:]) & geom.straight[:-1] & geom.straight[1:]
+    ok &= valid[:-1] & valid[1:]
+    tie_s = np.zeros(p.size - 1, dtype=bool)
+    tie_s[ok] = geom.piece_is_tie[p[:-1][ok]]
+    return i[ok & (tie_s == tie)]
+
+
+def find_crossings(geom: SurveyGeometry, value: np.ndarray, height_m: np.ndarray | None = None
+                   ) -> Crossings:
+    """Every intersection of a line piece with a tie piece.
+
+    Parameters
+    ----------
+    geom : SurveyGeometry
+        Geometry (straight parts only are used).
+    value : ndarray, shape (n,)
+        The values compared at the crossings [nT] (samples with NaN make no segment).
+    height_m : ndarray, optional
+        Height per sample [m] for the height difference.
+
+    Returns
+    -------
+    Crossings
+    """
+    x, y = geom.x_m, geom.y_m
+    valid = np.isfinite(value) & np.isfinite(x) & np.isfinite(y)
+    ls = _segments(geom, False, valid)
+    ts = _segments(geom, True, valid)
+    empty = np.array([], dtype=float)
+    if ls.size == 0 or ts.size == 0:
+        ei = np.array([], dtype=np.int64)
+        return Crossings(ei, ei, empty, empty, empty, empty, empty, empty, empty, empty,
+                         empty, empty, empty, ei, ei, empty, empty)
+    lm = np.column_stack([(x[ls] + x[ls + 1]) / 2, (y[ls] + y[ls + 1]) / 2])
+    tm = np.column_stack([(x[ts] + x[ts + 1]) / 2, (y[ts] + y[ts + 1]) / 2])
+    llen = np.hypot(x[ls + 1] - x[ls], y[ls + 1] - y[ls])
+    tlen = np.hypot(x[ts + 1] - x[ts], y[ts + 1] - y[ts])
+    radius = 0.5 * (llen.max() + tlen.max()) * 1.0001
+    tt = cKDTree(tm)
+    near = cKDTree(lm).sparse_distance_matrix(tt, radius, output_type="ndarray")
+    ai = near["i"].astype(np.int64)
+    bi = near["j"].astype(np.int64)
+    a, b = ls[ai], ts[bi]
+    px, py = x[a], y[a]
+    rx, ry = x[a + 1] - px, y[a + 1] - py
+    qx, qy = x[b], y[b]
+    sx, sy = x[b + 1] - qx, y[b + 1] - qy
+    den = rx * sy - ry * sx
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = ((qx - px) * sy - (qy - py) * sx) / den
+        u = ((qx - px) * ry - (qy - py) * rx) / den
+    hit = (den != 0) & (t >= 0) & (t < 1) & (u >= 0) & (u < 1)
+    a, b, t, u = a[hit], b[hit], t[hit], u[hit]
+    # One crossing per (line piece, tie piece).
+    lp, tp = geom.piece[a], geom.piece[b]
+    key = lp * (geom.n_pieces + 1) + tp
+    order = np.lexsort((geom.along_m[a] + t, key))
+    key_s = key[order]
+    first = np.r_[True, key_s[1:] != key_s[:-1]]
+    starts = np.flatnonzero(first)
+    counts = np.diff(np.r_[starts, key_s.size])
+    pick = order[starts + counts // 2]
+    a, b, t, u = a[pick], b[pick], t[pick], u[pick]
+    lp, tp = geom.piece[a], geom.piece[b]
+    cx = x[a] + t * (x[a + 1] - x[a])
+    cy = y[a] + t * (y[a + 1] - y[a])
+    lv = value[a] + t * (value[a + 1] - value[a])
+    tv = value[b] + u * (value[b + 1] - value[b])
+    grad = along_gradient(geom, value)
+    gl = grad[a] + t * (grad[a + 1] - grad[a])
+    gt = grad[b] + u * (grad[b + 1] - grad[b])
+    g = np.hypot(np.nan_to_num(gl), np.nan_to_num(gt))
+    if height_m is not None:
+        h = np.asarray(height_m, dtype=float)
+        dh = (h[a] + t * (h[a + 1] - h[a])) - (h[b] + u * (h[b + 1] - h[b]))
+    else:
+        dh = np.full(a.size, np.nan)
+    la = geom.along_m[a] + t * (geom.along_m[a + 1] - geom.along_m[a])
+    ta = geom.along_m[b] + u * (geom.along_m[b + 1] - geom.along_m[b])
+    order = np.lexsort((tp, lp))
+    sel = [arr[order] for arr in (lp, tp, cx, cy, la, ta, lv, tv, dh, g, a, b, t, u)]
+    lp, tp, cx, cy, la, ta, lv, tv, dh, g, a, b, t, u = sel
+    return Crossings(lp, tp, geom.piece_line[lp], geom.piece_line[tp], cx, cy, la, ta, lv, tv,
+                     lv - tv, dh, g, a, b, t, u)
