@@ -77,7 +77,6 @@ _API: dict[str, str] = {
     "simulate_mission": "aeromag.synthetic.mission",
     # online estimation: recursive least squares with forgetting, compass calibration
     "RecursiveLeastSquares": "aeromag._core.rls",
-    "RLSResult": "aeromag._core.rls",
     "CompassCalibration": "aeromag.compass",
     "calibrate_compass": "aeromag.compass",
     "igrf_field": "aeromag.compass",

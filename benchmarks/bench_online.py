@@ -62,7 +62,7 @@ def main() -> None:
         tt = log["time"].to_numpy()
         cases = {
             "rls-vector": lambda phi=phi, y=y: RecursiveLeastSquares(
-                4, 3, forgetting=0.975, alpha=1e4).run(phi, y),
+                4, 3, forgetting=0.975, alpha=1e4).run(y, phi),
             "compass": lambda flux=flux, cols=cols, ref=ref, tt=tt: calibrate_compass(
                 flux, *cols, ref, time_s=tt, forgetting=0.975),
         }
@@ -75,7 +75,7 @@ def main() -> None:
         fx = tl[["flux_x", "flux_y", "flux_z"]].to_numpy()
         mag = tl["mag"].to_numpy()
         _row("online-tl", n, _best(lambda t=t, fx=fx, mag=mag: OnlineTL(
-            10.0, forgetting=0.999).run(t, fx, mag), args.repeat))
+            10.0, forgetting=0.999).run(mag, np.column_stack([t, fx])), args.repeat))
     m = 20000
     phi = np.column_stack([np.random.default_rng(0).normal(size=(m, 3)), np.ones(m)])
     y = phi @ np.ones((4, 3))
@@ -83,7 +83,7 @@ def main() -> None:
 
     def steps() -> None:
         for p, q in zip(phi, y, strict=True):
-            est.step(p, q)
+            est.step(q, p)
 
     _row("rls-step", m, _best(steps, 1))
 

@@ -46,6 +46,7 @@ import numpy as np
 
 from .._core.filters import butter_sos
 from .._core.rls import RecursiveLeastSquares, check_forgetting
+from .._core.sequential import InnovationStats, SequentialResult, Step
 from ..errors import InputError
 from .terms import (
     FIELD_SCALE_NT,
@@ -57,7 +58,8 @@ from .terms import (
 
 log = logging.getLogger(__name__)
 
-__all__ = ["OnlineTL", "OnlineTLResult", "causal_derivative", "new_stretch_starts",
+__all__ = ["OnlineTL", "causal_derivative", "new_stretch_starts", "running_mean_square",
+           "OnlineTLResult", "UnconvergedSpan", "convergence_spans", "NIS_THRESHOLD",
            "DERIVATIVES", "LATENCY_SAMPLES"]
 
 #: The derivative options of :class:`OnlineTL` (see the module docstring).
@@ -65,6 +67,12 @@ DERIVATIVES = ("midpoint", "central", "backward")
 #: Latency of ``mag_tl`` in samples for each option (midpoint: the fit rows are centred half a
 #: sample back, but no row waits for a later sample).
 LATENCY_SAMPLES = {"midpoint": 0, "central": 1, "backward": 0}
+#: Windowed a-priori NIS (mean over the window of the standardised squared residuals,
+#: divided by its median over the log) above which the fit is taken as not converged: 50 is
+#: a residual RMS seven times the log's typical one.  Measured (docs/online.md, seeds 0-2):
+#: at most 7-15 after the warm-up on the simulator's flights without a jump, 27 000-58 000
+#: right after a jump of the interference and above 50 for the next 350-450 s.
+NIS_THRESHOLD = 50.0
 
 
 def bdf2_derivative(values: np.ndarray, time_s: np.ndarray, starts: np.ndarray) -> np.ndarray:
@@ -160,33 +168,6 @@ def new_stretch_starts(time_s: np.ndarray, valid: np.ndarray, max_gap_s: float) 
     return starts
 
 
-@dataclass
-class OnlineTLResult:
-    """What :meth:`OnlineTL.run` returns.
-
-    Attributes
-    ----------
-    mag_tl : ndarray, shape (N,)
-        Interference of each sample with the estimate before it [nT] (NaN where the sample
-        is not usable).
-    coef_history : ndarray, shape (N, p)
-        Estimate after each sample [nT; eddy nT*s].
-    coef : ndarray, shape (p,)
-        Final estimate.
-    terms : tuple of str
-    skipped : ndarray of bool, shape (N,)
-        Samples not used.
-    forgetting : float
-    """
-
-    mag_tl: np.ndarray
-    coef_history: np.ndarray
-    coef: np.ndarray
-    terms: tuple[str, ...]
-    skipped: np.ndarray
-    forgetting: float
-
-
 class OnlineTL:
     """Tolles-Lawson coefficients estimated online (causal RLS with forgetting).
 
@@ -251,6 +232,10 @@ class OnlineTL:
         self.rls = RecursiveLeastSquares(len(self.terms), 1, forgetting=self.forgetting,
                                          alpha=self.alpha)
         self._zi: np.ndarray | None = None  # (sections, 2, p + 1)
+        self._scale_state: tuple[float, float] | None = None  # running residual scale
+        self._scale_prev = float("nan")
+        self.last_mag_tl = float("nan")
+        self.last_mag_tl_std = float("nan")
         self._last_cos: np.ndarray | None = None
         self._last_t: float | None = None
         self._ended_valid = False  # the previous call's last sample was usable
@@ -324,23 +309,36 @@ class OnlineTL:
         out = terms_from_cosines(cos, dcos, sc, self.terms)
         return fit[m:], out[m:]
 
-    def run(self, time_s: np.ndarray, flux_nT: np.ndarray, mag_nT: np.ndarray
-            ) -> OnlineTLResult:
+    def run(self, ys: np.ndarray, us: np.ndarray | None = None) -> SequentialResult:
         """Process many samples (vectorised; continues from the current state).
 
         Parameters
         ----------
-        time_s : ndarray, shape (N,)
-            Strictly increasing times [s].
-        flux_nT : ndarray, shape (N, 3)
-            Body-frame fluxgate [nT].
-        mag_nT : ndarray, shape (N,)
+        ys : ndarray, shape (N,)
             Scalar magnetometer [nT].
+        us : ndarray, shape (N, 4)
+            Time [s] (strictly increasing) and the body-frame fluxgate ``flux_x, flux_y,
+            flux_z`` [nT], one row per sample (required).
 
         Returns
         -------
-        OnlineTLResult
+        SequentialResult
+            ``state``: the coefficients after each sample (``state_names`` the terms) [nT;
+            eddy nT*s], ``std`` their one-sigma uncertainty (RLS covariance times the
+            running a-priori residual scale); ``innovation`` (N, 1): the band-passed
+            a-priori residual [nT]; ``innovations["mag"]`` with the NIS against that
+            scale; ``info``: ``mag_tl`` (interference of each sample with the estimate
+            before it, NaN where unusable) [nT], ``mag_tl_std`` (its predicted one-sigma
+            uncertainty, see :func:`mag_tl_uncertainty`) [nT], ``residual_scale_nT`` (N),
+            ``skipped``, ``coef`` (final), ``forgetting``.
         """
+        if us is None:
+            raise ValueError("OnlineTL.run needs us = (time, flux_x, flux_y, flux_z)")
+        u = np.asarray(us, dtype=np.float64).reshape(-1, 4)
+        return self._run(u[:, 0], u[:, 1:], ys)
+
+    def _run(self, time_s: np.ndarray, flux_nT: np.ndarray, mag_nT: np.ndarray
+             ) -> SequentialResult:
         from scipy.signal import sosfilt
 
         t = np.asarray(time_s, dtype=np.float64)
@@ -391,8 +389,10 @@ class OnlineTL:
         if n:
             self._ended_valid = bool(valid[-1])
         before = self.rls.theta[:, 0].copy()
-        res = self.rls.run(Xf[:, :p], Xf[:, p])
-        hist = res.theta[:, :, 0]
+        # The output rows A predict mag_tl: their prior variance comes with the estimate.
+        res = self.rls.run(Xf[:, p], Xf[:, :p], std=True,
+                           predict=np.where(np.isfinite(A), A, 0.0))
+        hist = res.state
         prior = np.empty_like(hist)
         if n:
             prior[0] = before
@@ -404,27 +404,273 @@ class OnlineTL:
                 self._zi_coef = sosfilt_zi(self._sos_coef)[:, :, None] * prior[0][None, None, :]
             prior, self._zi_coef = sosfilt(self._sos_coef, prior, axis=0, zi=self._zi_coef)
         mag_tl = np.einsum("ij,ij->i", A, prior)  # NaN rows of A give NaN (not usable)
-        return OnlineTLResult(mag_tl=mag_tl, coef_history=hist, coef=self.coef,
-                              terms=self.terms, skipped=res.skipped,
-                              forgetting=self.forgetting)
+        # The a-priori residual scale: its running mean square, standardised by the RLS
+        # prior variance, over one memory (causal: sample k uses the residuals before k).
+        e = res.innovation[:, 0]
+        z2 = e * e / (1.0 + res.info["prior_var"])
+        scale2, self._scale_state = running_mean_square(z2, self.forgetting,
+                                                        self._scale_state)
+        prior_scale2 = np.r_[self._scale_prev, scale2[:-1]] if n else scale2
+        if n:
+            self._scale_prev = scale2[-1]
+        mag_tl_std = np.sqrt(prior_scale2 * res.info["predict_var"])
+        mag_tl_std[~np.isfinite(mag_tl)] = np.nan
+        nis = z2 / prior_scale2
+        used = ~res.info["skipped"] & np.isfinite(nis)
+        stats = InnovationStats(dof=1, n_fused=int(used.sum()),
+                                n_gated=int(res.info["skipped"].sum()),
+                                nis_sum=float(nis[used].sum()))
+        scale = np.sqrt(scale2)
+        info = {"mag_tl": mag_tl, "mag_tl_std": mag_tl_std, "residual_scale_nT": scale,
+                "prior_var": res.info["prior_var"], "z2": z2,
+                "skipped": res.info["skipped"], "coef": self.coef,
+                "forgetting": self.forgetting}
+        return SequentialResult(
+            time_s=t, state=hist, std=res.std * scale[:, None], state_names=self.terms,
+            loglik=-0.5 * (np.log(2 * np.pi * prior_scale2 * (1 + res.info["prior_var"]))
+                           + nis),
+            innovation=res.innovation, innovations={"mag": stats}, info=info)
 
-    def step(self, time_s: float, flux_nT: np.ndarray, mag_nT: float) -> float:
-        """Process one sample; return its interference with the estimate before it [nT].
+    def step(self, y: float, u: np.ndarray | None = None) -> Step:
+        """Process one sample.
 
         Parameters
         ----------
-        time_s : float
-            Time [s].
-        flux_nT : ndarray, shape (3,)
-            Fluxgate [nT].
-        mag_nT : float
+        y : float
             Scalar magnetometer [nT].
+        u : ndarray, shape (4,)
+            Time [s] and the fluxgate ``flux_x, flux_y, flux_z`` [nT] (required).
 
         Returns
         -------
-        float
-            ``mag_tl`` [nT] (NaN if the sample is not usable).
+        Step
+            Coefficients after the sample and their std, the band-passed a-priori residual
+            (innovation, shape (1,)), its log-likelihood, ``used``.  The sample's
+            ``mag_tl`` (with the estimate before it) is :attr:`last_mag_tl`.
         """
-        r = self.run(np.array([time_s], dtype=float), np.asarray(flux_nT, float)[None, :],
-                     np.array([mag_nT], dtype=float))
-        return float(r.mag_tl[0])
+        if u is None:
+            raise ValueError("OnlineTL.step needs u = (time, flux_x, flux_y, flux_z)")
+        r = self.run(np.array([y], dtype=float), np.asarray(u, dtype=float).reshape(1, 4))
+        self.last_mag_tl = float(r.info["mag_tl"][0])
+        self.last_mag_tl_std = float(r.info["mag_tl_std"][0])
+        return Step(r.state[0], r.std[0], r.innovation[0], float(r.loglik[0]),
+                    not bool(r.info["skipped"][0]))
+
+
+    def compensate(self, time_s: np.ndarray, flux_nT: np.ndarray, mag_nT: np.ndarray, *,
+                   threshold: float = NIS_THRESHOLD) -> OnlineTLResult:
+        """Run a whole log and check where the output was issued before convergence.
+
+        Parameters
+        ----------
+        time_s : ndarray, shape (N,)
+            Strictly increasing times [s].
+        flux_nT : ndarray, shape (N, 3)
+            Body-frame fluxgate [nT].
+        mag_nT : ndarray, shape (N,)
+            Scalar magnetometer [nT].
+        threshold : float
+            Windowed NIS ratio of :func:`convergence_spans`.
+
+        Returns
+        -------
+        OnlineTLResult
+        """
+        t = np.asarray(time_s, dtype=np.float64)
+        fit = self.run(mag_nT, np.column_stack([t, np.asarray(flux_nT, dtype=np.float64)
+                                                .reshape(len(t), 3)]))
+        ratio, conv, spans = convergence_spans(t, fit.info["z2"], self.forgetting,
+                                               threshold=threshold)
+        return OnlineTLResult(fit=fit, mag_tl=fit.info["mag_tl"],
+                              mag_tl_std=fit.info["mag_tl_std"], nis_ratio=ratio,
+                              converged=conv, spans=spans)
+
+def running_mean_square(z2: np.ndarray, forgetting: float,
+                        state: tuple[float, float] | None = None
+                        ) -> tuple[np.ndarray, tuple[float, float]]:
+    """Exponentially weighted mean of ``z2`` over the memory ``1 / (1 - forgetting)``.
+
+    Normalised by the sum of the weights (no start-up bias); NaN samples weigh nothing.
+
+    Parameters
+    ----------
+    z2 : ndarray, shape (N,)
+        Squared standardised residuals [nT^2].
+    forgetting : float
+        lambda (1: the plain mean so far).
+    state : (float, float), optional
+        Weighted sum and sum of weights carried from a previous call.
+
+    Returns
+    -------
+    mean : ndarray, shape (N,)
+        Mean after each sample (NaN before the first finite one) [nT^2].
+    state : (float, float)
+        To continue with the next piece.
+    """
+    from scipy.signal import lfilter
+
+    ok = np.isfinite(z2)
+    x = np.where(ok, z2, 0.0)
+    w = ok.astype(np.float64)
+    s0, w0 = state if state is not None else (0.0, 0.0)
+    lam = float(forgetting)
+    if not len(x):
+        return x, (s0, w0)
+    num, zn = lfilter([1.0], [1.0, -lam], x, zi=[lam * s0])
+    den, zd = lfilter([1.0], [1.0, -lam], w, zi=[lam * w0])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.nan)
+    return mean, (float(num[-1]), float(den[-1]))
+
+
+@dataclass(frozen=True)
+class UnconvergedSpan:
+    """A stretch of output issued before the online fit (re-)converged.
+
+    Attributes
+    ----------
+    start_s, end_s : float
+        First and last time of the stretch [s].
+    kind : str
+        ``"warmup"`` (starts within the first memory of the log: the estimate had not yet
+        converged) or ``"change"`` (the interference changed: the a-priori residuals rose).
+    peak_nis_ratio : float
+        Largest windowed NIS ratio in the stretch.
+    n_samples : int
+    """
+
+    start_s: float
+    end_s: float
+    kind: str
+    peak_nis_ratio: float
+    n_samples: int
+
+    def to_dict(self) -> dict[str, float | int | str]:
+        """Plain dictionary for the JSON edge."""
+        return dict(self.__dict__)
+
+
+@dataclass
+class OnlineTLResult:
+    """What :meth:`OnlineTL.compensate` returns: the filter's run and the TL's own fields.
+
+    The per-sample interference, its uncertainty and the convergence check.
+
+    Attributes
+    ----------
+    fit : SequentialResult
+        :meth:`OnlineTL.run` (coefficients, their std, the a-priori residuals).
+    mag_tl : ndarray, shape (N,)
+        Interference of each sample with the estimate before it [nT] (NaN where unusable).
+    mag_tl_std : ndarray, shape (N,)
+        Its predicted one-sigma uncertainty [nT] (see :meth:`OnlineTL.run`).
+    nis_ratio : ndarray, shape (N,)
+        Windowed a-priori NIS against the log's median level (see :func:`convergence_spans`).
+    converged : ndarray of bool, shape (N,)
+        False on the samples of :attr:`spans`.
+    spans : list of UnconvergedSpan
+    """
+
+    fit: SequentialResult
+    mag_tl: np.ndarray
+    mag_tl_std: np.ndarray
+    nis_ratio: np.ndarray
+    converged: np.ndarray
+    spans: list[UnconvergedSpan]
+
+    @property
+    def coef(self) -> np.ndarray:
+        """Final coefficients [nT; eddy nT*s]."""
+        return self.fit.info["coef"]
+
+    @property
+    def coef_history(self) -> np.ndarray:
+        """Coefficients after each sample, shape (N, p)."""
+        return self.fit.state
+
+    @property
+    def terms(self) -> tuple[str, ...]:
+        """Term names."""
+        return self.fit.state_names
+
+    @property
+    def skipped(self) -> np.ndarray:
+        """Samples not used."""
+        return self.fit.info["skipped"]
+
+
+def convergence_spans(time_s: np.ndarray, z2: np.ndarray, forgetting: float, *,
+                      window: int | None = None, threshold: float = NIS_THRESHOLD,
+                      ) -> tuple[np.ndarray, np.ndarray, list[UnconvergedSpan]]:
+    """Where the output was issued before the fit (re-)converged: a windowed NIS test.
+
+    The a-priori residuals ``z2`` (standardised by the RLS prior variance) are averaged over
+    a trailing window; the ratio of that mean to its median over the log is the windowed
+    NIS against the log's converged level.  A sample whose ratio exceeds ``threshold`` is
+    not converged, and so is every sample within one memory (``1 / (1 - forgetting)``
+    samples) after it: the estimate needs about one memory to forget what it learnt before
+    a change; two such stretches less than one memory apart are one.  The first memory of
+    the log (the warm-up) is never converged: stretches starting there have ``kind``
+    ``"warmup"``, the others ``"change"``.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (N,)
+        Times [s].
+    z2 : ndarray, shape (N,)
+        Squared standardised a-priori residuals (``SequentialResult.info["z2"]``), NaN
+        where the sample was not used [nT^2].
+    forgetting : float
+        lambda of the fit.
+    window : int, optional
+        Trailing window [samples]; a tenth of the memory (at least 20) when omitted.
+    threshold : float
+        Ratio above which the fit is not converged (:data:`NIS_THRESHOLD`).
+
+    Returns
+    -------
+    nis_ratio : ndarray, shape (N,)
+    converged : ndarray of bool, shape (N,)
+    spans : list of UnconvergedSpan
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    z = np.asarray(z2, dtype=np.float64)
+    n = len(z)
+    memory = int(round(1.0 / (1.0 - forgetting))) if forgetting < 1 else n
+    w = int(window) if window is not None else max(20, memory // 10)
+    ok = np.isfinite(z)
+    cs = np.r_[0.0, np.cumsum(np.where(ok, z, 0.0))]
+    cn = np.r_[0, np.cumsum(ok)]
+    lo = np.maximum(np.arange(n) + 1 - w, 0)
+    cnt = cn[1:] - cn[lo]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(cnt > 0, (cs[1:] - cs[lo]) / np.maximum(cnt, 1), np.nan)
+    idx = np.flatnonzero(ok)
+    after = idx[idx >= (idx[0] + min(memory, n) if idx.size else 0)]
+    ref_rows = after if after.size > w else idx
+    ref = float(np.nanmedian(mean[ref_rows])) if ref_rows.size else float("nan")
+    if not (np.isfinite(ref) and ref > 0):
+        return np.full(n, np.nan), np.ones(n, dtype=bool), []
+    ratio = mean / ref
+    bad = np.nan_to_num(ratio) > threshold
+    # every sample within one memory after a bad one is not converged either
+    last_bad = np.where(bad, np.arange(n), -(memory + 1))
+    np.maximum.accumulate(last_bad, out=last_bad)
+    unconv = np.arange(n) - last_bad <= memory
+    # the warm-up: the first memory of the log is never converged
+    first = int(idx[0]) if idx.size else 0
+    unconv[:min(n, first + memory)] = True
+    # two stretches less than one memory apart are one (the fit had not settled between)
+    gaps = np.flatnonzero(np.diff(np.r_[0, unconv.astype(np.int8), 0]))
+    for a, b in zip(gaps[1:-1:2], gaps[2::2], strict=True):
+        if b - a <= memory:
+            unconv[a:b] = True
+    spans = []
+    if unconv.any():
+        edges = np.flatnonzero(np.diff(np.r_[0, unconv.astype(np.int8), 0]))
+        for a, b in zip(edges[::2], edges[1::2], strict=True):
+            kind = "warmup" if a <= first + memory else "change"
+            spans.append(UnconvergedSpan(float(t[a]), float(t[b - 1]), kind,
+                                         float(np.nanmax(ratio[a:b])), int(b - a)))
+    return ratio, ~unconv, spans
