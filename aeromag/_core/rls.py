@@ -44,6 +44,7 @@ never propagated into the estimate.
 from __future__ import annotations
 
 import logging
+import math
 
 import numpy as np
 
@@ -181,6 +182,7 @@ class RecursiveLeastSquares:
         t0 = np.zeros((self.n, self.m)) if theta0 is None else np.array(theta0, dtype=float)
         self.theta0 = t0.reshape(self.n, self.m)
         self.state_names = state_names(self.n, self.m)
+        self._eye = np.eye(self.n)
         self.reset()
 
     # -- state --------------------------------------------------------------------------
@@ -197,7 +199,8 @@ class RecursiveLeastSquares:
         return (1.0 - self.forgetting) * self.floor
 
     def _std(self, P: np.ndarray) -> np.ndarray:
-        return np.repeat(self.noise_std * np.sqrt(np.diag(P)), self.m)
+        sd = np.sqrt(P.diagonal()) * self.noise_std
+        return sd if self.m == 1 else np.repeat(sd, self.m)
 
     def _loglik(self, e2: np.ndarray | float, s: np.ndarray | float) -> np.ndarray | float:
         """Log-likelihood of innovations with squared norm ``e2`` and variance ``s`` each."""
@@ -225,35 +228,39 @@ class RecursiveLeastSquares:
             raise ValueError("RecursiveLeastSquares.step needs the regressor u")
         phi = np.asarray(u, dtype=np.float64).reshape(self.n)
         y = np.asarray(y, dtype=np.float64).reshape(self.m)
-        if not (np.isfinite(phi).all() and np.isfinite(y).all()):
+        lam = self.forgetting
+        P = self.P
+        Pphi = P @ phi
+        s = float(lam + phi @ Pphi)
+        err = y - phi @ self.theta
+        e2 = float(err @ err)
+        # A regressor or measurement not finite makes s or e2 not finite (P is positive
+        # definite): one check of two scalars instead of two array scans.
+        if not (math.isfinite(s) and math.isfinite(e2)):
             self.n_skipped += 1
             self.stats.n_gated += 1
             return Step(self.theta.reshape(-1).copy(), self._std(self.P),
                         np.full(self.m, np.nan), float("nan"), False)
-        lam = self.forgetting
-        P = self.P
-        Pphi = P @ phi
-        s = lam + phi @ Pphi
         k = Pphi / s
-        err = y - phi @ self.theta
         sv = self.noise_std ** 2 * s / lam  # variance of each a-priori innovation
-        e2 = float(err @ err)
-        self.stats.n_fused += 1
-        self.stats.nis_sum += e2 / sv
-        self.theta = self.theta + np.outer(k, err)
-        P = (P - np.outer(k, Pphi)) / lam
+        stats = self.stats
+        stats.n_fused += 1
+        stats.nis_sum += e2 / sv
+        theta = self.theta + k[:, None] * err[None, :]
+        P = (P - k[:, None] * Pphi[None, :]) / lam
         P = 0.5 * (P + P.T)
         c = self._leak
         if c > 0.0:
             # Information += c I:  P <- (P^-1 + c I)^-1 = P (I + c P)^-1, and the estimate
             # moves to the minimiser of the criterion with the added prior weight.
-            P = np.linalg.solve(np.eye(self.n) + c * P, P)
+            P = np.linalg.solve(self._eye + c * P, P)
             P = 0.5 * (P + P.T)
-            self.theta = self.theta + c * (P @ (self.theta0 - self.theta))
+            theta = theta + c * (P @ (self.theta0 - theta))
+        self.theta = theta
         self.P = P
         self.n_updates += 1
-        return Step(self.theta.reshape(-1).copy(), self._std(P), err,
-                    float(self._loglik(e2, sv)), True)
+        loglik = -0.5 * (self.m * math.log(2.0 * math.pi * sv) + e2 / sv)
+        return Step(theta.reshape(-1), self._std(P), err, loglik, True)
 
     # -- batched ------------------------------------------------------------------------
     def run(self, ys: np.ndarray, us: np.ndarray | None = None, *, history: bool = True,
@@ -353,15 +360,18 @@ class RecursiveLeastSquares:
             if history:
                 # One batched solve: the estimate, P_k times the next sample's regressor
                 # (and predictor), and P_k itself when the std is wanted.
-                ncol = m + extra + (n if want_std else 0)
-                rhs = np.zeros((k, n, ncol))
+                rhs = np.zeros((k, n, m + extra))
                 rhs[:, :, :m] = Bk.T.reshape(k, n, m)
                 rhs[:-1, :, m] = ft[:, 1:].T
                 if xp is not None:
                     rhs[:-1, :, m + 1] = xp[rows[1:]]
-                if want_std:
-                    rhs[:, :, m + extra:] = np.eye(n)
-                sol = np.linalg.solve(np.ascontiguousarray(Rk[sym].T).reshape(k, n, n), rhs)
+                Rb = np.ascontiguousarray(Rk[sym].T).reshape(k, n, n)
+                if want_std:  # the inverse itself is wanted: one inverse, then products
+                    Pk = np.linalg.inv(Rb)
+                    sol = Pk @ rhs
+                    sol += Pk @ (rhs - Rb @ sol)  # one refinement: the solve's accuracy
+                else:
+                    sol = np.linalg.solve(Rb, rhs)
                 th = sol[:, :, :m]
                 # The first sample of the block: its prior forms with the covariance before.
                 f0 = ft[:, 0]
@@ -379,7 +389,6 @@ class RecursiveLeastSquares:
                     xvar[rows[1:]] = np.einsum("kn,kn->k", xp[rows[1:]],
                                                sol[:-1, :, m + 1]) / lam
                 if want_std:
-                    Pk = sol[:, :, m + extra:]
                     sd[rows] = np.sqrt(np.einsum("kii->ki", Pk))
                     P_prev = Pk[-1]
                 # Skipped samples before each used one repeat the previous estimate.

@@ -194,6 +194,10 @@ class OnlineTL:
     coef_lowpass_hz : float or None
         Cut-off of the causal low-pass on the coefficients used for ``mag_tl`` [Hz];
         default a fifth of the band's lower edge; None: the raw estimate.
+    coef_std : bool
+        Report the std of every coefficient after every sample (``SequentialResult.std``;
+        one 16 x 16 inverse per sample, about half the speed of :meth:`run`); when False
+        ``std`` has no rows (``mag_tl_std`` is computed either way).
 
     Notes
     -----
@@ -205,7 +209,8 @@ class OnlineTL:
     def __init__(self, fs_hz: float, terms: str | Sequence[str] = "16", *,
                  forgetting: float = 0.999, band_hz: tuple[float, float] = (0.1, 0.9),
                  order: int = 4, alpha: float = 1e4, max_gap_s: float | None = None,
-                 derivative: str = "central", coef_lowpass_hz: float | None = -1.0) -> None:
+                 derivative: str = "central", coef_lowpass_hz: float | None = -1.0,
+                 coef_std: bool = True) -> None:
         self.fs_hz = float(fs_hz)
         if not (np.isfinite(self.fs_hz) and self.fs_hz > 0):
             raise InputError(f"sampling rate must be positive, got {fs_hz!r} Hz")
@@ -219,6 +224,7 @@ class OnlineTL:
             raise InputError(f"derivative must be one of {', '.join(DERIVATIVES)}, got "
                              f"{derivative!r}")
         self.derivative = derivative
+        self.coef_std = bool(coef_std)
         self.sos = butter_sos("bandpass", self.band_hz, self.fs_hz, self.order)
         from scipy.signal import sosfilt_zi
 
@@ -390,7 +396,7 @@ class OnlineTL:
             self._ended_valid = bool(valid[-1])
         before = self.rls.theta[:, 0].copy()
         # The output rows A predict mag_tl: their prior variance comes with the estimate.
-        res = self.rls.run(Xf[:, p], Xf[:, :p], std=True,
+        res = self.rls.run(Xf[:, p], Xf[:, :p], std=self.coef_std,
                            predict=np.where(np.isfinite(A), A, 0.0))
         hist = res.state
         prior = np.empty_like(hist)
@@ -426,7 +432,8 @@ class OnlineTL:
                 "skipped": res.info["skipped"], "coef": self.coef,
                 "forgetting": self.forgetting}
         return SequentialResult(
-            time_s=t, state=hist, std=res.std * scale[:, None], state_names=self.terms,
+            time_s=t, state=hist, std=res.std * scale[:, None] if self.coef_std else res.std,
+            state_names=self.terms,
             loglik=-0.5 * (np.log(2 * np.pi * prior_scale2 * (1 + res.info["prior_var"]))
                            + nis),
             innovation=res.innovation, innovations={"mag": stats}, info=info)

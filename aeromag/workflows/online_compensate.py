@@ -223,7 +223,8 @@ def compensate_online_frame(df: pd.DataFrame, cfg: CompensationConfig | None = N
     lam = check_forgetting(forgetting)
     prep = prepare(df, cfg, source=src)
     est = OnlineTL(prep.fs, cfg.terms, forgetting=lam, band_hz=cfg.band_hz, order=cfg.order,
-                   max_gap_s=cfg.max_gap_s, derivative=derivative)
+                   max_gap_s=cfg.max_gap_s, derivative=derivative,
+                   coef_std=False)  # OUT.* carry mag_tl_std, not the coefficients' std
     p = len(est.terms)
     if int(prep.valid.sum()) <= p:
         raise InputError(f"{src}: only {int(prep.valid.sum())} usable samples for {p} terms; "
