@@ -98,6 +98,15 @@ def _upper_products(ft: np.ndarray, offs: np.ndarray) -> np.ndarray:
     return out
 
 
+def _repeat_columns(a: np.ndarray, m: int) -> np.ndarray:
+    """Each column of ``a`` (N, n) repeated ``m`` times side by side: (N, n m)."""
+    if m == 1:
+        return a
+    out = np.empty((a.shape[0], a.shape[1], m))
+    out[:] = a[:, :, None]
+    return out.reshape(a.shape[0], a.shape[1] * m)
+
+
 def _symmetric_index(n: int) -> np.ndarray:
     """For each (i, j) of an n x n matrix, the position of (min, max) in ``triu_indices``."""
     iu, ju = np.triu_indices(n)
@@ -342,11 +351,12 @@ class RecursiveLeastSquares:
             rows = idx[s0:s0 + BLOCK]
             k = len(rows)
             if rows[-1] - rows[0] == k - 1:  # no skipped sample: slices, no gathers
-                ft = np.ascontiguousarray(phi[rows[0]:rows[-1] + 1].T)
-                yt = y[rows[0]:rows[-1] + 1].T
+                rsel = slice(rows[0], rows[-1] + 1)
             else:
-                ft = np.ascontiguousarray(phi[rows].T)
-                yt = y[rows].T
+                rsel = rows
+            fk = phi[rsel]  # (k, n), samples along the first axis
+            ft = np.ascontiguousarray(fk.T)
+            yt = y[rsel].T
             # Samples along the last axis: the filter and the products run on contiguous rows.
             xr = _upper_products(ft, offs)
             if c > 0.0:
@@ -362,9 +372,11 @@ class RecursiveLeastSquares:
                 # (and predictor), and P_k itself when the std is wanted.
                 rhs = np.zeros((k, n, m + extra))
                 rhs[:, :, :m] = Bk.T.reshape(k, n, m)
-                rhs[:-1, :, m] = ft[:, 1:].T
+                rhs[:-1, :, m] = fk[1:]
+                xk = None
                 if xp is not None:
-                    rhs[:-1, :, m + 1] = xp[rows[1:]]
+                    xk = xp[rsel]
+                    rhs[:-1, :, m + 1] = xk[1:]
                 Rb = np.ascontiguousarray(Rk[sym].T).reshape(k, n, n)
                 if want_std:  # the inverse itself is wanted: one inverse, then products
                     Pk = np.linalg.inv(Rb)
@@ -377,17 +389,18 @@ class RecursiveLeastSquares:
                 f0 = ft[:, 0]
                 q = np.empty(k)
                 q[0] = f0 @ P_prev @ f0
-                q[1:] = np.einsum("kn,kn->k", ft[:, 1:].T, sol[:-1, :, m])
-                pvar[rows] = q / lam
-                prior = np.empty((k, n, m))
-                prior[0] = prev
-                prior[1:] = th[:-1]
-                innov[rows] = yt.T - np.einsum("kn,knm->km", ft.T, prior)
-                if xp is not None:
-                    x0 = xp[rows[0]]
-                    xvar[rows[0]] = x0 @ P_prev @ x0 / lam
-                    xvar[rows[1:]] = np.einsum("kn,kn->k", xp[rows[1:]],
-                                               sol[:-1, :, m + 1]) / lam
+                q[1:] = np.einsum("kn,kn->k", fk[1:], sol[:-1, :, m])
+                pvar[rsel] = q / lam
+                e = np.empty((k, m))
+                e[0] = yt[:, 0] - f0 @ prev
+                e[1:] = yt.T[1:] - np.einsum("kn,knm->km", fk[1:], th[:-1])
+                innov[rsel] = e
+                if xk is not None:
+                    x0 = xk[0]
+                    xq = np.empty(k)
+                    xq[0] = x0 @ P_prev @ x0
+                    xq[1:] = np.einsum("kn,kn->k", xk[1:], sol[:-1, :, m + 1])
+                    xvar[rsel] = xq / lam
                 if want_std:
                     sd[rows] = np.sqrt(np.einsum("kii->ki", Pk))
                     P_prev = Pk[-1]
@@ -443,7 +456,7 @@ class RecursiveLeastSquares:
         return SequentialResult(
             time_s=np.arange(N, dtype=np.float64),
             state=hist.reshape(rows_out, n * m),
-            std=np.repeat(self.noise_std * sd, m, axis=1),
+            std=_repeat_columns(self.noise_std * sd, m),
             state_names=self.state_names, loglik=loglik,
             innovation=innov if history else None,
             innovations={"y": stats}, info=info)
