@@ -88,7 +88,6 @@ _API: dict[str, str] = {
     "simulate_online_tl": "aeromag.synthetic.online_tl",
     # particle filters and the particle-filter detector
     "ParticleFilter": "aeromag._core.particles",
-    "PFResult": "aeromag._core.particles",
     "StateSpaceModel": "aeromag._core.particles",
     "FilterBank": "aeromag._core.particles",
     "threshold_from_runs": "aeromag._core.particles",

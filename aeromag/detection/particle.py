@@ -475,7 +475,7 @@ def particle_detector(
                     held[rows[j]] = True
                 continue
             r = pf.step(yj, uu[j])
-            last = r.stat
+            last = pf.last_stat
             if restart is not None:
                 # After a restart, until the window is full again: the partial window's
                 # sum scaled to M samples (an estimate of S_k, so the column has no hole).
@@ -485,10 +485,10 @@ def particle_detector(
                 else:
                     restart = None
             out[j] = last
-            mean[j] = r.mean[0]
+            mean[j] = r.state[0]
             if ref is None and far == 0:
-                b_last = float(r.mean[1])
-            is_far = abs(wrap_rad(yj - r.mean[0])) > lim
+                b_last = float(r.state[1])
+            is_far = abs(wrap_rad(yj - r.state[0])) > lim
             if is_far and far == 0:
                 far_start = j
             far = far + 1 if is_far else 0
