@@ -314,7 +314,10 @@ def test_cli_compensate_online_subprocess(tmp_path):
     p = subprocess.run([sys.executable, "-m", "aeromag", "compensate", str(path), "--online",
                         "-o", str(out)], capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
-    assert json.loads(out.with_suffix(".json").read_text())["online"] is True
+    rep = json.loads(out.with_suffix(".json").read_text())
+    assert rep["online"] is True and rep["convergence"]["spans"][0]["kind"] == "warmup"
+    cols = pd.read_csv(out, nrows=2).columns
+    assert {"mag_tl_std", "tl_converged"} <= set(cols)
 
 
 def test_cli_simulate_online(tmp_path):
