@@ -53,7 +53,7 @@ COVERAGE = ("every sample of the flight, the RLS warm-up included (no screening 
 #: ``metrics.coverage`` with ``--mark-unconverged``.
 COVERAGE_MARKED = ("all_*: every sample of the flight; kept_*: the rows written with"
                    " segment_kept true, the rows issued before the online fit converged"
-                   " (convergence.spans) marked false by --mark-unconverged")
+                   " (convergence.spans) marked false (mark_unconverged)")
 
 
 def online_metrics(time_s: np.ndarray, mag: np.ndarray, mag_tl: np.ndarray,
@@ -168,7 +168,7 @@ def convergence_summary(res: OnlineTLResult, time_s: np.ndarray, forgetting: flo
                     "convergence (a-priori residual up to %.0fx the log's level); %s", source,
                     s.start_s, s.end_s, s.start_s, s.end_s, np.sqrt(s.peak_nis_ratio),
                     "those rows have segment_kept false" if marked else
-                    "--mark-unconverged sets segment_kept false on them")
+                    "mark_unconverged=True sets segment_kept false on them")
     return {
         "definition": "windowed NIS of the band-passed a-priori residuals (their mean square,"
                       " standardised by the RLS prior variance, over window_s) divided by its"
