@@ -77,7 +77,6 @@ _API: dict[str, str] = {
     "simulate_mission": "aeromag.synthetic.mission",
     # online estimation: recursive least squares with forgetting, compass calibration
     "RecursiveLeastSquares": "aeromag._core.rls",
-    "RLSResult": "aeromag._core.rls",
     "CompassCalibration": "aeromag.compass",
     "calibrate_compass": "aeromag.compass",
     "igrf_field": "aeromag.compass",
@@ -89,7 +88,6 @@ _API: dict[str, str] = {
     "simulate_online_tl": "aeromag.synthetic.online_tl",
     # particle filters and the particle-filter detector
     "ParticleFilter": "aeromag._core.particles",
-    "PFResult": "aeromag._core.particles",
     "StateSpaceModel": "aeromag._core.particles",
     "FilterBank": "aeromag._core.particles",
     "threshold_from_runs": "aeromag._core.particles",

@@ -6,6 +6,8 @@
   body axes, the estimate, the calibrated field, heading, its error, excitation windows);
 - ``online-tl``: :class:`aeromag.compensation.online.OnlineTL` (16 terms: design matrix,
   causal band-pass, RLS, coefficient low-pass, ``mag_tl``);
+- ``rls-nostd``, ``tl-nostd``: the same without the per-sample parameter std
+  (``std=False``, ``coef_std=False``: what ``compensate --online`` runs);
 - ``rls-step``: the streaming step form, for comparison (2e4 samples).
 
 Usage: ``python benchmarks/bench_online.py [--sizes 1e5 1e6] [--repeat 2]``.  The best of
@@ -62,7 +64,9 @@ def main() -> None:
         tt = log["time"].to_numpy()
         cases = {
             "rls-vector": lambda phi=phi, y=y: RecursiveLeastSquares(
-                4, 3, forgetting=0.975, alpha=1e4).run(phi, y),
+                4, 3, forgetting=0.975, alpha=1e4).run(y, phi),
+            "rls-nostd": lambda phi=phi, y=y: RecursiveLeastSquares(
+                4, 3, forgetting=0.975, alpha=1e4).run(y, phi, std=False),
             "compass": lambda flux=flux, cols=cols, ref=ref, tt=tt: calibrate_compass(
                 flux, *cols, ref, time_s=tt, forgetting=0.975),
         }
@@ -74,8 +78,11 @@ def main() -> None:
         t = tl["time"].to_numpy()
         fx = tl[["flux_x", "flux_y", "flux_z"]].to_numpy()
         mag = tl["mag"].to_numpy()
-        _row("online-tl", n, _best(lambda t=t, fx=fx, mag=mag: OnlineTL(
-            10.0, forgetting=0.999).run(t, fx, mag), args.repeat))
+        u = np.column_stack([t, fx])
+        _row("online-tl", n, _best(lambda u=u, mag=mag: OnlineTL(
+            10.0, forgetting=0.999).run(mag, u), args.repeat))
+        _row("tl-nostd", n, _best(lambda u=u, mag=mag: OnlineTL(
+            10.0, forgetting=0.999, coef_std=False).run(mag, u), args.repeat))
     m = 20000
     phi = np.column_stack([np.random.default_rng(0).normal(size=(m, 3)), np.ones(m)])
     y = phi @ np.ones((4, 3))
@@ -83,7 +90,7 @@ def main() -> None:
 
     def steps() -> None:
         for p, q in zip(phi, y, strict=True):
-            est.step(p, q)
+            est.step(q, p)
 
     _row("rls-step", m, _best(steps, 1))
 

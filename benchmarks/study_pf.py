@@ -45,7 +45,7 @@ def growth_study(n_runs: int) -> list[dict]:
         for name, (prop, scheme) in VARIANTS.items():
             res = ParticleFilter(md, n, proposal=prop, scheme=scheme, batch=n_runs,
                                  seed=1).run(ys)
-            rmse = np.sqrt(np.mean((res.mean[..., 0] - xs) ** 2, axis=1))
+            rmse = np.sqrt(np.mean((res.state[..., 0] - xs) ** 2, axis=1))
             t0 = time.perf_counter()
             for s in range(5):        # time of one run, unbatched
                 ParticleFilter(md, n, proposal=prop, scheme=scheme, seed=s).run(ys[s])

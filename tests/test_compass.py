@@ -54,14 +54,14 @@ def test_noise_free_twelve_parameters_to_1e9(seed, amp, heading0, lam):
     e = np.array(truth["offset_before_nT"])
     f0 = float(np.linalg.norm(truth["earth_ned_nT"]))
     run = CompassCalibration(lam, alpha=1e12, field_scale_nT=f0)
-    run.run(log[FLUX].to_numpy(), b)
+    run.run(b, log[FLUX].to_numpy())
     step = CompassCalibration(lam, alpha=1e12, field_scale_nT=f0)
     for f, q in zip(log[FLUX].to_numpy()[:200], b[:200], strict=True):
-        step.step(f, q)
+        step.step(q, f)
     for est in (run,):
         assert np.abs(est.matrix - D).max() < 1e-9
         assert np.abs(est.offset_nT - e).max() / np.abs(e).max() < 1e-9
-    step.run(log[FLUX].to_numpy()[200:], b[200:])  # streaming then batched: same estimate
+    step.run(b[200:], log[FLUX].to_numpy()[200:])  # streaming then batched: same estimate
     np.testing.assert_allclose(step.matrix, run.matrix, atol=1e-9)
 
 
@@ -104,8 +104,8 @@ def test_heading_tilt_compensated_exact(seed):
 def test_study_forgetting_096_at_40_degrees(seed):
     log, truth = simulate_compass(amplitude_deg=40.0, seed=seed)
     t = log["time"].to_numpy()
-    ff = _calibrate(log, truth, 0.96).extra["heading_err_deg"]
-    plain = _calibrate(log, truth, 1.0).extra["heading_err_deg"]
+    ff = _calibrate(log, truth, 0.96).heading_err_deg
+    plain = _calibrate(log, truth, 1.0).heading_err_deg
     rms_ff, rms_plain = _rms(ff, t, 20, 30), _rms(plain, t, 20, 30)
     assert rms_ff <= 0.6
     assert rms_ff <= 0.25 * rms_plain
@@ -121,7 +121,7 @@ def test_study_forgetting_096_at_40_degrees(seed):
 def test_convergence_ordered_by_forgetting(seed):
     log, truth = simulate_compass(amplitude_deg=40.0, seed=seed)
     t = log["time"].to_numpy()
-    conv = {lam: convergence_time(t, _calibrate(log, truth, lam).extra["heading_err_deg"], 15.0)
+    conv = {lam: convergence_time(t, _calibrate(log, truth, lam).heading_err_deg, 15.0)
             for lam in (0.99, 0.975, 0.96)}
     assert conv[0.99] > conv[0.975] > conv[0.96]
     assert np.isfinite(conv[0.99])
@@ -132,10 +132,10 @@ def test_excitation_indicator_flags_10_degrees(seed):
     small = _calibrate(*simulate_compass(amplitude_deg=10.0, seed=seed), 0.96)
     large = _calibrate(*simulate_compass(amplitude_deg=40.0, seed=seed), 0.96)
     mid = _calibrate(*simulate_compass(amplitude_deg=20.0, seed=seed), 0.96)
-    assert not any(w.sufficient for w in small.extra["excitation"])
-    assert all(w.sufficient for w in large.extra["excitation"])
-    assert all(w.sufficient for w in mid.extra["excitation"])
-    w = small.extra["excitation"][0]
+    assert not any(w.sufficient for w in small.excitation)
+    assert all(w.sufficient for w in large.excitation)
+    assert all(w.sufficient for w in mid.excitation)
+    w = small.excitation[0]
     assert 19 < w.roll_range_deg <= 20.0 and 19 < w.pitch_range_deg <= 20.0
 
 
@@ -336,7 +336,7 @@ def test_multirate_log_interpolates_attitude_to_magnetometer_rows():
     late = magrow & (t > 10)
     rms = np.sqrt(np.mean(out["heading_err_deg"].to_numpy()[late] ** 2))
     t1 = log["time"].to_numpy()
-    rms1 = np.sqrt(np.mean(res1.extra["heading_err_deg"][t1 > 10] ** 2))
+    rms1 = np.sqrt(np.mean(res1.heading_err_deg[t1 > 10] ** 2))
     assert rms < 1.5 * rms1 + 0.05
 
 
@@ -351,3 +351,23 @@ def test_attitude_not_interpolated_across_a_gap():
     assert filled.tolist() == [False, True, False, False, False]
     assert hh[1] == pytest.approx(0.0, abs=1e-9) and pp[1] == pytest.approx(1.0)
     assert np.isnan(hh[3])
+
+
+def test_step_and_run_one_sequential_convention():
+    """step(y, u) and run(ys, us): the same state [D, e nT], std and a-priori innovation, and
+    the innovation is the expected field minus the calibrated one."""
+    log, truth = simulate_compass(duration_s=4.0, seed=3)
+    b = log[["truth_bx", "truth_by", "truth_bz"]].to_numpy()
+    flux = log[FLUX].to_numpy()
+    f0 = float(np.linalg.norm(truth["earth_ned_nT"]))
+    a = CompassCalibration(0.96, field_scale_nT=f0)
+    steps = [a.step(q, f) for f, q in zip(flux, b, strict=True)]
+    res = CompassCalibration(0.96, field_scale_nT=f0).run(b, flux)
+    assert res.state_names[0] == "D_xx" and res.state_names[-1] == "e_z_nT"
+    np.testing.assert_allclose(np.array([s.state for s in steps]), res.state, atol=1e-6)
+    np.testing.assert_allclose(np.array([s.std for s in steps]), res.std, rtol=1e-6)
+    np.testing.assert_allclose(np.array([s.innovation for s in steps]), res.innovation,
+                               atol=1e-6)
+    np.testing.assert_allclose(res.innovation, b - res.info["flux_cal_nT"], atol=1e-6)
+    np.testing.assert_allclose(res.state[-1, :9].reshape(3, 3), a.matrix, atol=1e-9)
+    assert res.innovations["field"].n_fused == len(b)

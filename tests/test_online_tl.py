@@ -42,12 +42,12 @@ def test_causal_derivative_hand_case():
 def test_no_future_sample_changes_the_past(derivative):
     log, _ = simulate_online_tl(duration_s=120.0, jump_s=None, seed=1)
     t, flux, mag = _arrays(log)
-    base = OnlineTL(10.0, derivative=derivative).run(t, flux, mag).mag_tl
+    base = OnlineTL(10.0, derivative=derivative).compensate(t, flux, mag).mag_tl
     k0 = 700
     flux2, mag2 = flux.copy(), mag.copy()
     flux2[k0:] *= 1.01
     mag2[k0:] += 50.0
-    pert = OnlineTL(10.0, derivative=derivative).run(t, flux2, mag2).mag_tl
+    pert = OnlineTL(10.0, derivative=derivative).compensate(t, flux2, mag2).mag_tl
     last_equal = k0 - 2 if derivative == "central" else k0 - 1  # one-sample latency
     # equal to rounding (blocked vector arithmetic), while the change itself is of nT
     np.testing.assert_allclose(pert[:last_equal + 1], base[:last_equal + 1], rtol=0, atol=1e-8)
@@ -60,9 +60,9 @@ def test_pieces_equal_whole_backward_exact_central_close():
     log, _ = simulate_online_tl(duration_s=200.0, jump_s=100.0, seed=2)
     t, flux, mag = _arrays(log)
     for derivative in ("backward", "midpoint", "central"):
-        whole = OnlineTL(10.0, derivative=derivative).run(t, flux, mag)
+        whole = OnlineTL(10.0, derivative=derivative).compensate(t, flux, mag)
         est = OnlineTL(10.0, derivative=derivative)
-        parts = [est.run(t[a:b], flux[a:b], mag[a:b]) for a, b in
+        parts = [est.compensate(t[a:b], flux[a:b], mag[a:b]) for a, b in
                  ((0, 333), (333, 1000), (1000, 1001), (1001, len(t)))]
         tl = np.concatenate([p.mag_tl for p in parts])
         if derivative != "central":  # exact but for rounding (blocked sums)
@@ -96,7 +96,8 @@ def test_midpoint_strictly_causal_and_far_better_than_backward():
     post = t >= 305.0
     c_post = np.linalg.lstsq(_bp(A)[post], _bp(mag)[post], rcond=None)[0]
     ev = t >= 900.0
-    r = {d: float(np.std(_bp(mag - OnlineTL(10.0, derivative=d).run(t, flux, mag).mag_tl)[ev]))
+    r = {d: float(np.std(_bp(mag - OnlineTL(10.0, derivative=d)
+                                .compensate(t, flux, mag).mag_tl)[ev]))
          for d in ("midpoint", "backward")}
     r_post = float(np.std(_bp(mag - A @ c_post)[ev]))
     assert r["midpoint"] < 0.5 * r["backward"], r
@@ -118,10 +119,16 @@ def test_simulator_eddy_from_true_rate_not_logged_difference():
 def test_step_equals_run():
     log, _ = simulate_online_tl(duration_s=30.0, jump_s=None, seed=0)
     t, flux, mag = _arrays(log)
-    a = OnlineTL(10.0, derivative="backward").run(t, flux, mag).mag_tl
+    a = OnlineTL(10.0, derivative="backward").compensate(t, flux, mag).mag_tl
     est = OnlineTL(10.0, derivative="backward")
-    b = np.array([est.step(t[k], flux[k], mag[k]) for k in range(len(t))])
+    b, states = [], []
+    for k in range(len(t)):
+        st = est.step(mag[k], np.r_[t[k], flux[k]])
+        b.append(est.last_mag_tl)
+        states.append(st.state)
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-9)
+    whole = OnlineTL(10.0, derivative="backward").run(mag, np.column_stack([t, flux]))
+    np.testing.assert_allclose(np.array(states), whole.state, rtol=0, atol=1e-9)
 
 
 def test_nan_sample_skipped_not_propagated():
@@ -129,7 +136,7 @@ def test_nan_sample_skipped_not_propagated():
     t, flux, mag = _arrays(log)
     mag[100] = np.nan
     flux[200, 1] = np.nan
-    res = OnlineTL(10.0).run(t, flux, mag)
+    res = OnlineTL(10.0).compensate(t, flux, mag)
     assert np.isnan(res.mag_tl[[100, 200]]).all()
     assert np.isfinite(np.delete(res.mag_tl, [100, 200])).all()
     assert np.isfinite(res.coef).all() and res.skipped[[100, 200]].all()
@@ -138,7 +145,7 @@ def test_nan_sample_skipped_not_propagated():
 def _compare(seed, jump):
     log, truth = simulate_online_tl(duration_s=2400.0, jump_s=jump, seed=seed)
     t, flux, mag = _arrays(log)
-    online = OnlineTL(10.0, forgetting=0.999).run(t, flux, mag)
+    online = OnlineTL(10.0, forgetting=0.999).compensate(t, flux, mag)
     A = design_matrix(flux, t)
     Ab, yb = _bp(A), _bp(mag)
     post = t >= (jump or 0.0) + 5.0
@@ -307,7 +314,10 @@ def test_cli_compensate_online_subprocess(tmp_path):
     p = subprocess.run([sys.executable, "-m", "aeromag", "compensate", str(path), "--online",
                         "-o", str(out)], capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
-    assert json.loads(out.with_suffix(".json").read_text())["online"] is True
+    rep = json.loads(out.with_suffix(".json").read_text())
+    assert rep["online"] is True and rep["convergence"]["spans"][0]["kind"] == "warmup"
+    cols = pd.read_csv(out, nrows=2).columns
+    assert {"mag_tl_std", "tl_converged"} <= set(cols)
 
 
 def test_cli_simulate_online(tmp_path):

@@ -189,13 +189,13 @@ def test_pf_converges_to_the_kalman_filter_on_a_linear_gaussian_model(proposal):
     for n in (100, 10_000):
         res = ParticleFilter(md, n, proposal=proposal, seed=11).run(y)
         sd = np.sqrt(np.diagonal(kc, axis1=1, axis2=2))
-        err[n] = np.abs(res.mean - km) / sd
+        err[n] = np.abs(res.state - km) / sd
         if n == 10_000:
             # Monte-Carlo error of a weighted mean is about sd / sqrt(ESS) (ESS >= N/4 here);
             # resampling adds a few times that: stay within 6 of it.
             assert np.max(err[n]) < 6.0 / np.sqrt(n / 4)
             np.testing.assert_allclose(res.std, sd, rtol=0.1)
-            assert abs(res.total_loglik - kl.sum()) < 0.5
+            assert abs(np.nansum(res.loglik, axis=-1) - kl.sum()) < 0.5
             np.testing.assert_allclose(res.loglik, kl, atol=0.15)
     assert np.sqrt(np.mean(err[10_000] ** 2)) < 0.3 * np.sqrt(np.mean(err[100] ** 2))
 
@@ -207,13 +207,13 @@ def test_batched_filter_matches_kalman_on_every_problem():
     ys = np.stack([y, y + 1.0, y])           # three problems at once
     res = ParticleFilter(linear_gaussian_model(F, H, Q, R, X0, P0), 4000, batch=3,
                          seed=1).run(ys)
-    assert res.mean.shape == (3, 30, 2) and res.stat.shape == (3, 30)
-    assert np.max(np.abs(res.mean[0] - km) / sd) < 0.4
-    assert np.max(np.abs(res.mean[2] - km) / sd) < 0.4
-    assert abs(res.total_loglik[0] - kl.sum()) < 1.0
+    assert res.state.shape == (3, 30, 2) and res.info["stat"].shape == (3, 30)
+    assert np.max(np.abs(res.state[0] - km) / sd) < 0.4
+    assert np.max(np.abs(res.state[2] - km) / sd) < 0.4
+    assert abs(np.nansum(res.loglik, axis=-1)[0] - kl.sum()) < 1.0
     km1, _, kl1 = kalman_filter(y + 1.0, F, H, Q, R, X0, P0)    # each row its own data
-    assert np.max(np.abs(res.mean[1] - km1) / sd) < 0.4
-    assert abs(res.total_loglik[1] - kl1.sum()) < 1.0
+    assert np.max(np.abs(res.state[1] - km1) / sd) < 0.4
+    assert abs(np.nansum(res.loglik, axis=-1)[1] - kl1.sum()) < 1.0
 
 
 def test_same_seed_same_result_and_missing_measurements_predict_only():
@@ -222,13 +222,13 @@ def test_same_seed_same_result_and_missing_measurements_predict_only():
     y[10:13] = np.nan
     a = ParticleFilter(md, 300, scheme="genetic", seed=7).run(y)
     b = ParticleFilter(md, 300, scheme="genetic", seed=7).run(y)
-    np.testing.assert_array_equal(a.mean, b.mean)
-    np.testing.assert_array_equal(a.stat, b.stat)
+    np.testing.assert_array_equal(a.state, b.state)
+    np.testing.assert_array_equal(a.info["stat"], b.info["stat"])
     assert np.all(np.isnan(a.loglik[10:13])) and np.all(np.isfinite(a.loglik[:10]))
-    assert not np.any(a.renewed[10:13])
-    assert np.all(np.isfinite(a.mean))
+    assert not np.any(a.info["renewed"][10:13])
+    assert np.all(np.isfinite(a.state))
     # S_k skips the missing steps: its window holds the last M measured steps
-    assert a.stat[12] == a.stat[9]
+    assert a.info["stat"][12] == a.info["stat"][9]
 
 
 def test_step_matches_run():
@@ -236,9 +236,16 @@ def test_step_matches_run():
     _, y = simulate_growth(T=20, seed=2)
     res = ParticleFilter(md, 200, window=5, seed=3).run(y)
     pf = ParticleFilter(md, 200, window=5, seed=3)
-    steps = [pf.step(v) for v in y]
-    np.testing.assert_allclose([s.mean[0] for s in steps], res.mean[:, 0])
-    np.testing.assert_allclose([s.stat for s in steps], res.stat, equal_nan=True)
+    steps, stats = [], []
+    for v in y:
+        steps.append(pf.step(v))
+        stats.append(pf.last_stat)
+    np.testing.assert_allclose([s.state[0] for s in steps], res.state[:, 0])
+    np.testing.assert_allclose([s.std[0] for s in steps], res.std[:, 0])
+    np.testing.assert_allclose([s.loglik for s in steps], res.loglik)
+    np.testing.assert_allclose(stats, res.info["stat"], equal_nan=True)
+    assert all(s.used and s.innovation.size == 0 for s in steps)
+    assert res.state_names == ("x0",) and res.innovations["y"].n_fused == len(y)
 
 
 # --------------------------------------------------------------------------- growth model
@@ -247,8 +254,8 @@ def test_growth_model_rmse_bootstrap_and_genetic_on_the_same_runs():
     xs, ys = simulate_growth(T=100, Q=10.0, R=1.0, seed=2024, n_runs=60)
     boot = ParticleFilter(md, 100, scheme="multinomial", batch=60, seed=1).run(ys)
     gen = ParticleFilter(md, 100, scheme="genetic", batch=60, seed=1).run(ys)
-    rmse_b = np.sqrt(np.mean((boot.mean[..., 0] - xs) ** 2, axis=1))
-    rmse_g = np.sqrt(np.mean((gen.mean[..., 0] - xs) ** 2, axis=1))
+    rmse_b = np.sqrt(np.mean((boot.state[..., 0] - xs) ** 2, axis=1))
+    rmse_g = np.sqrt(np.mean((gen.state[..., 0] - xs) ** 2, axis=1))
     assert 3.0 <= rmse_b.mean() <= 8.0, rmse_b.mean()
     assert rmse_g.mean() <= 1.1 * rmse_b.mean(), (rmse_g.mean(), rmse_b.mean())
 
@@ -257,7 +264,7 @@ def test_growth_model_unscented_proposal_runs_and_tracks():
     md = growth_model()
     xs, ys = simulate_growth(T=100, seed=9, n_runs=20)
     res = ParticleFilter(md, 100, proposal="unscented", batch=20, seed=2).run(ys)
-    rmse = np.sqrt(np.mean((res.mean[..., 0] - xs) ** 2, axis=1))
+    rmse = np.sqrt(np.mean((res.state[..., 0] - xs) ** 2, axis=1))
     assert np.all(np.isfinite(rmse)) and 2.0 < rmse.mean() < 9.0
 
 
@@ -280,7 +287,7 @@ def test_bank_isolates_the_hypothesis_that_made_the_data():
     # the bias is a constant offset of a random-walk-like state: the nominal filter absorbs
     # it after a while, but not in the first windows
     assert res.most_likely_name(9) == "bias+2"
-    assert res.results["bias-2"].stat[9] > res.results["bias+2"].stat[9]
+    assert res.results["bias-2"].info["stat"][9] > res.results["bias+2"].info["stat"][9]
 
 
 def test_filter_rejects_bad_settings():
@@ -305,11 +312,11 @@ def test_batched_unscented_rows_without_measurement_only_predict():
                          proposal="unscented", seed=2).run(ys)
     assert np.all(np.isnan(res.loglik[1, 5:])) and np.all(np.isfinite(res.loglik[0]))
     # prediction only: the mean follows F (velocity decays, position integrates it)
-    pred = res.mean[1, 4].copy()
+    pred = res.state[1, 4].copy()
     for _ in range(15):
         pred = F @ pred
-    np.testing.assert_allclose(res.mean[1, -1], pred, atol=0.05)
-    np.testing.assert_allclose(res.mean[0, -1], km[-1], atol=0.1)
+    np.testing.assert_allclose(res.state[1, -1], pred, atol=0.05)
+    np.testing.assert_allclose(res.state[0, -1], km[-1], atol=0.1)
 
 
 def test_gumbel_threshold_extrapolates_the_maxima():

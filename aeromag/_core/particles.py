@@ -53,6 +53,7 @@ from .pf_operators import (
     systematic_resample,
 )
 from .pf_stats import Threshold, threshold_from_calm, threshold_from_runs, window_sum
+from .sequential import InnovationStats, SequentialResult, Step
 from .unscented import (
     angle_mean_fn,
     angle_residual_fn,
@@ -64,10 +65,8 @@ from .unscented import (
 __all__ = [
     "BankResult",
     "FilterBank",
-    "PFResult",
     "ParticleFilter",
     "StateSpaceModel",
-    "StepResult",
     "Threshold",
     "crossover",
     "effective_sample_size",
@@ -168,82 +167,22 @@ def _gauss_logpdf(d: np.ndarray, L: np.ndarray) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- filter
-@dataclass
-class StepResult:
-    """One step of :class:`ParticleFilter` (arrays get a leading batch axis in batch mode).
-
-    Attributes
-    ----------
-    mean, std : ndarray, shape (n,)
-        Weighted posterior mean and standard deviation of the state.
-    loglik : float or ndarray
-        ``log L_k`` (NaN when the step had no measurement).
-    stat : float or ndarray
-        ``S_k`` over the last ``window`` steps (NaN until the window is full).
-    ess : float or ndarray
-        Effective sample size after weighting.
-    renewed : bool or ndarray
-        Whether the population was resampled (or genetically replaced).
-    """
-
-    mean: np.ndarray
-    std: np.ndarray
-    loglik: Any
-    stat: Any
-    ess: Any
-    renewed: Any
-
-
-@dataclass
-class PFResult:
-    """Output of :meth:`ParticleFilter.run` (arrays get a leading batch axis in batch mode).
-
-    Attributes
-    ----------
-    mean, std : ndarray, shape (T, n)
-        Weighted posterior mean and standard deviation per step.
-    loglik : ndarray, shape (T,)
-        ``log L_k`` per step (NaN without a measurement).
-    stat : ndarray, shape (T,)
-        ``S_k``: sum of ``-log L_j`` over the last ``window`` measured steps.
-    ess : ndarray, shape (T,)
-        Effective sample size after weighting.
-    renewed : ndarray of bool, shape (T,)
-        Steps at which the population was renewed.
-    window : int
-        ``M``.
-    n_particles : int
-        ``N``.
-    proposal, scheme : str
-        Proposal and renewal scheme used.
-    elapsed_s : float
-        Wall time of the run, s.
-    """
-
-    mean: np.ndarray
-    std: np.ndarray
-    loglik: np.ndarray
-    stat: np.ndarray
-    ess: np.ndarray
-    renewed: np.ndarray
-    window: int
-    n_particles: int
-    proposal: str
-    scheme: str
-    elapsed_s: float
-
-    @property
-    def total_loglik(self) -> np.ndarray:
-        """Sum of ``log L_k`` over the measured steps (the log marginal likelihood)."""
-        return np.nansum(self.loglik, axis=-1)
-
-
 _PROPOSALS = ("bootstrap", "unscented")
+#: The particle filter has no single innovation: ``Step.innovation`` is empty.
+_NO_INNOVATION = np.empty(0)
 _SCHEMES = ("systematic", "multinomial", "genetic")
 
 
 class ParticleFilter:
     """Sequential importance resampling filter with bootstrap or unscented proposal.
+
+    The package's sequential-filter convention (:mod:`aeromag._core.sequential`):
+    :meth:`step` returns a :class:`Step` (posterior mean and std, log-likelihood, whether
+    a measurement was used; no innovation: ``innovation`` is empty) and keeps the
+    filter's own per-step figures in :attr:`last_stat`, :attr:`last_ess` and
+    :attr:`last_renewed`; :meth:`run` returns a :class:`SequentialResult` with those per
+    step in ``info`` (``stat``, ``ess``, ``renewed``).  In batch mode every array gets a
+    leading batch axis.
 
     Parameters
     ----------
@@ -312,6 +251,7 @@ class ParticleFilter:
         self._y_mean = angle_mean_fn(ang) if ang else None
         self._y_res = angle_residual_fn(ang) if ang else None
         self._m = None if model.R is None else model.R.shape[0]
+        self.state_names = tuple(f"x{i}" for i in range(model.n))
         self.reset()
 
     # ------------------------------------------------------------------ helpers
@@ -332,6 +272,9 @@ class ParticleFilter:
         self.k = 0
         self._buf = np.full((self.batch, self.window), np.nan)
         self._nbuf = np.zeros(self.batch, dtype=np.int64)
+        self.last_stat: Any = float("nan")
+        self.last_ess: Any = float("nan")
+        self.last_renewed: Any = False
 
     def _draw_initial(self) -> None:
         shape = (self.batch, self.n_particles)
@@ -418,7 +361,7 @@ class ParticleFilter:
         self.logw[rows] = -np.log(self.n_particles)
 
     # ------------------------------------------------------------------ public
-    def step(self, y: np.ndarray | float | None, u: Any = None) -> StepResult:
+    def step(self, y: np.ndarray | float | None, u: Any = None) -> Step:
         """Advance one step with measurement ``y`` (None or NaN: predict only) and control ``u``.
 
         Parameters
@@ -431,7 +374,13 @@ class ParticleFilter:
 
         Returns
         -------
-        StepResult
+        Step
+            ``state`` and ``std``: weighted posterior mean and standard deviation;
+            ``loglik``: ``log L_k`` (NaN without a measurement); ``used``: whether a
+            measurement updated the weights; ``innovation`` empty.  ``S_k`` (NaN until the
+            window is full), the effective sample size after weighting and whether the
+            population was renewed are :attr:`last_stat`, :attr:`last_ess`,
+            :attr:`last_renewed`.
         """
         if self.x is None:
             self._draw_initial()
@@ -478,11 +427,13 @@ class ParticleFilter:
         need &= have
         self._renew(need)
         if self.batched:
-            return StepResult(mean, std, ll, stat, ess, need)
-        return StepResult(mean[0], std[0], float(ll[0]), float(stat[0]), float(ess[0]),
-                          bool(need[0]))
+            self.last_stat, self.last_ess, self.last_renewed = stat, ess, need
+            return Step(mean, std, np.empty((B, 0)), ll, have)
+        self.last_stat, self.last_ess = float(stat[0]), float(ess[0])
+        self.last_renewed = bool(need[0])
+        return Step(mean[0], std[0], _NO_INNOVATION, float(ll[0]), bool(have[0]))
 
-    def run(self, ys: np.ndarray, us: Any = None) -> PFResult:
+    def run(self, ys: np.ndarray, us: Any = None) -> SequentialResult:
         """Run over a sequence of measurements from a fresh initial population.
 
         Parameters
@@ -494,7 +445,15 @@ class ParticleFilter:
 
         Returns
         -------
-        PFResult
+        SequentialResult
+            ``time_s`` the step index; ``state``, ``std`` (T, n): weighted posterior mean
+            and standard deviation; ``loglik`` (T,): ``log L_k`` (NaN without a
+            measurement; its ``nansum`` is the log marginal likelihood); ``innovation``
+            None; ``innovations["y"]``: measured and missing steps; ``info``: ``stat``
+            (``S_k``, the sum of ``-log L_j`` over the last ``window`` measured steps),
+            ``ess``, ``renewed`` per step, ``window``, ``n_particles``, ``proposal``,
+            ``scheme``, ``elapsed_s`` (wall time of the run, s).  Batch mode: a leading
+            batch axis on every per-step array.
         """
         t0 = time.perf_counter()
         self.reset()
@@ -516,14 +475,20 @@ class ParticleFilter:
             y = ya[:, t] if self.batched else ya[t]
             u = None if ua is None else (ua[:, t] if self.batched else ua[t])
             r = self.step(y, u)
-            mean[:, t], std[:, t] = np.atleast_2d(r.mean), np.atleast_2d(r.std)
-            ll[:, t], ess[:, t], ren[:, t] = r.loglik, r.ess, r.renewed
+            mean[:, t], std[:, t] = np.atleast_2d(r.state), np.atleast_2d(r.std)
+            ll[:, t], ess[:, t], ren[:, t] = r.loglik, self.last_ess, self.last_renewed
         stat = window_sum(-ll, self.window)
         sq = (lambda a: a) if self.batched else (lambda a: a[0])
-        return PFResult(mean=sq(mean), std=sq(std), loglik=sq(ll), stat=sq(stat), ess=sq(ess),
-                        renewed=sq(ren), window=self.window, n_particles=self.n_particles,
-                        proposal=self.proposal, scheme=self.scheme,
-                        elapsed_s=time.perf_counter() - t0)
+        measured = int(np.isfinite(ll).sum())
+        stats = InnovationStats(dof=int(ya.shape[-1]), n_fused=measured,
+                                n_gated=int(ll.size - measured))
+        return SequentialResult(
+            time_s=np.arange(T, dtype=np.float64), state=sq(mean), std=sq(std),
+            state_names=self.state_names, loglik=sq(ll), innovation=None,
+            innovations={"y": stats},
+            info={"stat": sq(stat), "ess": sq(ess), "renewed": sq(ren), "window": self.window,
+                  "n_particles": self.n_particles, "proposal": self.proposal,
+                  "scheme": self.scheme, "elapsed_s": time.perf_counter() - t0})
 
 
 # --------------------------------------------------------------------------- bank
@@ -536,7 +501,7 @@ class BankResult:
     names : list of str
         Hypotheses, in order.
     results : dict
-        ``{name: PFResult}``.
+        ``{name: SequentialResult}`` (:meth:`ParticleFilter.run` of each hypothesis).
     stat : ndarray, shape (H, T) (``(H, B, T)`` in batch mode)
         ``S_k`` of each hypothesis.
     most_likely : ndarray of int, shape (T,) (``(B, T)``)
@@ -544,7 +509,7 @@ class BankResult:
     """
 
     names: list[str]
-    results: dict[str, PFResult]
+    results: dict[str, SequentialResult]
     stat: np.ndarray
     most_likely: np.ndarray
 
@@ -593,7 +558,7 @@ class FilterBank:
         BankResult
         """
         res = {name: f.run(ys, us) for name, f in self.filters.items()}
-        stat = np.stack([res[nm].stat for nm in self.names])
+        stat = np.stack([res[nm].info["stat"] for nm in self.names])
         filled = np.all(np.isfinite(stat), axis=0)
         best = np.argmin(np.where(np.isnan(stat), np.inf, stat), axis=0)
         best = np.where(filled, best, -1)

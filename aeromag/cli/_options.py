@@ -406,6 +406,7 @@ def _flag_text(value: Any) -> str:
 #: own parameter names too: ``heading_detector(sigmas=...)`` is ``track --heading-sigmas``).
 _KEYWORD_FLAGS = {"model": "--model", "chunk_rows": "--chunk-rows",
                   "allow_truncated": "--allow-truncated", "forgetting": "--forgetting",
+                  "mark_unconverged": "--mark-unconverged",
                   "earth_field": "--earth-field", "calm_window": "--calm-window",
                   "sigmas": "--heading-sigmas", "heading_sigmas": "--heading-sigmas",
                   "sigma_floor_deg": "--heading-sigma-floor",

@@ -1,6 +1,6 @@
 """``aeromag compensate --online``: the option rows and the dispatch to the online workflow.
 
-Imported by :mod:`aeromag.cli.compensate` before its command is registered, so the two rows
+Imported by :mod:`aeromag.cli.compensate` before its command is registered, so the three rows
 below are part of the one option table (:mod:`aeromag.cli._options`).
 """
 
@@ -24,6 +24,13 @@ if "online" not in {o.name for o in OPTIONS}:
         "forgetting", ("--forgetting",), float | None, None,
         "With --online: forgetting factor lambda, 0 < L <= 1 (1: plain recursive least "
         "squares; default 0.999, a memory of about 1000 samples).", _ONLINE, metavar="L"),
+        before="model")
+    add_option(Option(
+        "mark_unconverged", ("--mark-unconverged",), bool, False,
+        "With --online: write segment_kept false on the rows issued before the fit "
+        "converged (the first memory, and after a change of the interference found by the "
+        "windowed NIS of the a-priori residuals; OUT.json convergence.spans). Without it "
+        "those rows are kept and each change is a warning.", _ONLINE),
         before="model")
 
 
@@ -51,7 +58,8 @@ def run_online(opts: Options) -> None:
         lam = DEFAULT_FORGETTING if opts.get("forgetting") is None else opts.forgetting
         report = compensate_online_file(opts.survey, opts.output, cfg, forgetting=lam,
                                         columns=columns, units=unit_map,
-                                        fmt=opts.get("fmt"))
+                                        fmt=opts.get("fmt"),
+                                        mark_unconverged=bool(opts.get("mark_unconverged")))
     m = report["metrics"]
     typer.echo(f"wrote {opts.output} and {json_path_for(opts.output)}: online fit, lambda "
                f"{report['forgetting']:g}, improvement ratio {m['improvement_ratio']:.2f}, "
@@ -77,4 +85,7 @@ def dispatch(opts: Options) -> bool:
     if opts.get("forgetting") is not None:
         with user_errors():
             raise InputError("--forgetting applies to the online fit: add --online")
+    if opts.get("mark_unconverged"):
+        with user_errors():
+            raise InputError("--mark-unconverged applies to the online fit: add --online")
     return False

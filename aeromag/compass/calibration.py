@@ -23,11 +23,13 @@ import numpy as np
 from .._core.angles import wrap360_deg, wrap_deg
 from .._core.rls import RecursiveLeastSquares, check_forgetting
 from .._core.rotations import rotate_body_to_ned, rotate_ned_to_body
+from .._core.sequential import SequentialResult, Step
 from ..errors import InputError
 
 log = logging.getLogger(__name__)
 
-__all__ = ["CompassCalibration", "CompassResult", "ExcitationWindow", "attitude_at_samples",
+__all__ = ["CompassCalibration", "CompassResult", "ExcitationWindow", "STATE_NAMES",
+           "attitude_at_samples",
            "compass_heading",
            "excitation_windows", "heading_error_stats", "EXCITATION_THRESHOLD",
            "calibrate_compass", "convergence_time", "reference_in_body"]
@@ -235,37 +237,71 @@ def excitation_windows(time_s: np.ndarray, heading_deg: np.ndarray, pitch_deg: n
             for i in range(len(a))]
 
 
+#: Names of the calibration's state, in :class:`CompassCalibration`'s order: ``D``
+#: row-major (dimensionless), then ``e`` [nT].
+STATE_NAMES = tuple(f"D_{r}{c}" for r in "xyz" for c in "xyz") + ("e_x_nT", "e_y_nT",
+                                                                   "e_z_nT")
+
+
 @dataclass
 class CompassResult:
-    """What :meth:`CompassCalibration.run` returns.
+    """What :func:`calibrate_compass` returns: the filter's run and the compass's own fields.
 
     Attributes
     ----------
+    fit : SequentialResult
+        :meth:`CompassCalibration.run`: state ``D`` (row-major) and ``e`` [nT] after each
+        sample (:data:`STATE_NAMES`), their std, the a-priori innovation
+        ``b_ref - flux_cal`` [nT], consistency in ``innovations["field"]``.
     flux_cal_nT : ndarray, shape (n, 3)
         Calibrated field, each sample with the estimate from the samples before it [nT].
-    matrix : ndarray, shape (3, 3)
-        Final ``D``.
-    offset_nT : ndarray, shape (3,)
-        Final ``e`` [nT].
-    matrix_history : ndarray, shape (n, 3, 3)
-    offset_history_nT : ndarray, shape (n, 3)
-    skipped : ndarray of bool, shape (n,)
-        Samples not used (flux, attitude or reference not finite).
-    forgetting : float
+    mag_heading_cal : ndarray, shape (n,)
+        Tilt-compensated heading of ``flux_cal_nT`` plus the declination [deg].
+    heading_err_deg : ndarray, shape (n,)
+        ``mag_heading_cal - heading``, wrapped [deg].
+    metrics : dict
+        :func:`heading_error_stats`.
+    excitation : list of ExcitationWindow
     """
 
+    fit: SequentialResult
     flux_cal_nT: np.ndarray
-    matrix: np.ndarray
-    offset_nT: np.ndarray
-    matrix_history: np.ndarray
-    offset_history_nT: np.ndarray
-    skipped: np.ndarray
-    forgetting: float
-    extra: dict = field(default_factory=dict)
+    mag_heading_cal: np.ndarray
+    heading_err_deg: np.ndarray
+    metrics: dict[str, float | None]
+    excitation: list[ExcitationWindow] = field(default_factory=list)
+
+    @property
+    def matrix_history(self) -> np.ndarray:
+        """``D`` after each sample, shape (n, 3, 3)."""
+        return self.fit.state[:, :9].reshape(-1, 3, 3)
+
+    @property
+    def offset_history_nT(self) -> np.ndarray:
+        """``e`` after each sample [nT], shape (n, 3)."""
+        return self.fit.state[:, 9:]
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """Final ``D`` (3 x 3)."""
+        return self.fit.info["matrix"]
+
+    @property
+    def offset_nT(self) -> np.ndarray:
+        """Final ``e`` [nT]."""
+        return self.fit.info["offset_nT"]
+
+    @property
+    def skipped(self) -> np.ndarray:
+        """Samples not used (flux, attitude or reference not finite)."""
+        return self.fit.info["skipped"]
 
 
 class CompassCalibration:
     """Online hard- and soft-iron calibration (12 parameters) by RLS with forgetting.
+
+    The sequential-filter convention (:mod:`aeromag._core.sequential`): the measurement
+    ``y`` is the expected Earth field in body axes, the input ``u`` the measured field.
 
     Parameters
     ----------
@@ -275,16 +311,21 @@ class CompassCalibration:
         Prior covariance scale of the normalised parameters (``P_0 = alpha I``).
     field_scale_nT : float
         ``F0``, the scale of the regressor [nT] (set it to the reference intensity).
+    noise_nT : float
+        One-sigma mismatch per axis between the measured and the expected field [nT]
+        (sensor noise and attitude error): scales the reported std, NIS and
+        log-likelihood only, not the estimate.
     """
 
     def __init__(self, forgetting: float = 0.975, *, alpha: float = 1e4,
-                 field_scale_nT: float = 50000.0) -> None:
+                 field_scale_nT: float = 50000.0, noise_nT: float = 200.0) -> None:
         self.forgetting = check_forgetting(forgetting)
         self.alpha = float(alpha)
         self.f0 = float(field_scale_nT)
         theta0 = np.vstack([np.eye(3), np.zeros((1, 3))])  # D = I, e = 0
         self.rls = RecursiveLeastSquares(4, 3, forgetting=self.forgetting, alpha=self.alpha,
-                                         theta0=theta0)
+                                         theta0=theta0, noise_std=float(noise_nT) / self.f0)
+        self.state_names = STATE_NAMES
 
     @property
     def matrix(self) -> np.ndarray:
@@ -300,56 +341,74 @@ class CompassCalibration:
         f = np.atleast_2d(np.asarray(flux_nT, dtype=np.float64)) / self.f0
         return np.column_stack([f, np.ones(len(f))])
 
-    def step(self, flux_nT: np.ndarray, ref_body_nT: np.ndarray) -> np.ndarray:
-        """One sample: update and return the calibrated field of this sample.
+    def _to_domain(self, flat: np.ndarray) -> np.ndarray:
+        """RLS state(s) ``Theta.reshape(-1)`` (normalised, (..., 12)) to ``[D row-major, e nT]``."""
+        th = flat.reshape(*flat.shape[:-1], 4, 3)
+        d = np.swapaxes(th[..., :3, :], -1, -2).reshape(*flat.shape[:-1], 9)
+        return np.concatenate([d, th[..., 3, :] * self.f0], axis=-1)
+
+    def step(self, y: np.ndarray, u: np.ndarray | None = None) -> Step:
+        """One sample: update with the expected field ``y`` and the measured field ``u``.
 
         Parameters
         ----------
-        flux_nT : ndarray, shape (3,)
-            Measured field in body axes [nT].
-        ref_body_nT : ndarray, shape (3,)
+        y : ndarray, shape (3,)
             Expected Earth field in body axes [nT].
+        u : ndarray, shape (3,)
+            Measured field in body axes [nT] (required).
 
         Returns
         -------
-        ndarray, shape (3,)
-            ``D @ flux + e`` with the estimate before this sample [nT] (NaN if the flux is
-            not finite).
+        Step
+            State ``[D row-major, e nT]`` and its std after the sample; innovation
+            ``y - (D @ u + e)`` with the estimate before the sample [nT] (NaN when the
+            sample is not usable, ``used`` False).
         """
-        phi = self._regressor(flux_nT)[0]
-        cal = (phi @ self.rls.theta) * self.f0
-        self.rls.step(phi, np.asarray(ref_body_nT, dtype=np.float64) / self.f0)
-        return cal
+        if u is None:
+            raise ValueError("CompassCalibration.step needs the measured field u")
+        st = self.rls.step(np.asarray(y, dtype=np.float64) / self.f0, self._regressor(u)[0])
+        return Step(self._to_domain(st.state), self._to_domain(st.std),
+                    st.innovation * self.f0, st.loglik - 3.0 * np.log(self.f0), st.used)
 
-    def run(self, flux_nT: np.ndarray, ref_body_nT: np.ndarray) -> CompassResult:
+    def run(self, ys: np.ndarray, us: np.ndarray | None = None) -> SequentialResult:
         """Calibrate a whole log (vectorised; continues from the current state).
 
         Parameters
         ----------
-        flux_nT : ndarray, shape (n, 3)
-            Measured field in body axes [nT].
-        ref_body_nT : ndarray, shape (n, 3)
+        ys : ndarray, shape (n, 3)
             Expected Earth field in body axes [nT] (NaN where the attitude is missing).
+        us : ndarray, shape (n, 3)
+            Measured field in body axes [nT] (required).
 
         Returns
         -------
-        CompassResult
+        SequentialResult
+            State ``[D row-major, e nT]`` (:data:`STATE_NAMES`) and std after each sample,
+            the a-priori innovation [nT], ``innovations["field"]``; ``info``:
+            ``flux_cal_nT`` (the a-priori calibrated field, NaN where the flux is not
+            finite), ``skipped``, ``matrix``, ``offset_nT`` (final), ``forgetting``,
+            ``alpha``.
         """
-        phi = self._regressor(flux_nT)
+        if us is None:
+            raise ValueError("CompassCalibration.run needs the measured field us")
+        phi = self._regressor(us)
         before = self.rls.theta.copy()
-        res = self.rls.run(phi, np.asarray(ref_body_nT, dtype=np.float64) / self.f0)
-        th = res.theta  # (n, 4, 3), after each sample
+        res = self.rls.run(np.asarray(ys, dtype=np.float64) / self.f0, phi)
+        th = res.state.reshape(-1, 4, 3)  # after each sample
         cal = np.empty((len(phi), 3))  # with the estimate before each sample
         if len(phi):
             cal[0] = phi[0] @ before
             cal[1:] = np.einsum("ki,kij->kj", phi[1:], th[:-1])
         cal *= self.f0
         cal[~np.isfinite(phi).all(axis=1)] = np.nan
-        return CompassResult(
-            flux_cal_nT=cal, matrix=self.matrix, offset_nT=self.offset_nT,
-            matrix_history=np.transpose(th[:, :3, :], (0, 2, 1)),
-            offset_history_nT=th[:, 3, :] * self.f0, skipped=res.skipped,
-            forgetting=self.forgetting)
+        info = {"flux_cal_nT": cal, "skipped": res.info["skipped"], "matrix": self.matrix,
+                "offset_nT": self.offset_nT, "forgetting": self.forgetting,
+                "alpha": self.alpha}
+        return SequentialResult(
+            time_s=res.time_s, state=self._to_domain(res.state),
+            std=self._to_domain(res.std), state_names=STATE_NAMES,
+            loglik=res.loglik - 3.0 * np.log(self.f0), innovation=res.innovation * self.f0,
+            innovations={"field": res.innovations["y"]}, info=info)
 
 
 #: Longest interval [s] between two attitude samples across which the attitude is
@@ -455,8 +514,8 @@ def calibrate_compass(flux_nT: np.ndarray, heading_deg: np.ndarray, pitch_deg: n
     Returns
     -------
     CompassResult
-        With ``extra`` holding ``mag_heading_cal`` [deg], ``heading_err_deg`` [deg],
-        ``metrics`` and ``excitation`` (list of :class:`ExcitationWindow`).
+        The filter's :class:`SequentialResult` (``fit``, times ``time_s``) and the
+        calibrated field, heading, heading error, its metrics and the excitation windows.
 
     Raises
     ------
@@ -473,19 +532,19 @@ def calibrate_compass(flux_nT: np.ndarray, heading_deg: np.ndarray, pitch_deg: n
                          "parameters); give a longer log")
     f0 = float(np.nanmean(np.linalg.norm(np.atleast_2d(ref), axis=1)))
     cal = CompassCalibration(forgetting, alpha=alpha, field_scale_nT=f0)
-    res = cal.run(flux, b_ref)
+    fit = cal.run(b_ref, flux)
+    flux_cal = fit.info.pop("flux_cal_nT")
     decl = np.rad2deg(np.arctan2(np.atleast_2d(ref)[:, 1], np.atleast_2d(ref)[:, 0]))
-    hdg = compass_heading(res.flux_cal_nT, pitch_deg, roll_deg,
+    hdg = compass_heading(flux_cal, pitch_deg, roll_deg,
                           decl if decl.size > 1 else float(decl[0]))
     err = wrap_deg(hdg - np.asarray(heading_deg, dtype=np.float64))
     t = np.arange(len(flux)) / 50.0 if time_s is None else np.asarray(time_s, dtype=float)
-    res.extra = {
-        "mag_heading_cal": hdg, "heading_err_deg": err,
-        "metrics": heading_error_stats(err),
-        "excitation": excitation_windows(t, heading_deg, pitch_deg, roll_deg, b_ref,
-                                         window_s=window_s),
-    }
-    return res
+    fit.time_s = t
+    return CompassResult(
+        fit=fit, flux_cal_nT=flux_cal, mag_heading_cal=hdg, heading_err_deg=err,
+        metrics=heading_error_stats(err),
+        excitation=excitation_windows(t, heading_deg, pitch_deg, roll_deg, b_ref,
+                                      window_s=window_s))
 
 
 def convergence_time(time_s: np.ndarray, err_deg: np.ndarray, start_s: float, *,

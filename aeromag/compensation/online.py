@@ -40,13 +40,19 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
 from .._core.filters import butter_sos
 from .._core.rls import RecursiveLeastSquares, check_forgetting
+from .._core.sequential import InnovationStats, SequentialResult, Step
 from ..errors import InputError
+from .online_convergence import (
+    NIS_THRESHOLD,
+    OnlineTLResult,
+    convergence_spans,
+    running_mean_square,
+)
 from .terms import (
     FIELD_SCALE_NT,
     direction_cosines,
@@ -160,33 +166,6 @@ def new_stretch_starts(time_s: np.ndarray, valid: np.ndarray, max_gap_s: float) 
     return starts
 
 
-@dataclass
-class OnlineTLResult:
-    """What :meth:`OnlineTL.run` returns.
-
-    Attributes
-    ----------
-    mag_tl : ndarray, shape (N,)
-        Interference of each sample with the estimate before it [nT] (NaN where the sample
-        is not usable).
-    coef_history : ndarray, shape (N, p)
-        Estimate after each sample [nT; eddy nT*s].
-    coef : ndarray, shape (p,)
-        Final estimate.
-    terms : tuple of str
-    skipped : ndarray of bool, shape (N,)
-        Samples not used.
-    forgetting : float
-    """
-
-    mag_tl: np.ndarray
-    coef_history: np.ndarray
-    coef: np.ndarray
-    terms: tuple[str, ...]
-    skipped: np.ndarray
-    forgetting: float
-
-
 class OnlineTL:
     """Tolles-Lawson coefficients estimated online (causal RLS with forgetting).
 
@@ -213,6 +192,10 @@ class OnlineTL:
     coef_lowpass_hz : float or None
         Cut-off of the causal low-pass on the coefficients used for ``mag_tl`` [Hz];
         default a fifth of the band's lower edge; None: the raw estimate.
+    coef_std : bool
+        Report the std of every coefficient after every sample (``SequentialResult.std``;
+        one 16 x 16 inverse per sample, about half the speed of :meth:`run`); when False
+        ``std`` has no rows (``mag_tl_std`` is computed either way).
 
     Notes
     -----
@@ -224,7 +207,8 @@ class OnlineTL:
     def __init__(self, fs_hz: float, terms: str | Sequence[str] = "16", *,
                  forgetting: float = 0.999, band_hz: tuple[float, float] = (0.1, 0.9),
                  order: int = 4, alpha: float = 1e4, max_gap_s: float | None = None,
-                 derivative: str = "central", coef_lowpass_hz: float | None = -1.0) -> None:
+                 derivative: str = "central", coef_lowpass_hz: float | None = -1.0,
+                 coef_std: bool = True) -> None:
         self.fs_hz = float(fs_hz)
         if not (np.isfinite(self.fs_hz) and self.fs_hz > 0):
             raise InputError(f"sampling rate must be positive, got {fs_hz!r} Hz")
@@ -238,6 +222,7 @@ class OnlineTL:
             raise InputError(f"derivative must be one of {', '.join(DERIVATIVES)}, got "
                              f"{derivative!r}")
         self.derivative = derivative
+        self.coef_std = bool(coef_std)
         self.sos = butter_sos("bandpass", self.band_hz, self.fs_hz, self.order)
         from scipy.signal import sosfilt_zi
 
@@ -251,6 +236,10 @@ class OnlineTL:
         self.rls = RecursiveLeastSquares(len(self.terms), 1, forgetting=self.forgetting,
                                          alpha=self.alpha)
         self._zi: np.ndarray | None = None  # (sections, 2, p + 1)
+        self._scale_state: tuple[float, float] | None = None  # running residual scale
+        self._scale_prev = float("nan")
+        self.last_mag_tl = float("nan")
+        self.last_mag_tl_std = float("nan")
         self._last_cos: np.ndarray | None = None
         self._last_t: float | None = None
         self._ended_valid = False  # the previous call's last sample was usable
@@ -324,23 +313,36 @@ class OnlineTL:
         out = terms_from_cosines(cos, dcos, sc, self.terms)
         return fit[m:], out[m:]
 
-    def run(self, time_s: np.ndarray, flux_nT: np.ndarray, mag_nT: np.ndarray
-            ) -> OnlineTLResult:
+    def run(self, ys: np.ndarray, us: np.ndarray | None = None) -> SequentialResult:
         """Process many samples (vectorised; continues from the current state).
 
         Parameters
         ----------
-        time_s : ndarray, shape (N,)
-            Strictly increasing times [s].
-        flux_nT : ndarray, shape (N, 3)
-            Body-frame fluxgate [nT].
-        mag_nT : ndarray, shape (N,)
+        ys : ndarray, shape (N,)
             Scalar magnetometer [nT].
+        us : ndarray, shape (N, 4)
+            Time [s] (strictly increasing) and the body-frame fluxgate ``flux_x, flux_y,
+            flux_z`` [nT], one row per sample (required).
 
         Returns
         -------
-        OnlineTLResult
+        SequentialResult
+            ``state``: the coefficients after each sample (``state_names`` the terms) [nT;
+            eddy nT*s], ``std`` their one-sigma uncertainty (RLS covariance times the
+            running a-priori residual scale); ``innovation`` (N, 1): the band-passed
+            a-priori residual [nT]; ``innovations["mag"]`` with the NIS against that
+            scale; ``info``: ``mag_tl`` (interference of each sample with the estimate
+            before it, NaN where unusable) [nT], ``mag_tl_std`` (its predicted one-sigma
+            uncertainty, see :func:`mag_tl_uncertainty`) [nT], ``residual_scale_nT`` (N),
+            ``skipped``, ``coef`` (final), ``forgetting``.
         """
+        if us is None:
+            raise ValueError("OnlineTL.run needs us = (time, flux_x, flux_y, flux_z)")
+        u = np.asarray(us, dtype=np.float64).reshape(-1, 4)
+        return self._run(u[:, 0], u[:, 1:], ys)
+
+    def _run(self, time_s: np.ndarray, flux_nT: np.ndarray, mag_nT: np.ndarray
+             ) -> SequentialResult:
         from scipy.signal import sosfilt
 
         t = np.asarray(time_s, dtype=np.float64)
@@ -391,8 +393,10 @@ class OnlineTL:
         if n:
             self._ended_valid = bool(valid[-1])
         before = self.rls.theta[:, 0].copy()
-        res = self.rls.run(Xf[:, :p], Xf[:, p])
-        hist = res.theta[:, :, 0]
+        # The output rows A predict mag_tl: their prior variance comes with the estimate.
+        res = self.rls.run(Xf[:, p], Xf[:, :p], std=self.coef_std,
+                           predict=np.where(np.isfinite(A), A, 0.0))
+        hist = res.state
         prior = np.empty_like(hist)
         if n:
             prior[0] = before
@@ -404,27 +408,84 @@ class OnlineTL:
                 self._zi_coef = sosfilt_zi(self._sos_coef)[:, :, None] * prior[0][None, None, :]
             prior, self._zi_coef = sosfilt(self._sos_coef, prior, axis=0, zi=self._zi_coef)
         mag_tl = np.einsum("ij,ij->i", A, prior)  # NaN rows of A give NaN (not usable)
-        return OnlineTLResult(mag_tl=mag_tl, coef_history=hist, coef=self.coef,
-                              terms=self.terms, skipped=res.skipped,
-                              forgetting=self.forgetting)
+        # The a-priori residual scale: its running mean square, standardised by the RLS
+        # prior variance, over one memory (causal: sample k uses the residuals before k).
+        e = res.innovation[:, 0]
+        z2 = e * e / (1.0 + res.info["prior_var"])
+        scale2, self._scale_state = running_mean_square(z2, self.forgetting,
+                                                        self._scale_state)
+        prior_scale2 = np.r_[self._scale_prev, scale2[:-1]] if n else scale2
+        if n:
+            self._scale_prev = scale2[-1]
+        mag_tl_std = np.sqrt(prior_scale2 * res.info["predict_var"])
+        mag_tl_std[~np.isfinite(mag_tl)] = np.nan
+        nis = z2 / prior_scale2
+        used = ~res.info["skipped"] & np.isfinite(nis)
+        stats = InnovationStats(dof=1, n_fused=int(used.sum()),
+                                n_gated=int(res.info["skipped"].sum()),
+                                nis_sum=float(nis[used].sum()))
+        scale = np.sqrt(scale2)
+        info = {"mag_tl": mag_tl, "mag_tl_std": mag_tl_std, "residual_scale_nT": scale,
+                "prior_var": res.info["prior_var"], "z2": z2,
+                "skipped": res.info["skipped"], "coef": self.coef,
+                "forgetting": self.forgetting}
+        return SequentialResult(
+            time_s=t, state=hist, std=res.std * scale[:, None] if self.coef_std else res.std,
+            state_names=self.terms,
+            loglik=-0.5 * (np.log(2 * np.pi * prior_scale2 * (1 + res.info["prior_var"]))
+                           + nis),
+            innovation=res.innovation, innovations={"mag": stats}, info=info)
 
-    def step(self, time_s: float, flux_nT: np.ndarray, mag_nT: float) -> float:
-        """Process one sample; return its interference with the estimate before it [nT].
+    def step(self, y: float, u: np.ndarray | None = None) -> Step:
+        """Process one sample.
 
         Parameters
         ----------
-        time_s : float
-            Time [s].
-        flux_nT : ndarray, shape (3,)
-            Fluxgate [nT].
-        mag_nT : float
+        y : float
             Scalar magnetometer [nT].
+        u : ndarray, shape (4,)
+            Time [s] and the fluxgate ``flux_x, flux_y, flux_z`` [nT] (required).
 
         Returns
         -------
-        float
-            ``mag_tl`` [nT] (NaN if the sample is not usable).
+        Step
+            Coefficients after the sample and their std, the band-passed a-priori residual
+            (innovation, shape (1,)), its log-likelihood, ``used``.  The sample's
+            ``mag_tl`` (with the estimate before it) is :attr:`last_mag_tl`.
         """
-        r = self.run(np.array([time_s], dtype=float), np.asarray(flux_nT, float)[None, :],
-                     np.array([mag_nT], dtype=float))
-        return float(r.mag_tl[0])
+        if u is None:
+            raise ValueError("OnlineTL.step needs u = (time, flux_x, flux_y, flux_z)")
+        r = self.run(np.array([y], dtype=float), np.asarray(u, dtype=float).reshape(1, 4))
+        self.last_mag_tl = float(r.info["mag_tl"][0])
+        self.last_mag_tl_std = float(r.info["mag_tl_std"][0])
+        return Step(r.state[0], r.std[0], r.innovation[0], float(r.loglik[0]),
+                    not bool(r.info["skipped"][0]))
+
+
+    def compensate(self, time_s: np.ndarray, flux_nT: np.ndarray, mag_nT: np.ndarray, *,
+                   threshold: float = NIS_THRESHOLD) -> OnlineTLResult:
+        """Run a whole log and check where the output was issued before convergence.
+
+        Parameters
+        ----------
+        time_s : ndarray, shape (N,)
+            Strictly increasing times [s].
+        flux_nT : ndarray, shape (N, 3)
+            Body-frame fluxgate [nT].
+        mag_nT : ndarray, shape (N,)
+            Scalar magnetometer [nT].
+        threshold : float
+            Windowed NIS ratio of :func:`convergence_spans`.
+
+        Returns
+        -------
+        OnlineTLResult
+        """
+        t = np.asarray(time_s, dtype=np.float64)
+        fit = self.run(mag_nT, np.column_stack([t, np.asarray(flux_nT, dtype=np.float64)
+                                                .reshape(len(t), 3)]))
+        ratio, conv, spans = convergence_spans(t, fit.info["z2"], self.forgetting,
+                                               threshold=threshold)
+        return OnlineTLResult(fit=fit, mag_tl=fit.info["mag_tl"],
+                              mag_tl_std=fit.info["mag_tl_std"], nis_ratio=ratio,
+                              converged=conv, spans=spans)

@@ -55,6 +55,8 @@ class OnlineTollesLawson(RegressorMixin, BaseEstimator):
     n_samples_seen_ : int
     mag_tl_ : ndarray
         Interference of the samples of the last ``fit``/``partial_fit`` call (causal) [nT].
+    mag_tl_std_ : ndarray
+        Its predicted one-sigma uncertainty [nT] (:meth:`OnlineTL.run`).
     """
 
     def __init__(self, terms: str | Sequence[str] = "16", forgetting: float = 0.999,
@@ -94,11 +96,12 @@ class OnlineTollesLawson(RegressorMixin, BaseEstimator):
                                  order=self.order, alpha=self.alpha,
                                  derivative=self.derivative)
             self.n_samples_seen_ = 0
-        res = self._est.run(t, flux, mag)
-        self.mag_tl_ = res.mag_tl
-        self.coef_ = res.coef
+        res = self._est.run(mag, np.column_stack([t, flux]))
+        self.mag_tl_ = res.info["mag_tl"]
+        self.mag_tl_std_ = res.info["mag_tl_std"]
+        self.coef_ = res.info["coef"]
         self.terms_ = self._est.terms
-        self.n_samples_seen_ += int((~res.skipped).sum())
+        self.n_samples_seen_ += int((~res.info["skipped"]).sum())
         return self
 
     def fit(self, X: Any, y: Any) -> OnlineTollesLawson:

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from .._core.runs import true_runs
+from .._core.sequential import SequentialResult
 
 __all__ = ["Alarms", "alarm_events"]
 
@@ -52,6 +53,10 @@ class Alarms:
         Threshold the statistic was compared with, in the statistic's units.
     info : dict
         Detector-specific settings and calibration (JSON-ready), e.g. the calm window.
+    fit : SequentialResult or None
+        The run of the detector's sequential filter, one row per sample, when it has one
+        (the particle filter: heading and gyro bias, their std, ``log L_k``); None for the
+        heading and track detectors.
     """
 
     name: str
@@ -60,6 +65,7 @@ class Alarms:
     alarm: np.ndarray
     threshold: float
     info: dict[str, Any] = field(default_factory=dict)
+    fit: SequentialResult | None = None
 
     def __post_init__(self) -> None:
         self.time_s = np.asarray(self.time_s, dtype=np.float64)

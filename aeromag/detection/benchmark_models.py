@@ -322,7 +322,7 @@ def cstr_threshold(y_free: np.ndarray, n_particles: int = 300, window: int = 10,
     """
     pf = ParticleFilter(cstr_model("nominal", dt_min), n_particles, window=window,
                         batch=len(y_free), seed=seed)
-    stat = pf.run(y_free).stat
+    stat = pf.run(y_free).info["stat"]
     stat[:, :warmup_steps] = np.nan
     return threshold_from_runs(stat, percentile, fit), stat
 
@@ -364,7 +364,7 @@ def cstr_detect_isolate(y: np.ndarray, time_min: np.ndarray, onset_min: float,
     runs, T = y.shape[:2]
     pf = ParticleFilter(cstr_model("nominal", dt_min), n_particles, window=window, batch=runs,
                         seed=seed)
-    stat = pf.run(y).stat
+    stat = pf.run(y).info["stat"]
     stat[:, :warmup_steps] = np.nan
     with np.errstate(invalid="ignore"):
         alarm = stat > threshold

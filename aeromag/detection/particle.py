@@ -57,9 +57,11 @@ from scipy.ndimage import median_filter
 
 from .._core.angles import wrap_rad
 from .._core.particles import ParticleFilter, StateSpaceModel, threshold_from_calm
+from .._core.sequential import InnovationStats, SequentialResult
 from ..errors import InputError
 from .alarms import Alarms
 from .heading import CalmWindow, calm_mask, mag_heading_from_flux
+from .pf_latch import calm_bias
 from .pf_latch import check_gyro_unit as _check_gyro_unit
 from .pf_latch import gyro_reference as _gyro_reference
 
@@ -315,31 +317,6 @@ def heading_model(sigma_y_rad: float, walk_rad: float, y0: float,
                            P0=[[4.0 * r, 0.0], [0.0, pb]], h=h, R=[[r]], angle_y=(0,))
 
 
-def _calm_bias(inp: PFDetectorInputs, calm: np.ndarray) -> tuple[float, float] | None:
-    """Gyro bias from the calm window: minus the slope of compass minus gyro heading.
-
-    Returns ``(b, sd_b)`` in rad/s (None with fewer than 10 compass samples in one stretch
-    of the calm window).
-    """
-    best = None
-    for s in np.unique(inp.segment):
-        rows = inp.segment == s
-        ang = np.cumsum(inp.dpsi_rad[rows])
-        m = (calm & np.isfinite(inp.y_rad))[rows]
-        if m.sum() < 10:
-            continue
-        tt = inp.time_s[rows][m]
-        d = np.unwrap(inp.y_rad[rows][m] - ang[m])
-        x = tt - tt.mean()
-        slope, c0 = np.polyfit(x, d, 1)
-        res = d - (c0 + slope * x)
-        sxx = float(np.sum(x * x))
-        sd = float(np.sqrt(np.sum(res**2) / max(m.sum() - 2, 1) / max(sxx, 1e-12)))
-        if best is None or m.sum() > best[2]:
-            best = (-float(slope), sd, int(m.sum()))
-    return None if best is None else (best[0], best[1])
-
-
 def particle_detector(
     df: pd.DataFrame,
     *,
@@ -427,7 +404,7 @@ def particle_detector(
     sigma_y = max(sig_all, sig_calm, np.deg2rad(sigma_floor_deg))
     walk = np.deg2rad(walk_deg)
     bwalk = np.deg2rad(bias_walk_deg)
-    cb = _calm_bias(inp, calm)
+    cb = calm_bias(inp.time_s, inp.y_rad, inp.dpsi_rad, inp.segment, calm)
     if cb is None:
         b0, sd_b0 = 0.0, float(np.deg2rad(DEFAULT_BIAS_PRIOR_DEG))
     else:
@@ -435,6 +412,10 @@ def particle_detector(
         b0, sd_b0 = cb[0], max(3.0 * cb[1], float(np.deg2rad(0.05)))
     dt = float(np.median(np.diff(t)))
     stat = np.full(t.size, np.nan)
+    # the filter's own run, one row per log row (NaN where no step was taken)
+    f_state = np.full((t.size, 2), np.nan)
+    f_std = np.full((t.size, 2), np.nan)
+    f_ll = np.full(t.size, np.nan)
     rng = np.random.default_rng(seed)
     n_steps = 0
     n_resets = 0
@@ -469,13 +450,15 @@ def particle_detector(
         for j in range(rows.size):
             yj = yy[j]
             if not np.isfinite(yj):
-                pf.step(None, uu[j])
+                r = pf.step(None, uu[j])
+                f_state[rows[j]], f_std[rows[j]] = r.state, r.std
                 out[j] = last
                 if ref is not None:
                     held[rows[j]] = True
                 continue
             r = pf.step(yj, uu[j])
-            last = r.stat
+            f_state[rows[j]], f_std[rows[j]], f_ll[rows[j]] = r.state, r.std, r.loglik
+            last = pf.last_stat
             if restart is not None:
                 # After a restart, until the window is full again: the partial window's
                 # sum scaled to M samples (an estimate of S_k, so the column has no hole).
@@ -485,10 +468,10 @@ def particle_detector(
                 else:
                     restart = None
             out[j] = last
-            mean[j] = r.mean[0]
+            mean[j] = r.state[0]
             if ref is None and far == 0:
-                b_last = float(r.mean[1])
-            is_far = abs(wrap_rad(yj - r.mean[0])) > lim
+                b_last = float(r.state[1])
+            is_far = abs(wrap_rad(yj - r.state[0])) > lim
             if is_far and far == 0:
                 far_start = j
             far = far + 1 if is_far else 0
@@ -591,4 +574,11 @@ def particle_detector(
                                          max(info["elapsed_s"], 1e-9))
     log.debug("%s: pf detector sigma_y %.3f deg, threshold %.2f, %d alarms",
               source, info["sigma_y_deg"], thr, int(np.sum(alarm)))
-    return Alarms(name="pf", time_s=t, stat=stat, alarm=alarm, threshold=float(thr), info=info)
+    fit = SequentialResult(
+        time_s=t, state=f_state, std=f_std, state_names=("heading_rad", "gyro_bias_rad_s"),
+        loglik=f_ll, innovations={"heading": InnovationStats(
+            dof=1, n_fused=int(np.isfinite(f_ll).sum()),
+            n_gated=int(np.isfinite(f_state[:, 0]).sum() - np.isfinite(f_ll).sum()))},
+        info={"n_resets": int(n_resets)})
+    return Alarms(name="pf", time_s=t, stat=stat, alarm=alarm, threshold=float(thr), info=info,
+                  fit=fit)

@@ -1,4 +1,4 @@
-"""Particle-filter detector helpers: the held-disturbance latch's reference, the gyro unit.
+"""Particle-filter detector helpers: the latch's reference, the gyro unit, the calm bias.
 
 See :mod:`aeromag.detection.particle`.
 """
@@ -11,7 +11,7 @@ import numpy as np
 
 log = logging.getLogger("aeromag.detection.particle")
 
-__all__ = ["check_gyro_unit", "gyro_reference"]
+__all__ = ["calm_bias", "check_gyro_unit", "gyro_reference"]
 
 
 def gyro_reference(t: np.ndarray, ang: np.ndarray, mean: np.ndarray, j0: int,
@@ -91,3 +91,45 @@ def check_gyro_unit(t: np.ndarray, ang: np.ndarray, mh_deg: np.ndarray | None,
                     "(median per second %.3g rad against %.3g rad): is the gyro in deg/s? "
                     "The interface wants rad/s; convert with units={'gyro': 'deg/s'}",
                     source, mg / max(mc, 1e-12), mg, mc)
+
+
+def calm_bias(time_s: np.ndarray, y_rad: np.ndarray, dpsi_rad: np.ndarray,
+              segment: np.ndarray, calm: np.ndarray) -> tuple[float, float] | None:
+    """Gyro bias from the calm window: minus the slope of compass minus gyro heading.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,)
+        Times [s].
+    y_rad : ndarray, shape (n,)
+        Compass heading [rad] (NaN where none).
+    dpsi_rad : ndarray, shape (n,)
+        Gyro heading increment per row [rad].
+    segment : ndarray of int, shape (n,)
+        Continuous stretch of each row.
+    calm : ndarray of bool, shape (n,)
+        Rows of the calm window.
+
+    Returns
+    -------
+    (float, float) or None
+        ``(b, sd_b)`` [rad/s] from the stretch with the most calm compass samples; None
+        with fewer than 10 compass samples in every stretch of the calm window.
+    """
+    best = None
+    for s in np.unique(segment):
+        rows = segment == s
+        ang = np.cumsum(dpsi_rad[rows])
+        m = (calm & np.isfinite(y_rad))[rows]
+        if m.sum() < 10:
+            continue
+        tt = time_s[rows][m]
+        d = np.unwrap(y_rad[rows][m] - ang[m])
+        x = tt - tt.mean()
+        slope, c0 = np.polyfit(x, d, 1)
+        res = d - (c0 + slope * x)
+        sxx = float(np.sum(x * x))
+        sd = float(np.sqrt(np.sum(res**2) / max(m.sum() - 2, 1) / max(sxx, 1e-12)))
+        if best is None or m.sum() > best[2]:
+            best = (-float(slope), sd, int(m.sum()))
+    return None if best is None else (best[0], best[1])

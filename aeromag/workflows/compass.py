@@ -139,14 +139,14 @@ def compass_frame(df: pd.DataFrame, *, forgetting: float = 0.975, date: str | No
     out = df.copy()
     cal = res.flux_cal_nT
     out["flux_cal_x"], out["flux_cal_y"], out["flux_cal_z"] = cal[:, 0], cal[:, 1], cal[:, 2]
-    out["mag_heading_cal"] = res.extra["mag_heading_cal"]
-    out["heading_err_deg"] = res.extra["heading_err_deg"]
+    out["mag_heading_cal"] = res.mag_heading_cal
+    out["heading_err_deg"] = res.heading_err_deg
     n = len(t)
     step = max(1, n // HISTORY_POINTS)
     idx = np.arange(0, n, step)
     if idx[-1] != n - 1:
         idx = np.r_[idx, n - 1]
-    windows = res.extra["excitation"]
+    windows = res.excitation
     weak = [w for w in windows if not w.sufficient]
     if weak:
         log.warning("%s: %d of %d windows of %g s did not excite enough to trust the estimate "
@@ -159,7 +159,7 @@ def compass_frame(df: pd.DataFrame, *, forgetting: float = 0.975, date: str | No
         "forgetting": lam,
         "alpha": alpha,
         "reference": ref.info,
-        "metrics": {**res.extra["metrics"], "n_samples": n,
+        "metrics": {**res.metrics, "n_samples": n,
                     "n_skipped": int(res.skipped.sum()),
                     "n_attitude_interpolated": int(filled.sum())},
         "excitation": {"window_s": window_s, "n_windows": len(windows),

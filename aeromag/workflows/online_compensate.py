@@ -29,7 +29,7 @@ from ..compensation.checks import check_metrics
 from ..compensation.config import CompensationConfig
 from ..compensation.fit import check_interference
 from ..compensation.metrics import _band_metrics, compensation_metrics
-from ..compensation.online import LATENCY_SAMPLES, OnlineTL, OnlineTLResult
+from ..compensation.online import LATENCY_SAMPLES, NIS_THRESHOLD, OnlineTL, OnlineTLResult
 from ..compensation.prepare import prepare
 from ..errors import FitError, InputError
 from ..io.outputs import output_set
@@ -37,7 +37,8 @@ from ._frame_files import frame_to_files
 
 log = logging.getLogger(__name__)
 
-__all__ = ["compensate_online_file", "compensate_online_frame", "online_metrics",
+__all__ = ["compensate_online_file", "compensate_online_frame", "convergence_summary",
+           "online_metrics",
            "DEFAULT_FORGETTING", "COVERAGE"]
 
 #: Default forgetting factor of the online TL fit (memory about 1000 samples: 100 s at 10 Hz).
@@ -49,11 +50,16 @@ HISTORY_POINTS = 200
 COVERAGE = ("every sample of the flight, the RLS warm-up included (no screening online: every"
             " segment is kept, so kept_* = all_*); metrics.after_warmup gives the same figures"
             " without the first warmup_s seconds (one memory, 1 / (1 - forgetting) samples)")
+#: ``metrics.coverage`` with ``--mark-unconverged``.
+COVERAGE_MARKED = ("all_*: every sample of the flight; kept_*: the rows written with"
+                   " segment_kept true, the rows issued before the online fit converged"
+                   " (convergence.spans) marked false (mark_unconverged)")
 
 
 def online_metrics(time_s: np.ndarray, mag: np.ndarray, mag_tl: np.ndarray,
                    segment: np.ndarray, cfg: CompensationConfig, forgetting: float,
-                   source: str = "<log>") -> tuple[dict[str, Any], list[dict[str, Any]]]:
+                   source: str = "<log>", kept: np.ndarray | None = None,
+                   ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     """The online fit's metrics: the batch definition, on ``mag - mag_tl`` as written.
 
     The headline is exactly what ``aeromag report`` recomputes from OUT.csv
@@ -78,11 +84,15 @@ def online_metrics(time_s: np.ndarray, mag: np.ndarray, mag_tl: np.ndarray,
         lambda of the estimate (its memory sets the warm-up).
     source : str
         File name for messages.
+    kept : ndarray of bool, shape (n,), optional
+        The rows written with ``segment_kept`` true (all when omitted; ``--mark-unconverged``
+        sets the unconverged rows false), for the ``kept_*`` figures, as the report reads
+        them from OUT.csv.
 
     Returns
     -------
     metrics : dict
-        :func:`aeromag.compensation.metrics.compensation_metrics` (all samples kept) plus
+        :func:`aeromag.compensation.metrics.compensation_metrics` (``kept`` rows) plus
         ``coverage`` (:data:`COVERAGE`) and ``after_warmup`` (``warmup_s`` [s],
         ``n_samples``, ``std_before_nT``, ``residual_std_nT``, ``improvement_ratio``; None
         when no band-passed sample is left after the warm-up).
@@ -93,9 +103,10 @@ def online_metrics(time_s: np.ndarray, mag: np.ndarray, mag_tl: np.ndarray,
     t = np.asarray(time_s, dtype=np.float64)
     after = np.asarray(mag, dtype=np.float64) - np.asarray(mag_tl, dtype=np.float64)
     st = find_stretches(t, np.isfinite(after), cfg.max_gap_s)  # as contract_metrics
-    kept = np.ones(len(t), dtype=bool)
+    marked = kept is not None and not np.all(kept)
+    kept = np.ones(len(t), dtype=bool) if kept is None else np.asarray(kept, dtype=bool)
     metrics, comp_bp = _band_metrics(mag, after, t, st, cfg, kept=kept, source=source)
-    metrics["coverage"] = COVERAGE
+    metrics["coverage"] = COVERAGE_MARKED if marked else COVERAGE
     fin_t = t[np.isfinite(after)]
     warmup_s = round(1.0 / (1.0 - forgetting) / sampling_rate(t), 6) if forgetting < 1 else 0.0
     post = t >= fin_t[0] + warmup_s  # (metrics were measured: some sample is finite)
@@ -117,9 +128,66 @@ def online_metrics(time_s: np.ndarray, mag: np.ndarray, mag_tl: np.ndarray,
     return metrics, segments
 
 
+def convergence_summary(res: OnlineTLResult, time_s: np.ndarray, forgetting: float,
+                        source: str, marked: bool) -> dict[str, Any]:
+    """OUT.json ``convergence``, and a warning for each change the fit had to re-converge from.
+
+    Parameters
+    ----------
+    res : OnlineTLResult
+        The online fit with its convergence check.
+    time_s : ndarray, shape (n,)
+        Times [s].
+    forgetting : float
+        lambda.
+    source : str
+        File name for messages.
+    marked : bool
+        Whether ``--mark-unconverged`` marked the rows.
+
+    Returns
+    -------
+    dict
+        ``definition``, ``threshold``, ``window_s``, ``memory_s``, ``n_unconverged``,
+        ``marked``, ``spans`` (``start_s``, ``end_s``, ``kind``, ``peak_nis_ratio``,
+        ``n_samples``) and the median and 95th percentile of ``mag_tl_std`` over the
+        converged and the unconverged rows [nT].
+    """
+    fs = sampling_rate(time_s)
+    memory = 1.0 / (1.0 - forgetting) if forgetting < 1 else float(len(time_s))
+    std = res.mag_tl_std
+
+    def pct(mask: np.ndarray, q: float) -> float | None:
+        v = std[mask & np.isfinite(std)]
+        return round(float(np.percentile(v, q)), 6) if v.size else None
+
+    changes = [s for s in res.spans if s.kind == "change"]
+    for s in changes:
+        log.warning("%s: the interference changed at %.1f s and the online fit re-converged "
+                    "only at %.1f s: mag_tl and mag_comp over %.1f-%.1f s were issued before "
+                    "convergence (a-priori residual up to %.0fx the log's level); %s", source,
+                    s.start_s, s.end_s, s.start_s, s.end_s, np.sqrt(s.peak_nis_ratio),
+                    "those rows have segment_kept false" if marked else
+                    "mark_unconverged=True sets segment_kept false on them")
+    return {
+        "definition": "windowed NIS of the band-passed a-priori residuals (their mean square,"
+                      " standardised by the RLS prior variance, over window_s) divided by its"
+                      " median over the log; above threshold the fit is not converged, and"
+                      " neither is it for one memory after; the first memory is the warm-up",
+        "threshold": NIS_THRESHOLD, "window_s": round(max(20, round(memory) // 10) / fs, 6),
+        "memory_s": round(memory / fs, 6), "n_unconverged": int((~res.converged).sum()),
+        "marked": marked, "spans": [s.to_dict() for s in res.spans],
+        "mag_tl_std_nT": {"converged_median": pct(res.converged, 50),
+                          "converged_p95": pct(res.converged, 95),
+                          "unconverged_median": pct(~res.converged, 50),
+                          "unconverged_p95": pct(~res.converged, 95)},
+    }
+
+
 def compensate_online_frame(df: pd.DataFrame, cfg: CompensationConfig | None = None, *,
                             forgetting: float = DEFAULT_FORGETTING,
                             derivative: str = "central", source: str | None = None,
+                            mark_unconverged: bool = False,
                             ) -> tuple[pd.DataFrame, dict[str, Any], OnlineTLResult]:
     """Compensate a log in memory with the online TL fit.
 
@@ -136,11 +204,16 @@ def compensate_online_frame(df: pd.DataFrame, cfg: CompensationConfig | None = N
         See :class:`aeromag.compensation.online.OnlineTL`.
     source : str, optional
         File name for messages.
+    mark_unconverged : bool
+        Write ``segment_kept`` false on the rows issued before the fit converged (the
+        warm-up and after a change of the interference: ``convergence.spans`` of the
+        report); the ``kept_*`` metrics then leave them out.
 
     Returns
     -------
     data : DataFrame
-        ``df`` plus ``mag_tl``, ``mag_comp``, ``segment``, ``segment_kept``.
+        ``df`` plus ``mag_tl``, ``mag_tl_std`` (the fit's own one-sigma uncertainty of
+        ``mag_tl``), ``tl_converged``, ``mag_comp``, ``segment``, ``segment_kept``.
     report : dict
         The OUT.json content.
     result : OnlineTLResult
@@ -150,13 +223,14 @@ def compensate_online_frame(df: pd.DataFrame, cfg: CompensationConfig | None = N
     lam = check_forgetting(forgetting)
     prep = prepare(df, cfg, source=src)
     est = OnlineTL(prep.fs, cfg.terms, forgetting=lam, band_hz=cfg.band_hz, order=cfg.order,
-                   max_gap_s=cfg.max_gap_s, derivative=derivative)
+                   max_gap_s=cfg.max_gap_s, derivative=derivative,
+                   coef_std=False)  # OUT.* carry mag_tl_std, not the coefficients' std
     p = len(est.terms)
     if int(prep.valid.sum()) <= p:
         raise InputError(f"{src}: only {int(prep.valid.sum())} usable samples for {p} terms; "
                          "the online fit needs many more than the number of terms")
     mag = np.where(prep.valid, prep.mag, np.nan)
-    res = est.run(prep.time, prep.flux, mag)
+    res = est.compensate(prep.time, prep.flux, mag)
     try:  # the batch fit's plausibility limit (cfg.max_interference of the Earth field)
         check_interference(res.mag_tl, prep.field_nT, cfg.max_interference, source=src,
                            fitted=True)
@@ -176,12 +250,17 @@ def compensate_online_frame(df: pd.DataFrame, cfg: CompensationConfig | None = N
         comp_out = comp
     out = df.copy(deep=False)
     out["mag_tl"] = res.mag_tl
+    out["mag_tl_std"] = res.mag_tl_std
+    out["tl_converged"] = res.converged
     out["mag_comp"] = comp_out
     seg = prep.segment
     missing = seg < 0
     out["segment"] = pd.arrays.IntegerArray(np.where(missing, 0, seg), missing)
-    out["segment_kept"] = np.ones(len(seg), dtype=bool)
-    metrics, segments = online_metrics(t, prep.mag, res.mag_tl, seg, cfg, lam, src)
+    kept = res.converged.copy() if mark_unconverged else np.ones(len(seg), dtype=bool)
+    out["segment_kept"] = kept
+    metrics, segments = online_metrics(t, prep.mag, res.mag_tl, seg, cfg, lam, src,
+                                       kept=kept if mark_unconverged else None)
+    convergence = convergence_summary(res, t, lam, src, mark_unconverged)
     # The batch fit's checks, one implementation: warnings (OUT.json; an error with --strict).
     check_metrics(metrics, source=src, fitted=True, online=True)
     n = len(t)
@@ -202,6 +281,7 @@ def compensate_online_frame(df: pd.DataFrame, cfg: CompensationConfig | None = N
         "band_hz": list(cfg.band_hz),
         "segments": segments,
         "metrics": {**metrics, "n_skipped": int(res.skipped.sum())},
+        "convergence": convergence,
         "history": {"time": t[idx].tolist(), "coef": res.coef_history[idx].tolist()},
     }
     return out, report, res
@@ -212,7 +292,7 @@ def compensate_online_file(log_path: str | os.PathLike[str], out_path: str | os.
                            forgetting: float = DEFAULT_FORGETTING, derivative: str = "central",
                            columns: dict[str, str] | None = None,
                            units: dict[str, str] | None = None, fmt: str | None = None,
-                           ) -> dict[str, Any]:
+                           mark_unconverged: bool = False) -> dict[str, Any]:
     """Read a log, compensate it online, write OUT.csv and OUT.json (both or neither).
 
     Parameters
@@ -227,6 +307,8 @@ def compensate_online_file(log_path: str | os.PathLike[str], out_path: str | os.
         Column map and unit conversions.
     fmt : str, optional
         Log format.
+    mark_unconverged : bool
+        See :func:`compensate_online_frame`.
 
     Returns
     -------
@@ -238,5 +320,6 @@ def compensate_online_file(log_path: str | os.PathLike[str], out_path: str | os.
         return frame_to_files(
             log_path, out_path, forgetting,
             lambda df: compensate_online_frame(df, cfg, forgetting=forgetting,
-                                               derivative=derivative, source=str(log_path)),
+                                               derivative=derivative, source=str(log_path),
+                                               mark_unconverged=mark_unconverged),
             columns=columns, units=units, fmt=fmt)
