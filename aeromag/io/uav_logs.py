@@ -5,7 +5,7 @@ The canonical multi-rate table is that of ``shared/interface.md``.
 Each reader has two halves: the file's messages as one table per topic (``ulog_tables``,
 ``dataflash_tables``; the optional package does this) and the mapping of those tables onto the
 canonical columns (``ulog_to_canonical``, ``dataflash_to_canonical``; pure pandas, tested on
-synthetic message tables).  The rows of the result are the union of every topic's sample
+synthetic message tables).  The rows of the result are the union of every sensor topic's sample
 times; a sensor's columns are empty on rows where it has no sample.
 
 =============  =============================================  ================================
