@@ -152,7 +152,7 @@ def _dataflash_tables(log):
 
 # --------------------------------------------------------------------- files, by the spec
 _ULOG_TYPES = {"uint64_t": "Q", "float": "f", "int32_t": "i", "uint8_t": "B", "uint32_t": "I",
-               "int64_t": "q", "double": "d", "uint16_t": "H"}
+               "int64_t": "q", "double": "d", "uint16_t": "H", "bool": "?"}
 
 
 def _write_ulog(path, topics):
@@ -174,10 +174,10 @@ def _write_ulog(path, topics):
             seen.add(base)
             n = sum(1 for k in df.columns if k.split("[")[0] == base)
             kind = df[c].dtype.kind
-            typ = "int32_t" if kind in "iu" else "float"
+            typ = "bool" if kind == "b" else "int32_t" if kind in "iu" else "float"
             if base in ("lat", "lon", "alt_ellipsoid"):
                 typ = "int32_t"
-            if base in ("fix_type", "orientation", "quality"):
+            if base in ("fix_type", "orientation", "quality", "arming_state"):
                 typ = "uint8_t"
             if base == "integration_timespan_us":
                 typ = "uint32_t"
@@ -231,6 +231,8 @@ _DF_FORMATS = {
     "RFND": ("QBfBB", "TimeUS,Instance,Dist,Stat,Orient"),
     "BARO": ("QBf", "TimeUS,I,Alt"),
     "GPS": ("QBBLLffff", "TimeUS,I,Status,Lat,Lng,Alt,Spd,GCrs,VZ"),
+    "EV": ("QB", "TimeUS,Id"),
+    "ARM": ("QBIBB", "TimeUS,ArmState,ArmChecks,Forced,Method"),
 }
 
 

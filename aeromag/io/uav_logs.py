@@ -5,7 +5,7 @@ The canonical multi-rate table is that of ``shared/interface.md``.
 Each reader has two halves: the file's messages as one table per topic (``ulog_tables``,
 ``dataflash_tables``; the optional package does this) and the mapping of those tables onto the
 canonical columns (``ulog_to_canonical``, ``dataflash_to_canonical``; pure pandas, tested on
-synthetic message tables).  The rows of the result are the union of every topic's sample
+synthetic message tables).  The rows of the result are the union of every sensor topic's sample
 times; a sensor's columns are empty on rows where it has no sample.
 
 =============  =============================================  ================================
@@ -30,7 +30,20 @@ column         PX4 ULog                                       ArduPilot DataFlas
 ``roll``,      ``vehicle_attitude.q`` (Z-Y-X Euler, deg)      ``ATT.Roll``, ``Pitch``, ``Yaw``
 ``pitch``,
 ``heading``
+``armed``      ``vehicle_status.arming_state`` == 2 (ARMED);  ``ARM.ArmState``; without ARM
+               ``actuator_armed.armed`` without it or when    ``EV`` Id 10 (ARMED) / 11
+               it holds the ambiguous 3 (see below)           (DISARMED)
+``landed``     ``vehicle_land_detected.landed``               ``EV`` Id 18 (LAND_COMPLETE) /
+                                                              28 (NOT_LANDED)
 =============  =============================================  ================================
+
+``armed`` and ``landed`` are states, not samples (nullable booleans, pandas ``boolean``): on
+every row of the table the last state logged at or before the row's time, held until the next
+change; empty before the state's first message, absent when the log has none.  The state
+messages add no rows.  PX4's ``arming_state`` 3 is ARMED_ERROR (armed) in old releases and
+STANDBY_ERROR (disarmed) in later ones: a log holding it takes ``actuator_armed.armed``, or
+has no ``armed`` (a logged warning) without that topic.  ArduPilot's ``MODE`` (a LAND mode is
+not yet on the ground) and ``LAND_COMPLETE_MAYBE`` (17) are not used.
 
 Both packages are optional extras: ``pip install 'aeromag[ulog]'`` / ``'aeromag[dataflash]'``;
 without them the formats are refused with that remedy.
@@ -51,11 +64,24 @@ from .rows import ROWS_ATTR, rows_numbered
 
 log = logging.getLogger(__name__)
 
-__all__ = ["dataflash_tables", "dataflash_to_canonical", "read_dataflash", "read_ulog",
-           "ulog_tables", "ulog_to_canonical", "union_rows"]
+__all__ = ["DF_EVENTS", "PX4_ARMING_STATE_AMBIGUOUS", "PX4_ARMING_STATE_ARMED",
+           "dataflash_tables", "dataflash_to_canonical", "hold_state", "read_dataflash",
+           "read_ulog", "ulog_tables", "ulog_to_canonical", "union_rows"]
 
 _DOWNWARD = 25  # MAV_SENSOR_ROTATION_PITCH_270: a downward-facing sensor
 _GAUSS_TO_NT = 1.0e5
+
+#: ``vehicle_status.arming_state`` of an armed PX4 (``ARMING_STATE_ARMED``: 2 in every
+#: release, from INIT/STANDBY/ARMED to today's DISARMED = 1 / ARMED = 2).
+PX4_ARMING_STATE_ARMED = 2
+
+#: ``arming_state`` 3 is ARMED_ERROR (armed) in old PX4 releases and STANDBY_ERROR
+#: (disarmed) in later ones: a log holding it takes ``actuator_armed.armed`` instead.
+PX4_ARMING_STATE_AMBIGUOUS = 3
+
+#: ArduPilot ``EV`` ids (``AP_Logger`` ``LogEvent``) read as states: id -> (column, value).
+DF_EVENTS = {10: ("armed", True), 11: ("armed", False), 18: ("landed", True),
+             28: ("landed", False)}
 
 
 def union_rows(parts: list[pd.DataFrame]) -> pd.DataFrame:
@@ -71,6 +97,42 @@ def union_rows(parts: list[pd.DataFrame]) -> pd.DataFrame:
     out = out.loc[:, ~out.columns.duplicated()]
     out.index.name = "time"
     return out.reset_index()
+
+
+def hold_state(time_s: np.ndarray, msg_time_s: np.ndarray, state: np.ndarray) -> pd.Series:
+    """A state logged at its changes, held forward onto the rows' times.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (n,)
+        Times of the table's rows, s.
+    msg_time_s : ndarray, shape (m,)
+        Times of the state's messages, s (any order; of equal times the last logged wins).
+    state : ndarray of bool, shape (m,)
+        The state each message reports.
+
+    Returns
+    -------
+    Series of pandas ``boolean``, length n
+        Per row the state of the last message at or before it; empty (``<NA>``) before the
+        first message.
+    """
+    mt = np.asarray(msg_time_s, dtype=np.float64)
+    order = np.argsort(mt, kind="stable")
+    mt, st = mt[order], np.asarray(state, dtype=bool)[order]
+    i = np.searchsorted(mt, np.asarray(time_s, dtype=np.float64), side="right") - 1
+    out = pd.array(st[np.maximum(i, 0)] if len(st) else np.zeros(len(i), bool),
+                   dtype="boolean")
+    out[i < 0] = pd.NA
+    return pd.Series(out)
+
+
+def _add_states(df: pd.DataFrame, states: dict[str, tuple[np.ndarray, np.ndarray]]
+                ) -> pd.DataFrame:
+    for name, (mt, st) in states.items():
+        if len(mt):
+            df[name] = hold_state(df["time"].to_numpy(), mt, st).array
+    return df
 
 
 def _q_to_euler_deg(q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -171,7 +233,24 @@ def ulog_to_canonical(tables: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
     if att is not None and len(att):
         r, p, y = _q_to_euler_deg(_cols(att, [f"q[{i}]" for i in range(4)]))
         parts.append(pd.DataFrame({"time": t_of(att), "roll": r, "pitch": p, "heading": y}))
-    return union_rows(parts)
+    states = {}
+    vs, aa = tables.get("vehicle_status"), tables.get("actuator_armed")
+    has_aa = aa is not None and len(aa) > 0 and "armed" in aa
+    arming = vs["arming_state"].to_numpy() if (
+        vs is not None and len(vs) and "arming_state" in vs) else None
+    ambiguous = arming is not None and bool(np.any(arming == PX4_ARMING_STATE_AMBIGUOUS))
+    if arming is not None and not ambiguous:
+        states["armed"] = (t_of(vs), arming == PX4_ARMING_STATE_ARMED)
+    elif has_aa:               # logs without vehicle_status, or with an ambiguous state 3
+        states["armed"] = (t_of(aa), aa["armed"].to_numpy().astype(bool))
+    elif ambiguous:
+        log.warning("vehicle_status.arming_state 3 is ARMED_ERROR (armed) in old PX4 releases "
+                    "and STANDBY_ERROR (disarmed) in later ones, and the log has no "
+                    "actuator_armed: no 'armed' column")
+    ld = tables.get("vehicle_land_detected")
+    if ld is not None and len(ld) and "landed" in ld:
+        states["landed"] = (t_of(ld), ld["landed"].to_numpy().astype(bool))
+    return _add_states(union_rows(parts), states)
 
 
 def ulog_tables(path: str | Path) -> dict[str, pd.DataFrame]:
@@ -183,7 +262,8 @@ def ulog_tables(path: str | Path) -> dict[str, pd.DataFrame]:
                          "'aeromag[ulog]'") from None
     topics = ["sensor_combined", "vehicle_magnetometer", "sensor_optical_flow",
               "optical_flow", "distance_sensor", "vehicle_air_data", "vehicle_gps_position",
-              "sensor_gps", "vehicle_attitude"]
+              "sensor_gps", "vehicle_attitude", "vehicle_status", "actuator_armed",
+              "vehicle_land_detected"]
     try:
         ulog = ULog(str(path), topics)
     except Exception as exc:  # noqa: BLE001 - any parser failure is a bad file
@@ -214,8 +294,8 @@ def dataflash_to_canonical(tables: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
     Parameters
     ----------
     tables : mapping of str to DataFrame
-        Message type (``IMU``, ``MAG``, ``OF``, ``RFND``, ``BARO``, ``GPS``, ``ATT``) -> its
-        messages (instance 0 where a message has an ``I`` or ``Instance`` field).
+        Message type (``IMU``, ``MAG``, ``OF``, ``RFND``, ``BARO``, ``GPS``, ``ATT``, ``ARM``,
+        ``EV``) -> its messages (instance 0 where a message has an ``I`` or ``Instance`` field).
 
     Returns
     -------
@@ -275,10 +355,22 @@ def dataflash_to_canonical(tables: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
         parts.append(pd.DataFrame({"time": t_of(att), "roll": att["Roll"].to_numpy(float),
                                    "pitch": att["Pitch"].to_numpy(float),
                                    "heading": np.mod(att["Yaw"].to_numpy(float), 360.0)}))
-    return union_rows(parts)
+    states = {}
+    ev = tables.get("EV")
+    if ev is not None and len(ev) and "TimeUS" in ev and "Id" in ev:
+        ids = ev["Id"].to_numpy()
+        for name in ("armed", "landed"):
+            keys = [k for k, (col, _) in DF_EVENTS.items() if col == name]
+            on = np.isin(ids, keys)
+            states[name] = (t_of(ev)[on], np.array([DF_EVENTS[int(k)][1] for k in ids[on]],
+                                                   dtype=bool))
+    arm = tables.get("ARM")
+    if arm is not None and len(arm) and "ArmState" in arm:
+        states["armed"] = (t_of(arm), arm["ArmState"].to_numpy() != 0)
+    return _add_states(union_rows(parts), states)
 
 
-_DF_TYPES = ("IMU", "MAG", "OF", "RFND", "BARO", "GPS", "ATT")
+_DF_TYPES = ("IMU", "MAG", "OF", "RFND", "BARO", "GPS", "ATT", "ARM", "EV")
 
 
 def dataflash_tables(path: str | Path) -> dict[str, pd.DataFrame]:
