@@ -8,7 +8,7 @@ Layers, bottom to top (``shared/architecture.md``)::
 * domain packages import ``_core``, ``errors``, ``conventions`` and, across domains, only
   qc -> compensation, track -> detection/nav, detection -> nav;
 * ``synthetic`` (the simulators, the tests' oracles) imports no fitting or filtering code;
-* nothing imports an old flat module kept for one release (``aeromag/compensate.py``...).
+* every module belongs to a layer: no old flat module forwarding to the new layout.
 
 Imports are read with :mod:`ast` from every module, function-level imports included;
 imports under ``if TYPE_CHECKING:`` count for the directions, not for circles (they never run).
@@ -26,7 +26,7 @@ PKG = Path(__file__).resolve().parents[1] / "aeromag"
 
 #: Layer of each top-level part of the package (higher may import lower).
 LAYERS: dict[str, int] = {
-    "errors": 0, "conventions": 0, "_deprecated": 0,
+    "errors": 0, "conventions": 0,
     "_core": 1,
     "compensation": 2, "compass": 2, "nav": 2, "detection": 2, "qc": 2, "track": 2,
     "synthetic": 2, "survey": 2,
@@ -67,9 +67,6 @@ def _modules() -> dict[str, Path]:
 
 
 MODULES = _modules()
-#: Old flat modules kept for one release (``aeromag/compensate.py``...): they only forward to
-#: the new layout, may import anything, and nothing may import them.
-SHIMS = {m for m in MODULES if m.count(".") == 1 and _part(m) not in LAYERS}
 
 #: Allowed exceptions, each with its reason.
 ALLOWED: dict[tuple[str, str], str] = {
@@ -136,10 +133,8 @@ def imports_of(mod: str) -> list[tuple[str, int, bool]]:
 
 def _violation(importer: str, imported: str) -> str | None:
     """Why ``importer`` may not import ``imported`` (None when it may)."""
-    if imported in SHIMS:
-        return f"imports the deprecated path {imported}; import its new home"
     a, b = _part(importer), _part(imported)
-    if importer in SHIMS or a == "__init__" or b == "__init__" or a == b:
+    if a == "__init__" or b == "__init__" or a == b:
         return None
     if a not in LAYERS or b not in LAYERS:
         return f"{a if a not in LAYERS else b} has no layer in tests/test_architecture.py"
@@ -155,7 +150,7 @@ def _violation(importer: str, imported: str) -> str | None:
 
 
 def test_every_part_has_a_layer():
-    parts = {_part(m) for m in MODULES if m not in SHIMS} - {"__init__"}
+    parts = {_part(m) for m in MODULES} - {"__init__"}
     assert parts <= set(LAYERS), f"add a layer for {sorted(parts - set(LAYERS))}"
 
 
@@ -247,7 +242,8 @@ def test_the_checker_catches_what_it_should():
     assert _violation("aeromag.compensation.model", "aeromag.io.json")
     assert _violation("aeromag.synthetic.physics", "aeromag.compensation.terms")
     assert _violation("aeromag.synthetic.physics", "aeromag._core.filters")
-    assert _violation("aeromag.workflows.batch", "aeromag.compensate")
+    assert _violation("aeromag.qc.quality", "aeromag.workflows.report")
+    assert _violation("aeromag.workflows.batch", "aeromag.compensate")  # no layer
     assert _violation("aeromag.qc.quality", "aeromag.compensation.config") is None
     assert _violation("aeromag.workflows.compensate", "aeromag.io") is None
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
@@ -257,7 +253,7 @@ def _lines(mod: str) -> int:
     return len(MODULES[mod].read_text().splitlines())
 
 
-@pytest.mark.parametrize("mod", sorted(set(MODULES) - LONG_OK - SHIMS))
+@pytest.mark.parametrize("mod", sorted(set(MODULES) - LONG_OK))
 def test_modules_stay_small(mod):
     n = _lines(mod)
     if mod in KNOWN_LONG:

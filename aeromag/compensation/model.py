@@ -11,7 +11,6 @@ from typing import Any
 
 import numpy as np
 
-from .._core import parallel as _parallel
 from ..errors import InputError
 from .terms import (
     _ALL_TERMS,
@@ -85,16 +84,8 @@ def predict_interference(
         if bias:
             r += bias
 
-    # Contiguous runs of blocks on the filter threads (each block's arithmetic is the same
-    # whichever thread runs it, so the result does not depend on the thread count).
-    starts = list(range(0, n, step))
-    parts = max(1, min(_parallel.FILTER_THREADS, len(starts) // 4))
-
-    def run_part(i: int) -> None:
-        for a in starts[len(starts) * i // parts:len(starts) * (i + 1) // parts]:
-            run(a)
-
-    _parallel.parallel_map(run_part, list(range(parts)))
+    for a in range(0, n, step):
+        run(a)
     return out
 
 

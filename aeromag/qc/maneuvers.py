@@ -42,7 +42,6 @@ import pandas as pd
 
 from .._core.angles import wrap_deg
 from .._core.filters import sampling_rate
-from .._core.libc import trim_heap
 from .._core.runs import run_bounds
 from .._core.stretches import find_stretches
 from ..errors import InputError
@@ -407,20 +406,17 @@ def detect_maneuvers(
         res = _narrow(_detect_full(df, max_gap_s=max_gap_s, **kw))
     else:
         small, cnt = _block_means(df, t, step, 5.0 / fs if max_gap_s is None else max_gap_s)
-        trim_heap()  # the block means' freed temporaries, before the detection's own
         if len(small) < 10:
             del small
             res = _narrow(_detect_full(df, max_gap_s=max_gap_s, **kw))
         else:
             red = _detect_full(small, max_gap_s=None, **kw)
             del small
-            trim_heap()  # the reduced log and the detection's temporaries, before expanding
             res = _expand(red, df, t, fs, cnt)
             del red
     # a manoeuvre never spans two lines (its tail would sample a neighbour, maybe a fault)
     if "line" in df.columns:
         res = clip_to_lines(res, df["line"], t, fs)
-    trim_heap()  # only the labels and tables stay
     return res
 
 
@@ -492,7 +488,6 @@ def _detect_full(
     labels, legs, offset = detect_heading_legs(
         df, min_leg_s=min_leg_s, smooth_s=smooth_s, tolerance_deg=tolerance_deg,
         declination_deg=declination_deg, max_gap_s=max_gap_s, leg_column=leg_column)
-    trim_heap()  # the leg detection's freed temporaries, before the energy's own
     t = df["time"].to_numpy(dtype=np.float64)
     n = len(t)
     fs = sampling_rate(t)

@@ -46,15 +46,12 @@ from ..errors import InputError
 from .continuation import continue_legs
 from .geometry import cross_track
 
-__all__ = ["DEFAULT_WAYPOINT_RADIUS_M", "LegModel", "decode_legs",
+__all__ = ["LegModel", "decode_legs",
            "estimate_altitude_offset", "position_jitter_m", "velocity_for_legs",
            "leg_evidence", "labels_from_column", "leg_passes", "motion_velocity", "viterbi",
            "continue_legs"]
 
 log = logging.getLogger(__name__)
-
-#: Kept for callers of the old rule; the HMM uses no waypoint sphere.
-DEFAULT_WAYPOINT_RADIUS_M = 5.0
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,6 @@ import html
 import json
 import logging
 import os
-import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -34,11 +33,10 @@ from ..compensation.config import CompensationConfig
 from ..compensation.model import TLModel
 from ..compensation.result import CompensationResult
 from ..errors import AeromagError, InputError
-from ..io import atomic_path, json_path_for, write_json
+from ..io import atomic_path, json_path_for, read_log, write_json
 from ..plot import compensation as pc
 from ..qc import QCResult, compute_qc, kept_mask, segment_labels
 from ._report_html import _CSS, _fmt, _fom_rows, _headline_words, _table, _time
-from ._report_read import read_columns
 from .report_check import headline_from_data, headline_record
 
 __all__ = ["FIGURES", "build_report", "load_compensated", "render_html", "write_report"]
@@ -47,6 +45,16 @@ log = logging.getLogger(__name__)
 
 #: ``progress(done, total, step)``: called as the report advances.
 Progress = Callable[[int, int, str], None]
+
+#: Columns of a compensated log the report uses (others in the log are not read).
+REPORT_COLUMNS = ("time", "mag", "mag_tl", "mag_comp", "segment", "segment_kept", "line",
+                  "flux_x", "flux_y", "flux_z", "heading", "pitch", "roll", "lat", "lon", "alt",
+                  "truth_mag_tl", "maneuver")
+
+#: Columns only drawn or used for manoeuvre detection, read in single precision: 7 digits
+#: (0.005 nT of a 50000 nT fluxgate, 0.3 m of latitude) are ample and halve their memory.
+REPORT_DTYPES = {c: np.float32 for c in ("flux_x", "flux_y", "flux_z", "heading", "pitch",
+                                         "roll", "lat", "lon", "alt")}
 
 #: Figure files written by :func:`write_report`, with their captions.
 FIGURES: dict[str, str] = {
@@ -92,9 +100,8 @@ def _figures(result: CompensationResult, qc: QCResult, band: tuple[float, float]
 
 
 def write_report(
-    result: CompensationResult, out_dir: Any, *legacy: Any,
-    config: CompensationConfig | None = None, title: str | None = None,
-    progress: Progress | None = None, **qc_kw: Any,
+    result: CompensationResult, out_dir: Any, *, config: CompensationConfig | None = None,
+    title: str | None = None, progress: Progress | None = None, **qc_kw: Any,
 ) -> Path:
     """Compute QC, write the figures, ``qc.json`` and ``report.html`` into ``out_dir``.
 
@@ -118,38 +125,6 @@ def write_report(
     Path
         The HTML page.
     """
-    import gc
-
-    # Each figure is freed by a collection of its reference cycles (_trim_heap); the
-    # objects that exist before the report (the imported modules, the log's report) are
-    # frozen for its duration so that these collections do not traverse them again (nine
-    # full collections cost 1.6 s at 2e6 rows).  Unfrozen at the end: nothing is kept.
-    gc.freeze()
-    try:
-        return _write_report(result, out_dir, *legacy, config=config, title=title,
-                             progress=progress, **qc_kw)
-    finally:
-        gc.unfreeze()
-
-
-def _write_report(
-    result: CompensationResult, out_dir: Any, *legacy: Any,
-    config: CompensationConfig | None, title: str | None, progress: Progress | None,
-    **qc_kw: Any,
-) -> Path:
-    """:func:`write_report` (with the collector's older objects frozen)."""
-    if config is None:
-        config = qc_kw.pop("cfg", None)
-    if isinstance(result, pd.DataFrame):  # the old write_report(data, report, out_dir) call
-        warnings.warn("write_report(data, report, out_dir) is deprecated: pass the"
-                      " CompensationResult", DeprecationWarning, stacklevel=2)
-        if not legacy:
-            raise TypeError("write_report(data, report, out_dir): out_dir missing")
-        result, out_dir = CompensationResult(result, None, out_dir), legacy[0]
-        if config is None:
-            config = _config_from(result.report)
-    elif legacy:
-        raise TypeError("write_report(result, out_dir): too many positional arguments")
     if result.data is None:
         raise InputError("this result holds no compensated data (use compensate())")
     result = headline_from_data(result, config)  # the headline of the data shown (issue 15)
@@ -166,13 +141,11 @@ def _write_report(
         if progress is not None:
             progress(step, total, what)
 
-    # the report shows the manoeuvre tables only: no per-sample labels kept (26 MB at 2e6 rows)
-    qc = compute_qc(result, config=config, **{"keep_labels": False, **qc_kw})
+    qc = compute_qc(result, config=config, **qc_kw)
     qc.metrics.update(headline_record(report))
     # Only the metrics, the FOM table and the band-passed fields are shown: the per-sample
-    # manoeuvre labels (~65 MB at 2e6 rows) go before the figures.
+    # manoeuvre labels go before the figures.
     qc.maneuvers = None
-    _trim_heap()
     advance("quality metrics")
     band = tuple(qc.metrics["band_hz"])
     pngs: dict[str, bytes] = {}
@@ -185,7 +158,6 @@ def _write_report(
             log.info("report: %s skipped: %s", name, exc)
         if name == "residuals.png":
             qc.residuals = None  # the band-passed fields (32 MB at 2e6 rows): drawn
-        _trim_heap()
         advance(name)
     for name, data in pngs.items():
         with atomic_path(out / name) as tmp:
@@ -201,54 +173,6 @@ def _write_report(
     advance("report.html")
     log.info("wrote %s (%d figures)", html_path, len(pngs))
     return html_path
-
-
-def one_heap_arena() -> bool:
-    """Make glibc's allocator use one heap arena for the rest of the process (``mallopt``).
-
-    Each thread that allocates (the QC's filter pool, pyarrow's readers) otherwise gets an
-    arena of its own, and memory freed there stays resident: on a 2e6-row report the peak
-    was 950 MB with the default arenas and 861 MB with one, at the same CPU time.  Meant for
-    a command's process (``aeromag report`` calls it first); a no-op off glibc.
-
-    (A fixed mmap threshold, so that every freed full-length array is unmapped, lowered the
-    peak by another 70 MB but cost 3.5-4.5 s more CPU on 2e6 rows, in page faults: not set.)
-
-    Returns
-    -------
-    bool
-        Whether the setting was applied.
-    """
-    libc = _libc()
-    return bool(libc) and bool(libc.mallopt(_M_ARENA_MAX, 1))
-
-
-#: glibc's ``mallopt`` parameter number of ``M_ARENA_MAX`` (malloc.h).
-_M_ARENA_MAX = -8
-
-
-def _libc() -> Any:
-    """The C library (glibc) with ``mallopt`` and ``malloc_trim``, or None."""
-    from .._core.libc import libc
-
-    lib = libc()
-    return lib if lib is not None and hasattr(lib, "mallopt") \
-        and hasattr(lib, "malloc_trim") else None
-
-
-def _trim_heap() -> None:
-    """Collect the figures' reference cycles and give the C heap's free pages back.
-
-    A matplotlib figure is a web of reference cycles: its Agg renderer (and the rasteriser's
-    cells, tens of MB for a long line) lives until the cyclic collector runs, so it is
-    run here; then glibc's ``malloc_trim`` returns the heap's free pages (else nothing).
-    """
-    import gc
-
-    gc.collect()
-    libc = _libc()
-    if libc:
-        libc.malloc_trim(0)
 
 
 def segment_rows(result: CompensationResult, qc: QCResult) -> list[dict[str, Any]]:
@@ -383,7 +307,7 @@ def load_compensated(
     """
     src = Path(out_csv)
     rj = Path(report_json) if report_json is not None else json_path_for(src)
-    data = read_columns(src)
+    data = read_log(src, usecols=REPORT_COLUMNS, dtypes=REPORT_DTYPES, required=())
     if "mag_comp" not in data.columns:
         raise InputError(f"{src}: no mag_comp column: this log is not compensated; run"
                          f" `aeromag compensate {src} -o OUT.csv` first, then"

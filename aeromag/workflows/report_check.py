@@ -27,7 +27,6 @@ import numpy as np
 import pandas as pd
 
 from .._core.filters import lowpass_stretches, sampling_rate
-from .._core.libc import trim_heap
 from ..compensation.apply import missing_total_field
 from ..compensation.config import CompensationConfig
 from ..compensation.metrics import residual_metrics, run_blocks, stretch_runs
@@ -394,7 +393,6 @@ def headline_from_data(result: CompensationResult,
         del mag
     comp_check = check.result() if check is not None else None
     del t, tl, kept, starts, stops, check
-    trim_heap()  # the blocks' freed temporaries back to the system
     recorded = report.get("metrics") or None
     fluxgate = bool(report.get("mag_from_fluxgate")) or "mag" not in data.columns
     check_ = compare_headline(computed, recorded, online=bool(report.get("online")),
