@@ -67,7 +67,7 @@ _API: dict[str, str] = {
     # track check
     "check_track": "aeromag.track",
     "TrackResult": "aeromag.track",
-    "LegModel": "aeromag.track.legs",
+    "LegModel": "aeromag.track.leg_model",
     "read_plan": "aeromag.io.plans",
     "track_file": "aeromag.workflows.track",
     "plot_track_map": "aeromag.plot.track",

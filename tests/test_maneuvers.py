@@ -147,7 +147,7 @@ def test_resolve_ambiguous_names_unsure_runs_by_the_missing_manoeuvres():
 
 
 def test_heading_unit_vector_is_the_heading_sources():
-    from aeromag.qc.maneuvers import _heading_source, _heading_unit
+    from aeromag.qc._heading import _heading_source, _heading_unit
 
     df, _ = simulate_calibration(seed=2, n_boxes=1)
     df.loc[5:7, "flux_y"] = np.nan

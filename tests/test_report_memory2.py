@@ -103,7 +103,7 @@ def test_block_means_bitwise_as_before(cal, monkeypatch, chunk):
     df["time"] = t
     df.loc[df.index[[5, 6, 1234, 30_001]], ["heading", "flux_x"]] = np.nan
     df.loc[df.index[17], "roll"] = np.inf
-    new, cnt = mv._block_means(df, t, 5, 0.5)
+    new, cnt = _blocks._block_means(df, t, 5, 0.5)
     old, cnt0 = _old_block_means(df, t, 5, 0.5)
     np.testing.assert_array_equal(cnt, cnt0)
     # With a usable attitude the detection never reads the fluxgate: its means are not made.
@@ -111,7 +111,7 @@ def test_block_means_bitwise_as_before(cal, monkeypatch, chunk):
     pd.testing.assert_frame_equal(new, old[list(new.columns)], check_exact=True)
     # Without one (attitude mostly missing) the fluxgate's means are made, bitwise as before.
     df[["pitch", "roll"]] = np.nan
-    new, cnt = mv._block_means(df, t, 5, 0.5)
+    new, cnt = _blocks._block_means(df, t, 5, 0.5)
     old, cnt0 = _old_block_means(df, t, 5, 0.5)
     np.testing.assert_array_equal(cnt, cnt0)
     assert set(new.columns) == set(old.columns)
@@ -127,7 +127,7 @@ def test_gap_runs_equal_find_stretches(monkeypatch):
             if n > 3:
                 t[n // 2] = np.nan
             a = run_bounds(find_stretches(t, None, 0.5))[:2]
-            b = mv._gap_runs(t, 0.5)
+            b = _blocks._gap_runs(t, 0.5)
             for x, y in zip(a, b, strict=True):
                 np.testing.assert_array_equal(x, y)
 

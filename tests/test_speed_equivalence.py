@@ -129,7 +129,7 @@ def test_block_means_with_non_finite_samples(bad: float) -> None:
     # gets the mean of its finite samples (NaN when it has none), as before.
     import pandas as pd
 
-    from aeromag.qc.maneuvers import _block_means
+    from aeromag.qc._blocks import _block_means
 
     rng = np.random.default_rng(1)
     n, step = 1000, 5

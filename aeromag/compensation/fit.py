@@ -9,7 +9,6 @@
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -20,11 +19,11 @@ from ..errors import FitError, InputError
 from .config import CompensationConfig
 from .decimation import fit_arrays
 from .model import TLModel
-from .normal import SegmentStats, _residual_std, segment_normal_equations
+from .normal import _residual_std, segment_normal_equations
 from .prepare import Prepared, prepare
 from .report import fit_report
-from .result import CompensationResult
-from .screening import ScreeningOutcome, screen_segments
+from .result import CompensationResult, FitOutcome
+from .screening import screen_segments
 from .terms import design_matrix, parse_terms
 
 log = logging.getLogger(__name__)
@@ -113,54 +112,6 @@ def check_interference(mag_tl_nT: np.ndarray, field_nT: float, max_interference:
             " it with model=MODEL, or regularise with ridge=1e-3 (limit: max_interference)"
         )
     log.warning("%s; check that the model belongs to this aircraft and sensor", msg)
-
-
-@dataclass
-class FitOutcome:
-    """Everything the fit decided and measured (the report is built from it).
-
-    Attributes
-    ----------
-    prep : Prepared
-        The arrays the fit used.
-    cfg : CompensationConfig
-        Its options.
-    terms, fit_terms : tuple of str
-        All terms, and those fitted in the band (no ``bias``).
-    coef : ndarray
-        Coefficients of ``terms``.
-    stats : SegmentStats
-        Per-segment normal equations.
-    screening : ScreeningOutcome
-        What the screening loop kept.
-    cond, cond_scaled : float
-        Condition numbers of the final fit.
-    diagnostics : dict
-        VIF and leave-one-segment-out CV (:mod:`aeromag._core.fit_diagnostics`).
-    cv_residual, residual, segment_condition : ndarray
-        Per segment: CV residual, in-sample residual [nT], scaled condition number.
-    sse : float
-        Band-passed residual sum of squares of the kept segments [nT^2].
-    decimation : int
-        Factor by which the log was decimated for the fit (1 = none;
-        :func:`aeromag.compensation.decimation.fit_arrays`); ``stats`` count decimated samples.
-    """
-
-    prep: Prepared
-    cfg: CompensationConfig
-    terms: tuple[str, ...]
-    fit_terms: tuple[str, ...]
-    coef: np.ndarray
-    stats: SegmentStats
-    screening: ScreeningOutcome
-    cond: float
-    cond_scaled: float
-    diagnostics: dict
-    cv_residual: np.ndarray
-    residual: np.ndarray
-    segment_condition: np.ndarray
-    sse: float
-    decimation: int = 1
 
 
 def fit_outcome(prep: Prepared, cfg: CompensationConfig) -> FitOutcome:

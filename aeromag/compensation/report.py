@@ -1,7 +1,7 @@
 """The one builder of the JSON report (``OUT.json``, ``MODEL.json``) from typed results.
 
 Three runs write a report: a fit (:func:`fit_report`, from a
-:class:`~aeromag.compensation.fit.FitOutcome`), and a saved model applied in memory or chunk by
+:class:`~aeromag.compensation.result.FitOutcome`), and a saved model applied in memory or chunk by
 chunk (:func:`applied_report`, from an :class:`AppliedRun`).  Modules pass these dataclasses;
 only this module turns them into the dictionary that becomes JSON.
 """
@@ -23,7 +23,7 @@ from .screening import RULE
 from .segments import segment_counts
 
 if TYPE_CHECKING:
-    from .fit import FitOutcome
+    from .result import FitOutcome
 
 __all__ = ["AppliedRun", "applied_report", "dropped_summary", "fit_report", "format_time",
            "is_epoch", "name_segments", "segment_name", "time_span"]
