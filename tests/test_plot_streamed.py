@@ -34,13 +34,13 @@ def _reference(t: np.ndarray, y: np.ndarray, columns: int = S.DISPLAY_COLUMNS):
 
 def _streamed(t: np.ndarray, y: np.ndarray, block: int, columns: int = S.DISPLAY_COLUMNS,
               guess=None):
-    ax, gap = S._TimeAxis(t), S._stretch_gap_s(t)
+    ax, gap = S.TimeAxis(t), S.stretch_gap_s(t)
 
     def blocks():
         for a in range(0, len(t), block):
             b = min(len(t), a + block)
-            yield a, ax(t[a:b]), S._new_stretch(t, a, b, gap), [y[a:b]]
-    return S._streamed_envelopes(len(t), blocks, 1, guess, columns)[0]
+            yield a, ax(t[a:b]), S.new_stretch(t, a, b, gap), [y[a:b]]
+    return S.streamed_envelopes(len(t), blocks, 1, guess, columns)[0]
 
 
 @pytest.mark.parametrize("seed", range(12))
@@ -89,7 +89,7 @@ def test_finite_stretch_bounds_equal_the_stretch_labels_runs() -> None:
         x[:17] = np.nan
         a, b, _ = run_bounds(find_stretches(t, np.isfinite(x)))
         for block in (50, 1000, 1 << 17):
-            a2, b2 = _series._finite_stretch_bounds(t, x, S._stretch_gap_s(t), block)
+            a2, b2 = _series._finite_stretch_bounds(t, x, S.stretch_gap_s(t), block)
             np.testing.assert_array_equal(a2, a)
             np.testing.assert_array_equal(b2, b)
 
@@ -170,14 +170,14 @@ def test_blockwise_std_text_is_nanstd_text() -> None:
     for scale, mean in ((1.0, 0.0), (3.7, 5e4), (0.004, -20.0)):
         y = mean + scale * rng.standard_normal(333_333)
         y[rng.random(len(y)) < 0.01] = np.nan
-        s = _series._NanStd()
+        s = _series.NanStd()
         for i in range(0, len(y), 50_000):
             s.add(y[i:i + 50_000])
         assert s.text() == f"{np.nanstd(y):.2f}"
-    boundary = _series._NanStd()
+    boundary = _series.NanStd()
     boundary.add(np.array([0.0, 2 * 0.125]))  # std exactly 0.125: a rounding tie
     assert boundary.text() is None  # the caller takes np.nanstd's own digits
-    empty = _series._NanStd()
+    empty = _series.NanStd()
     empty.add(np.full(4, np.nan))
     assert empty.text() is None
     with warnings.catch_warnings():

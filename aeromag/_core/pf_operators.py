@@ -70,7 +70,7 @@ def effective_sample_size(logw: np.ndarray) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- resampling
-def _as_rng(seed: int | np.random.Generator | None) -> np.random.Generator:
+def as_rng(seed: int | np.random.Generator | None) -> np.random.Generator:
     return seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
 
 

@@ -528,13 +528,14 @@ def refuse_unused_options(cfg: CompensationConfig, *, model: bool = False,
         raise InputError(found[0].message())
 
 
-def _config_dict(cfg: CompensationConfig) -> dict[str, Any]:
+def config_dict(cfg: CompensationConfig) -> dict[str, Any]:
+    """The configuration as JSON-ready values (the ``config`` block of a report)."""
     d = dataclasses.asdict(cfg)
     d["band_hz"] = list(cfg.band_hz)
     return d
 
 
-def _resolve_gap(cfg: CompensationConfig, df: pd.DataFrame) -> CompensationConfig:
+def resolve_gap(cfg: CompensationConfig, df: pd.DataFrame) -> CompensationConfig:
     """Fix the default gap (5 median time steps) once, so no step recomputes the median."""
     if cfg.max_gap_s is not None or "time" not in df.columns or len(df) < 2:
         return cfg

@@ -19,7 +19,7 @@ from ..errors import FitError, InputError
 from .config import CompensationConfig
 from .decimation import fit_arrays
 from .model import TLModel
-from .normal import _residual_std, segment_normal_equations
+from .normal import segment_normal_equations, segment_residual_std
 from .prepare import Prepared, prepare
 from .report import fit_report
 from .result import CompensationResult, FitOutcome
@@ -161,8 +161,9 @@ def fit_outcome(prep: Prepared, cfg: CompensationConfig) -> FitOutcome:
     diag, cv_segs = diagnostics_from_stats(stats, kept, fit_terms, cfg.ridge)
     sse = float(stats.yy[kept].sum() - 2 * coef_fit @ b + coef_fit @ G @ coef_fit)
     return FitOutcome(prep, cfg, terms, fit_terms, coef, stats, out, cond, cond_s, diag,
-                      cv_segs["cv_residual_std_nT"].to_numpy(), _residual_std(stats, coef_fit),
-                      scaled_condition(stats.gram), sse, q)
+                      cv_segs["cv_residual_std_nT"].to_numpy(),
+                      segment_residual_std(stats, coef_fit), scaled_condition(stats.gram), sse,
+                      q)
 
 
 def fit_model(

@@ -13,8 +13,8 @@ import numpy as np
 
 from ..errors import InputError
 from .terms import (
-    _ALL_TERMS,
-    _AXIS,
+    ALL_TERMS,
+    AXIS,
     FIELD_SCALE_NT,
     PREDICT_BLOCK,
     direction_cosines,
@@ -125,13 +125,13 @@ def coefficient_forms(
         if name == "bias":
             bias += float(v)
         elif "*" not in name:
-            p[_AXIS[name]] += v
+            p[AXIS[name]] += v
         else:
             a, b = name.split("*")
             if b.endswith("'"):
-                N[_AXIS[a], _AXIS[b[:-1]]] += v
+                N[AXIS[a], AXIS[b[:-1]]] += v
             else:
-                M[_AXIS[a], _AXIS[b]] += v
+                M[AXIS[a], AXIS[b]] += v
     return p, M, N, bias
 
 
@@ -210,7 +210,7 @@ class TLModel:
                 f"{source}: not a model file (needs 'terms' and 'coef' lists);"
                 " write one with 'aeromag calibrate'"
             ) from None
-        unknown = [t for t in terms if t not in _ALL_TERMS]
+        unknown = [t for t in terms if t not in ALL_TERMS]
         if unknown:
             raise InputError(f"{source}: unknown term(s) {', '.join(unknown)} in the model")
         if len(coef) != len(terms):

@@ -41,16 +41,16 @@ from .columns import (
     unit_factor,
 )
 from .csv import (
-    _EXTRA_FIELD,  # noqa: F401 - kept for callers of the old aeromag.io
-    _UNNAMED_FIELD,  # noqa: F401 - kept for callers of the old aeromag.io
+    EXTRA_FIELD,  # noqa: F401 - kept for callers of the old aeromag.io
     PASSTHROUGH_BLOCK_BYTES,
-    _first_data_fields,  # noqa: F401 - kept for callers of the old aeromag.io
-    _read_csv_arrow,  # noqa: F401 - kept for callers of the old aeromag.io
+    UNNAMED_FIELD,  # noqa: F401 - kept for callers of the old aeromag.io
+    first_data_fields,  # noqa: F401 - kept for callers of the old aeromag.io
     read_csv,
+    read_csv_arrow,  # noqa: F401 - kept for callers of the old aeromag.io
 )
 from .csv_write import (
-    _csv_header,  # noqa: F401 - kept for callers of the old aeromag.io
-    _floats_as_pandas_text,  # noqa: F401 - kept for callers of the old aeromag.io
+    csv_header,  # noqa: F401 - kept for callers of the old aeromag.io
+    floats_as_pandas_text,  # noqa: F401 - kept for callers of the old aeromag.io
     write_arrow_csv,
     write_csv,
     write_csv_passthrough,

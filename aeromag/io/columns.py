@@ -308,7 +308,7 @@ def _check_magnitudes(s: pd.Series, source: str, column: str,
 
 
 #: ISO 8601 date and time at the start of a text value (``2024-01-01T00:00:00``, with a space too).
-_ISO_DATETIME = re.compile(r"^\s*[+-]?\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}")
+ISO_DATETIME = re.compile(r"^\s*[+-]?\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}")
 
 
 def _is_datetime_like(s: pd.Series) -> bool:
@@ -320,7 +320,7 @@ def _is_datetime_like(s: pd.Series) -> bool:
         return False
     first = s.first_valid_index()
     return first is not None and isinstance(s.loc[first], str) and bool(
-        _ISO_DATETIME.match(s.loc[first]))
+        ISO_DATETIME.match(s.loc[first]))
 
 
 #: Ticks per second of the datetime64 / timedelta64 units.

@@ -153,12 +153,12 @@ def _blank_lines(block: bytes, starts: np.ndarray, nl: np.ndarray) -> np.ndarray
 
 
 #: Name given to the field after the last header column while reading (a trailing delimiter).
-_EXTRA_FIELD = "\x00extra"
+EXTRA_FIELD = "\x00extra"
 #: Prefix of the names given to header cells that are empty.
-_UNNAMED_FIELD = "\x00unnamed"
+UNNAMED_FIELD = "\x00unnamed"
 
 
-def _csv_header_fields(path: Path) -> tuple[list[str], int] | None:
+def csv_header_fields(path: Path) -> tuple[list[str], int] | None:
     """The header of a CSV as the readers split it, and its 1-based line number.
 
     Quotes are honoured and blanks around names removed; leading blank lines are skipped (as
@@ -172,7 +172,7 @@ def _csv_header_fields(path: Path) -> tuple[list[str], int] | None:
     return _first_fields(path, 0)
 
 
-def _first_data_fields(path: Path, header_line: int) -> tuple[list[str], int] | None:
+def first_data_fields(path: Path, header_line: int) -> tuple[list[str], int] | None:
     """Fields of the first non-blank line after the header, and its 1-based line number."""
     return _first_fields(path, header_line)
 
@@ -232,7 +232,7 @@ def read_csv(path: Path, spare_fields: int = 1, *, allow_truncated: bool = False
     if not path.exists():
         raise InputError(f"{path}: file not found; check the path")
     check_text_file(path)
-    head = _csv_header_fields(path)
+    head = csv_header_fields(path)
     if head is None and first_undecodable_line(path) is not None:
         raise InputError(not_utf8_message(path))
     names, header_line = head if head is not None else (None, 1)
@@ -245,7 +245,7 @@ def read_csv(path: Path, spare_fields: int = 1, *, allow_truncated: bool = False
         want = set(usecols)
         include = [c for c in names if c in want]
     if names is None or all(names):
-        df = _read_csv_arrow(path, include=include)
+        df = read_csv_arrow(path, include=include)
         plain = df is not None  # pyarrow checked that every row has the header's field count
     if df is None:
         df, plain = _read_csv_other(path, names, header_line, spare_fields, allow_truncated)
@@ -277,9 +277,9 @@ def _read_csv_other(path: Path, names: list[str] | None, header_line: int,
     if names is None:
         return _read_csv_pandas(path, None, 0, header_line), False
     n = len(names)
-    cols = [name if name else f"{_UNNAMED_FIELD}{j}" for j, name in enumerate(names)]
-    cols += [f"{_EXTRA_FIELD}{k}" for k in range(spare_fields)]
-    first = _first_data_fields(path, header_line)
+    cols = [name if name else f"{UNNAMED_FIELD}{j}" for j, name in enumerate(names)]
+    cols += [f"{EXTRA_FIELD}{k}" for k in range(spare_fields)]
+    first = first_data_fields(path, header_line)
     if first is not None and len(first[0]) > len(cols):
         # (pandas would take this row's length as the table's and cut the fields beyond cols)
         raise InputError(
@@ -288,7 +288,7 @@ def _read_csv_other(path: Path, names: list[str] | None, header_line: int,
     df = None
     if header_line == 1 and (not all(names) or (first is not None
                                                  and len(first[0]) == len(cols))):
-        df = _read_csv_arrow(path, cols)  # every row as long: pyarrow can read it
+        df = read_csv_arrow(path, cols)  # every row as long: pyarrow can read it
     if df is None:
         df = _read_csv_pandas(path, cols, n, header_line)
     rows = rows_after_header(path, header_line)
@@ -299,12 +299,12 @@ def _read_csv_other(path: Path, names: list[str] | None, header_line: int,
             continue
         i = int(np.flatnonzero(filled)[0])
         where, value = row_location(rows, i), str(df[c].iloc[i]).strip()
-        if str(c).startswith(_EXTRA_FIELD):
+        if str(c).startswith(EXTRA_FIELD):
             raise InputError(
                 f"{path}: {where}: more fields than the {n} columns of the header (value"
                 f" {value!r} has no column); remove the extra value or add its name to the"
                 " header")
-        j = int(str(c)[len(_UNNAMED_FIELD):])
+        j = int(str(c)[len(UNNAMED_FIELD):])
         raise InputError(
             f"{path}: column {j + 1} has no name in the header but holds values ({where}:"
             f" {value!r}); give it a name in the header")
@@ -387,7 +387,7 @@ def _rows_have_fields(path: Path, n_fields: int) -> bool:
     return True
 
 
-def _read_csv_arrow(path: Path, names: list[str] | None = None, *,
+def read_csv_arrow(path: Path, names: list[str] | None = None, *,
                     include: list[str] | None = None) -> pd.DataFrame | None:
     """Read with pyarrow's multithreaded reader; None when the table needs pandas' rules.
 
@@ -469,7 +469,7 @@ def _arrow_numeric_frame(table: Any) -> pd.DataFrame | None:
 PASSTHROUGH_BLOCK_BYTES = 2 << 20
 
 
-def _line_arrays(fin: Any, block_bytes: int | None = None) -> Iterator[np.ndarray]:
+def line_arrays(fin: Any, block_bytes: int | None = None) -> Iterator[np.ndarray]:
     """Blocks of whole lines of a binary file as uint8 arrays, read without copying.
 
     As :func:`_line_blocks` (about ``block_bytes`` per block, a ``\\n`` added to a last line

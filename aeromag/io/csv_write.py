@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
-from .csv import _line_arrays
+from .csv import line_arrays
 from .messages import clean
 from .outputs import atomic_path, display_path
 
@@ -82,7 +82,7 @@ def write_csv(df: pd.DataFrame, path: str | os.PathLike[str]) -> Path:
     return target
 
 
-def _csv_header(columns: Iterable[Any]) -> str:
+def csv_header(columns: Iterable[Any]) -> str:
     """The header row, quoted only where a name needs it (as pandas writes it)."""
     import csv
     import io as _io
@@ -92,7 +92,7 @@ def _csv_header(columns: Iterable[Any]) -> str:
     return buf.getvalue()
 
 
-def _floats_as_pandas_text(table: Any) -> Any:
+def floats_as_pandas_text(table: Any) -> Any:
     """Format float columns as pandas does: shortest round trip, integral values with ``.0``.
 
     Arrow writes ``1.0`` as ``1``; read back, a float column whose values are all integral
@@ -181,7 +181,7 @@ def write_csv_passthrough(
     import pyarrow.csv as pacsv
 
     try:
-        table = _floats_as_pandas_text(pa.Table.from_pandas(extra, preserve_index=False))
+        table = floats_as_pandas_text(pa.Table.from_pandas(extra, preserve_index=False))
     except (pa.ArrowException, TypeError, ValueError):
         return False
     if any(pa.types.is_temporal(f.type) or pa.types.is_nested(f.type) for f in table.schema):
@@ -231,8 +231,8 @@ def write_csv_passthrough(
             return False
         if names != list(source_columns) or b'"' in head:
             return False
-        fout.write(head + b"," + _csv_header(extra.columns).encode("utf-8"))
-        for raw in _line_arrays(fin):
+        fout.write(head + b"," + csv_header(extra.columns).encode("utf-8"))
+        for raw in line_arrays(fin):
             k = int(np.count_nonzero(raw == 10))  # (numpy: 3-4x faster than bytes.count)
             if row + k > n:
                 return False
@@ -256,8 +256,8 @@ def _write_csv_arrow(df: pd.DataFrame, dest: Path) -> bool:
         return False
     if any(pa.types.is_temporal(f.type) or pa.types.is_nested(f.type) for f in table.schema):
         return False
-    table = _floats_as_pandas_text(table)
-    header = _csv_header(df.columns).encode("utf-8")
+    table = floats_as_pandas_text(table)
+    header = csv_header(df.columns).encode("utf-8")
     with open(dest, "wb") as fh:
         fh.write(header)
         try:

@@ -44,10 +44,10 @@ from .._core.filters import sampling_rate
 from .._core.runs import run_bounds
 from .._core.stretches import find_stretches
 from ..errors import InputError
-from ._blocks import _block_means
-from ._heading import _heading_unit
+from ._blocks import block_means
+from ._heading import heading_unit
 from ._lines import clip_to_lines
-from ._windows import _run_index, _run_sums, moving_mean
+from ._windows import moving_mean, run_index, run_sums
 from .maneuver_result import (
     CARDINALS,
     LABEL_DTYPES,
@@ -116,7 +116,7 @@ def detect_heading_legs(
         offset = 0.0
         stretch = find_stretches(t, None, max_gap_s)
     else:
-        unit, ok = _heading_unit(df, declination_deg)
+        unit, ok = heading_unit(df, declination_deg)
         stretch = find_stretches(t, ok, max_gap_s)
         del ok
         half = max(1, int(round(smooth_s * fs / 2)))
@@ -152,7 +152,7 @@ def detect_heading_legs(
     for c in range(4):
         sel = card_of_leg == c
         box_of_leg[sel] = np.arange(int(sel.sum()))
-    leg_id = _run_index(n, ks, ke)
+    leg_id = run_index(n, ks, ke)
     inleg = leg_id >= 0
     if len(kv):
         heading_leg = np.where(inleg, card_of_leg[np.maximum(leg_id, 0)], -1)
@@ -337,7 +337,7 @@ def detect_maneuvers(
     if step < 2 or maneuver_column is not None or leg_column is not None:
         res = _narrow(_detect_full(df, max_gap_s=max_gap_s, **kw))
     else:
-        small, cnt = _block_means(df, t, step, 5.0 / fs if max_gap_s is None else max_gap_s)
+        small, cnt = block_means(df, t, step, 5.0 / fs if max_gap_s is None else max_gap_s)
         if len(small) < 10:
             del small
             res = _narrow(_detect_full(df, max_gap_s=max_gap_s, **kw))
@@ -462,13 +462,13 @@ def _detect_full(
     lid = (vals // 3).astype(np.int64)
     man_code = (vals % 3).astype(np.int64)
     length = stops - starts
-    amb = (2 * _run_sums(ambiguous.astype(np.int64), starts, stops) > length) \
+    amb = (2 * run_sums(ambiguous.astype(np.int64), starts, stops) > length) \
         if len(starts) else np.zeros(0, dtype=bool)
     if method == "fluxgate":
         _resolve_ambiguous(lid, man_code, amb, notes)
     leg_box = legs["box"].to_numpy(dtype=np.int64)
     leg_card = legs["heading_leg"].to_numpy(dtype=np.int64)
-    rms_sum = _run_sums(np.where(np.isfinite(rms_axis), rms_axis, np.nan), starts, stops)
+    rms_sum = run_sums(np.where(np.isfinite(rms_axis), rms_axis, np.nan), starts, stops)
     table = pd.DataFrame({
         "id": np.arange(len(starts)), "box": leg_box[lid], "heading_leg": leg_card[lid],
         "heading": np.asarray(CARDINALS, dtype=object)[leg_card[lid]],
@@ -476,7 +476,7 @@ def _detect_full(
         "t_start": t[starts], "t_end": t[stops - 1],
         "duration_s": t[stops - 1] - t[starts] + 1.0 / fs, "n": length,
         "rms_deg": rms_sum / np.maximum(length, 1), "ambiguous": amb.astype(bool)})
-    mid = _run_index(n, starts, stops)
+    mid = run_index(n, starts, stops)
     codes = np.where(mid >= 0, man_code[np.maximum(mid, 0)] + 1, 0) if len(starts) \
         else np.zeros(n, dtype=np.int64)
     labels["maneuver"] = pd.Categorical.from_codes(codes, categories=["", *MANEUVERS])

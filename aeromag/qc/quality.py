@@ -212,7 +212,7 @@ def compute_qc(
         warnings.warn("compute_qc(data, report, cfg) is deprecated: pass the CompensationResult",
                       DeprecationWarning, stacklevel=2)
         rep = (legacy[0] if legacy else None) or {}
-        cfg = config or (legacy[1] if len(legacy) > 1 else None) or _config_of(rep)
+        cfg = config or (legacy[1] if len(legacy) > 1 else None) or config_of(rep)
         return _compute(result, rep, cfg, maneuvers=maneuvers, maneuver_column=maneuver_column,
                         fit=fit, fom_on=fom)
     if legacy:
@@ -220,7 +220,7 @@ def compute_qc(
     cfg = config if config is not None else getattr(result, "config", None)
     report = getattr(result, "report", None) or {}
     if cfg is None:
-        cfg = _config_of(report)
+        cfg = config_of(report)
     data = result.data
     if data is None:
         raise InputError("this result holds no compensated data (use compensate())")
@@ -404,12 +404,12 @@ def quality_metrics(
         See :func:`compute_qc`.
     """
     rep = report or {}
-    cfg = cfg if cfg is not None else _config_of(rep)
+    cfg = cfg if cfg is not None else config_of(rep)
     return _compute(data, rep, cfg, maneuvers=maneuvers, maneuver_column=maneuver_column,
                     fit=fit, fom_on=detect).metrics
 
 
-def _config_of(report: dict[str, Any]) -> CompensationConfig:
+def config_of(report: dict[str, Any]) -> CompensationConfig:
     """The configuration recorded in an in-memory report (defaults for what it lacks).
 
     Only for results that do not carry their configuration; files are read by the report

@@ -36,7 +36,7 @@ from ..errors import AeromagError, InputError
 from ..io import atomic_path, json_path_for, read_log, write_json
 from ..plot import compensation as pc
 from ..qc import QCResult, compute_qc, kept_mask, segment_labels
-from ._report_html import _CSS, _fmt, _fom_rows, _headline_words, _table, _time
+from ._report_html import CSS, fmt, fom_rows, headline_words, html_table, html_time
 from .report_check import headline_from_data, headline_record
 
 __all__ = ["FIGURES", "build_report", "load_compensated", "render_html", "write_report"]
@@ -370,7 +370,7 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
     title = title or f"aeromag compensation report: {report.get('source', '')}"
     band = metrics["band_hz"]
     parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
-             f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
+             f"<title>{html.escape(title)}</title><style>{CSS}</style></head><body>",
              f"<h1>{html.escape(title)}</h1>",
              f"<p class='small'>aeromag {html.escape(__version__)}; fitting band "
              f"{band[0]:g}–{band[1]:g} Hz</p>"]
@@ -390,7 +390,7 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
         header.append(f"recorded in {Path(check.get('recorded_in') or 'OUT.json').name}"
                       " (kept / all)")
         for r, (_, k) in zip(rows, names, strict=True):
-            r.append(f"{_fmt(rec.get(k))} / {_fmt(rec.get('all_' + k))}")
+            r.append(f"{fmt(rec.get(k))} / {fmt(rec.get('all_' + k))}")
     parts.append("<h2>Summary</h2>")
     if check.get("warning"):
         parts.append(f"<p class='warn' id='headline-warning'>Warning: "
@@ -399,15 +399,15 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
     if comp_warning:
         parts.append(f"<p class='warn' id='mag-comp-warning'>Warning: "
                      f"{html.escape(comp_warning)}</p>")
-    parts.append(_table(rows, header))
-    words = _headline_words(check)
+    parts.append(html_table(rows, header))
+    words = headline_words(check)
     if metrics.get("definition"):
         words = f"{metrics['definition']}. {words}"
     parts.append(f"<p class='small'>{html.escape(words)}</p>")
     more = [
         ["4th-difference noise before / after (nT)",
-         f"{_fmt(noise.get('fourth_difference_before_nT'))} / "
-         f"{_fmt(noise.get('fourth_difference_after_nT'))}"],
+         f"{fmt(noise.get('fourth_difference_before_nT'))} / "
+         f"{fmt(noise.get('fourth_difference_after_nT'))}"],
         ["condition number (unit-norm columns)", fit.get("condition_number_scaled")],
         ["largest VIF", fit.get("max_vif")],
         ["leave-one-segment-out CV residual (nT)", fit.get("cv_residual_std_nT")],
@@ -417,22 +417,22 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
     if scr.get("n_segments") is not None:
         more.append(["segments kept / fitted", f"{scr.get('n_kept', '–')} / "
                      f"{scr.get('n_segments', '–')}"])
-    parts.append(_table(more, ["diagnostic", "value"]))
+    parts.append(html_table(more, ["diagnostic", "value"]))
     # FOM: numbers only for complete calibration boxes.
     parts.append("<h2>Figure of Merit</h2>")
     if fom.get("applicable"):
-        parts.append(_table(_fom_rows(fom), ["metric", "manoeuvres in kept segments",
+        parts.append(html_table(fom_rows(fom), ["metric", "manoeuvres in kept segments",
                                              "all manoeuvres"]))
         boxes = fom.get("complete_boxes", [])
         parts.append(f"<p class='small'>Complete boxes: {len(boxes)} (box "
                      f"{html.escape(', '.join(map(str, boxes)))}); manoeuvres in kept segments:"
-                     f" {_fmt(fom.get('n_maneuvers_kept'))} of {_fmt(fom.get('n_maneuvers'))}."
+                     f" {fmt(fom.get('n_maneuvers_kept'))} of {fmt(fom.get('n_maneuvers'))}."
                      f" {html.escape(fom.get('kept_reason') or '')}"
                      f" {html.escape(fom.get('kept_definition') or '')}</p>")
         pm = fom.get("per_maneuver") or []
         if pm:
             keys = [k for k in ("ptp_before_nT", "ptp_after_nT", "ptp_truth_nT") if k in pm[0]]
-            parts.append(_table([[r["heading"], r["maneuver"], *(r[k] for k in keys)]
+            parts.append(html_table([[r["heading"], r["maneuver"], *(r[k] for k in keys)]
                                  for r in pm],
                                 ["heading", "manoeuvre", *[f"{k[4:-3]} (nT p-p)" for k in keys]]))
     else:
@@ -449,17 +449,17 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
         mrows += [["fit samples", fitb.get("n_samples")],
                   ["segments fitted", fitb.get("n_segments_fitted")],
                   ["fit residual (nT)", fitb.get("residual_std_nT")]]
-    parts.append(_table(mrows, ["", "value"]))
+    parts.append(html_table(mrows, ["", "value"]))
     if report.get("terms") and report.get("coef"):
-        parts.append(_table(
+        parts.append(html_table(
             [[t, c] for t, c in zip(report["terms"], report["coef"], strict=True)],
             ["term", "coefficient (nT; eddy nT·s)"]))
     # Per line.
     segs = metrics.get("segments") or []
     if segs:
         parts.append("<h2>Lines and segments</h2>")
-        parts.append(_table(
-            [[s["segment"], s["line"], _time(s["t_start"]), _time(s["t_end"]), s["n"],
+        parts.append(html_table(
+            [[s["segment"], s["line"], html_time(s["t_start"]), html_time(s["t_end"]), s["n"],
               s["kept"], s["residual_std_nT"], s["model_residual_std_nT"], s["reason"] or ""]
              for s in segs],
             ["segment", "line", "start", "end", "samples", "kept", "residual (nT)",
@@ -468,10 +468,10 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
     by_h = metrics.get("residual_std_by_heading_nT") or {}
     if by_h:
         parts.append("<h2>Residual per heading (nT)</h2>"
-                     + _table([[k, v] for k, v in by_h.items()], ["heading", "residual"]))
+                     + html_table([[k, v] for k, v in by_h.items()], ["heading", "residual"]))
     if fit.get("vif"):
         parts.append("<h2>Variance inflation factors</h2>"
-                     + _table([[k, v] for k, v in fit["vif"].items()], ["term", "VIF"]))
+                     + html_table([[k, v] for k, v in fit["vif"].items()], ["term", "VIF"]))
     notes = list(metrics.get("notes") or [])
     notes += [f"{k} not drawn: {v}" for k, v in (metrics.get("figures_skipped") or {}).items()]
     if notes:

@@ -225,10 +225,10 @@ def check_delimiter(path: Path) -> None:
     InputError
         When the header looks separated by another delimiter.
     """
-    from ..csv import _csv_header_fields
+    from ..csv import csv_header_fields
     from ..messages import clean
 
-    head = _csv_header_fields(path)
+    head = csv_header_fields(path)
     if head is None or len(head[0]) != 1:
         return
     names, line = head
