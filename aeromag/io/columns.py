@@ -256,8 +256,11 @@ def apply_column_map(
 
 
 def to_numeric(df: pd.DataFrame, cols: Sequence[str], source: str,
-                rows: Mapping[str, Any] | None = None) -> pd.DataFrame:
+                rows: Mapping[str, Any] | None = None, keep: Sequence[str] = ()
+                ) -> pd.DataFrame:
     """Convert ``cols`` to float, naming the first unparseable cell (and its line) in the error.
+
+    Numeric columns named in ``keep`` stay in the type they were read in (e.g. float32).
 
     A ``time`` column of date-times (ISO 8601 text, or datetime / duration values from Parquet)
     becomes float seconds since 1970-01-01 UTC (see :func:`datetime_seconds`).
@@ -272,7 +275,7 @@ def to_numeric(df: pd.DataFrame, cols: Sequence[str], source: str,
             df.attrs["_time_converted"] = True
             continue
         if pd.api.types.is_numeric_dtype(s.dtype) and not pd.api.types.is_bool_dtype(s.dtype):
-            if s.dtype != np.float64 and c not in INTEGER_COLUMNS:
+            if s.dtype != np.float64 and c not in INTEGER_COLUMNS and c not in keep:
                 df[c] = s.astype(np.float64)
         else:
             df[c] = numeric_values(s, source, c, rows)

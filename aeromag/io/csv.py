@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 import re
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -196,7 +196,8 @@ def _first_fields(path: Path, after: int) -> tuple[list[str], int] | None:
 
 
 def read_csv(path: Path, spare_fields: int = 1, *, allow_truncated: bool = False,
-             usecols: Sequence[str] | None = None) -> pd.DataFrame:
+             usecols: Sequence[str] | None = None,
+             dtypes: Mapping[str, Any] | None = None) -> pd.DataFrame:
     """Read a CSV table (pyarrow's multi-threaded reader when available, else pandas).
 
     The file must be UTF-8 text (a binary file, or bytes that are not UTF-8, are an error
@@ -219,6 +220,9 @@ def read_csv(path: Path, spare_fields: int = 1, *, allow_truncated: bool = False
     usecols : sequence of str, optional
         Read only these columns (source names; those the file lacks are ignored): pyarrow
         parses no other column (``include_columns``).  Default: every column.
+    dtypes : mapping, optional
+        ``{column: numpy float dtype}`` pyarrow parses these columns into (e.g. float32 for
+        columns only drawn); the other readers' columns are converted by the caller.
 
     Returns
     -------
@@ -245,7 +249,7 @@ def read_csv(path: Path, spare_fields: int = 1, *, allow_truncated: bool = False
         want = set(usecols)
         include = [c for c in names if c in want]
     if names is None or all(names):
-        df = read_csv_arrow(path, include=include)
+        df = read_csv_arrow(path, include=include, dtypes=dtypes)
         plain = df is not None  # pyarrow checked that every row has the header's field count
     if df is None:
         df, plain = _read_csv_other(path, names, header_line, spare_fields, allow_truncated)
@@ -388,7 +392,8 @@ def _rows_have_fields(path: Path, n_fields: int) -> bool:
 
 
 def read_csv_arrow(path: Path, names: list[str] | None = None, *,
-                    include: list[str] | None = None) -> pd.DataFrame | None:
+                    include: list[str] | None = None,
+                    dtypes: Mapping[str, Any] | None = None) -> pd.DataFrame | None:
     """Read with pyarrow's multithreaded reader; None when the table needs pandas' rules.
 
     ``names`` replaces the header row (read with exactly these columns, header skipped);
@@ -410,7 +415,10 @@ def read_csv_arrow(path: Path, names: list[str] | None = None, *,
         except (pa.ArrowInvalid, OSError):
             return None
         return _arrow_numeric_frame(table)
-    convert = pacsv.ConvertOptions(include_columns=include) if include is not None else None
+    types = {c: pa.from_numpy_dtype(np.dtype(dt)) for c, dt in (dtypes or {}).items()
+             if include is None or c in include}
+    convert = pacsv.ConvertOptions(column_types=types,
+                                   **({} if include is None else {"include_columns": include}))
     try:
         table = _read_arrow_table(path, convert)
     except pa.ArrowInvalid as exc:

@@ -121,8 +121,9 @@ def read_log(
     source_cols = None
     if usecols is not None:
         source_cols = [(columns or {}).get(c, c) for c in usecols]
+    source_types = {(columns or {}).get(c, c): dt for c, dt in (dtypes or {}).items()}
     df = read_table_rows(p, fmt, allow_truncated=allow_truncated_default(allow_truncated),
-                         usecols=source_cols)
+                         usecols=source_cols, dtypes=source_types)
     rows = df.attrs.pop(ROWS_ATTR, None)
     check_unique_names([str(c) for c in df.columns], source, what="table")
     df = apply_column_map(df, columns, source=source)
@@ -137,7 +138,7 @@ def read_log(
         raise InputError(f"{source}: only {len(df)} data row(s); need at least {min_rows}:"
                          " give a longer log")
     present = [c for c in NUMERIC_COLUMNS if c in df.columns]
-    df = to_numeric(df, present, source, rows)
+    df = to_numeric(df, present, source, rows, keep=tuple(dtypes or ()))
     df = convert_units(df, units, source=source, rows=rows)
     n_read = len(df)
     plain = df.attrs.pop("_plain_csv_columns", None)

@@ -134,7 +134,7 @@ def _read_hdf5(path: Path) -> pd.DataFrame:
 
 _TEXT = ("allow_truncated",)
 register(Format("csv", (".csv", ".txt"), read=read_csv, write=write_csv,
-                options=(*_TEXT, "usecols")))
+                options=(*_TEXT, "usecols", "dtypes")))
 register(Format("parquet", (".parquet", ".pq"), read=read_parquet, write=write_parquet))
 register(Format("xyz", (".xyz",), read=_read_xyz, write=write_xyz, options=_TEXT))
 register(Format("hdf5", (".h5", ".hdf5"), read=_read_hdf5))
@@ -270,7 +270,8 @@ def read_table(path: str | os.PathLike[str], fmt: str | None = None) -> pd.DataF
 
 def read_table_rows(path: str | os.PathLike[str], fmt: str | None = None, *,
                     allow_truncated: bool = False,
-                    usecols: Sequence[str] | None = None) -> pd.DataFrame:
+                    usecols: Sequence[str] | None = None,
+                    dtypes: dict[str, Any] | None = None) -> pd.DataFrame:
     """:func:`read_table`, with ``df.attrs[ROWS_ATTR]`` telling where each row is in the file.
 
     Used by :func:`aeromag.io.read_log` to name the file line (or the sample) of a bad value.
@@ -291,6 +292,8 @@ def read_table_rows(path: str | os.PathLike[str], fmt: str | None = None, *,
     opts: dict[str, Any] = {"allow_truncated": allow_truncated} if allow_truncated else {}
     if usecols is not None:
         opts["usecols"] = list(usecols)
+    if dtypes:
+        opts["dtypes"] = dict(dtypes)
     df = reader(p, **{k: v for k, v in opts.items() if k in REGISTRY[f].options})
     if usecols is not None and "usecols" not in REGISTRY[f].options:
         want = set(usecols)
