@@ -16,8 +16,6 @@ packages (``aeromag.compensation``, ``aeromag.io``, ...) or is private.
 from __future__ import annotations
 
 import importlib
-import sys
-import types
 from typing import Any
 
 from .errors import AeromagError, FitError, InputError
@@ -69,7 +67,7 @@ _API: dict[str, str] = {
     # track check
     "check_track": "aeromag.track",
     "TrackResult": "aeromag.track",
-    "LegModel": "aeromag.track.legs",
+    "LegModel": "aeromag.track.leg_model",
     "read_plan": "aeromag.io.plans",
     "track_file": "aeromag.workflows.track",
     "plot_track_map": "aeromag.plot.track",
@@ -135,20 +133,3 @@ def __getattr__(name: str) -> Any:
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(_API))
 
-
-class _Package(types.ModuleType):
-    """The ``aeromag`` module: a public function is never shadowed by an old submodule.
-
-    Importing the deprecated module ``aeromag.compensate`` makes Python set the attribute
-    ``aeromag.compensate`` to that module, hiding the function ``am.compensate``; the package
-    keeps its public name instead (the module stays in ``sys.modules``, so
-    ``from aeromag.compensate import X`` works).
-    """
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        if name in _API and isinstance(value, types.ModuleType):
-            return
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package

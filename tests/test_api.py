@@ -1,4 +1,4 @@
-"""The public API (``import aeromag as am``), the old import paths, the option table, config
+"""The public API (``import aeromag as am``), no old import paths, the option table, config
 groups and the CLI's logging switch (issue 10)."""
 
 from __future__ import annotations
@@ -12,27 +12,28 @@ import pytest
 from typer.testing import CliRunner
 
 import aeromag as am
-from aeromag._deprecated import OLD_PATHS
 from aeromag.cli import app
 
 runner = CliRunner()
 
-#: Old flat modules of the compensation side and where their names went.
-OLD = {
-    "aeromag.compensate": ("compensate_file", "aeromag.workflows.compensate"),
-    "aeromag.tolles_lawson": ("design_matrix", "aeromag.compensation.terms"),
-    "aeromag.estimator": ("TollesLawson", "aeromag.compensation.estimator"),
-    "aeromag.screening": ("pca_screen", "aeromag.compensation.screening"),
-    "aeromag.segments": ("find_stretches", "aeromag._core.stretches"),
-    "aeromag.filters": ("butter_sos", "aeromag._core.filters"),
-    "aeromag.simulate": ("simulate_calibration", "aeromag.synthetic.calibration"),
-    "aeromag.chunked": ("apply_model_chunked", "aeromag.workflows.chunked"),
-}
+#: The old flat modules (forwarders removed: 0.1.0 was never published).
+OLD = ("batch", "chunked", "compensate", "detect", "estimator", "filters", "formats", "maneuvers",
+       "report", "screening", "segments", "simulate", "simulate_mission", "tolles_lawson", "warm")
 
 
 def _python(code: str, *flags: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, *flags, "-c", code], capture_output=True, text=True,
                           timeout=120)
+
+
+@pytest.mark.parametrize("old", OLD)
+def test_old_flat_modules_are_gone_and_public_names_stay_functions(old):
+    import importlib
+
+    with pytest.raises(ModuleNotFoundError):
+        importlib.import_module(f"aeromag.{old}")
+    if old in am.__all__:  # am.compensate, am.simulate_mission: the functions
+        assert not isinstance(getattr(am, old), types.ModuleType)
 
 
 def test_all_lists_the_public_api_and_every_name_resolves():
@@ -53,48 +54,6 @@ def test_import_aeromag_is_light():
     p = _python("import sys, aeromag; print(sorted(m for m in ('pandas', 'scipy', 'sklearn',"
                 " 'matplotlib') if m in sys.modules))")
     assert p.returncode == 0 and p.stdout.strip() == "[]", p.stdout + p.stderr
-
-
-def test_public_compensate_runs_and_is_not_shadowed_by_the_old_module(flight):
-    df, _ = flight
-    res = am.compensate(df)
-    assert res.report["metrics"]["improvement_ratio"] > 10 and "qc" in res.report
-    assert callable(am.compensate) and not isinstance(am.compensate, types.ModuleType)
-    # In a fresh interpreter: importing the old module must leave am.compensate the function.
-    code = ("import warnings; warnings.simplefilter('ignore')\n"
-            "import aeromag as am\n"
-            "import aeromag.compensate\n"
-            "from aeromag.compensate import compensate_file, CompensationConfig\n"
-            "import types, sys\n"
-            "assert not isinstance(am.compensate, types.ModuleType), am.compensate\n"
-            "assert am.compensate.__module__ == 'aeromag.workflows.compensate'\n"
-            "assert sys.modules['aeromag.compensate'].compensate_file is compensate_file\n"
-            "print('ok')")
-    p = _python(code)
-    assert p.returncode == 0 and p.stdout.strip() == "ok", p.stderr
-
-
-@pytest.mark.parametrize("old", sorted(OLD))
-def test_old_paths_warn_and_still_work(old):
-    name, home = OLD[old]
-    code = (f"import warnings\nwith warnings.catch_warnings(record=True) as w:\n"
-            f"    warnings.simplefilter('always')\n"
-            f"    from {old} import {name}\n"
-            f"import importlib\n"
-            f"assert {name} is getattr(importlib.import_module('{home}'), '{name}')\n"
-            f"msgs = [str(x.message) for x in w if x.category is DeprecationWarning]\n"
-            f"assert any('{old} is deprecated' in m for m in msgs), msgs\n"
-            f"print('ok')")
-    p = _python(code)
-    assert p.returncode == 0 and p.stdout.strip() == "ok", p.stderr
-    p = _python(f"import {old}", "-W", "error::DeprecationWarning")
-    assert p.returncode != 0 and "DeprecationWarning" in p.stderr
-
-
-def test_old_paths_are_recorded():
-    import aeromag.compensate  # noqa: F401 - registers the forwarder (warns once)
-
-    assert OLD_PATHS["aeromag.compensate"][0] == "aeromag.workflows.compensate"
 
 
 def test_config_groups_and_flat_keywords_agree():

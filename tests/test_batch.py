@@ -11,10 +11,11 @@ import pytest
 from typer.testing import CliRunner
 
 from aeromag.cli import app
-from aeromag.compensate import CompensationConfig, calibrate_file, compensate_file
+from aeromag.compensation.config import CompensationConfig
 from aeromag.errors import InputError
 from aeromag.io import write_csv
 from aeromag.workflows.batch import expand_inputs, run_batch
+from aeromag.workflows.compensate import calibrate_file, compensate_file
 
 from .conftest import hand_flight
 
@@ -119,8 +120,9 @@ def test_dask_local_cluster_identical(logs, tmp_path):
 
 
 def test_cli_batch_exit_status_summary_and_plan(logs, tmp_path):
-    simulate = pytest.importorskip("aeromag.simulate")
-    sim = simulate.write_simulation(tmp_path / "sim", seed=1, small=True)
+    from aeromag.workflows.simulate import write_simulation
+
+    sim = write_simulation(tmp_path / "sim", seed=1, small=True)
     runner = CliRunner()
     res = runner.invoke(app, ["batch", str(sim["survey"]), "--plan", str(sim["plan"]),
                               "-o", str(tmp_path / "o"), "--workers", "1", "--no-progress"])

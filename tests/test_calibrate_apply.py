@@ -7,8 +7,10 @@ import pandas as pd
 import pytest
 from scipy import signal
 
-from aeromag.compensate import compensate, fit_model
-from aeromag.simulate import simulate_calibration, simulate_survey
+from aeromag.compensation.fit import fit_model
+from aeromag.synthetic.calibration import simulate_calibration
+from aeromag.synthetic.survey import simulate_survey
+from aeromag.workflows.compensate import compensate
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

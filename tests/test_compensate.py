@@ -8,16 +8,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from aeromag.compensate import (
-    CompensationConfig,
-    apply_model,
-    calibrate_file,
-    compensate,
-    compensate_file,
-    fit_model,
-)
+from aeromag.compensation.apply import apply_model
+from aeromag.compensation.config import CompensationConfig
+from aeromag.compensation.fit import fit_model
+from aeromag.compensation.model import TLModel
+from aeromag.compensation.terms import TERMS_16
 from aeromag.errors import FitError, InputError
-from aeromag.tolles_lawson import TERMS_16, TLModel
+from aeromag.workflows.compensate import calibrate_file, compensate, compensate_file
 
 from .conftest import COEF16, hand_flight
 
@@ -298,7 +295,7 @@ def test_output_named_like_its_report_is_refused(tmp_path, flight):
 
 @pytest.mark.parametrize("seed", range(5))
 def test_masked_std_equals_numpy_on_any_mask(seed):
-    from aeromag.compensate import masked_std
+    from aeromag._core.moments import masked_std
 
     rng = np.random.default_rng(seed)
     for _ in range(60):

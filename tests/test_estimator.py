@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 from sklearn.base import clone
 
-from aeromag.simulate import default_aircraft_coef, simulate_calibration
-from aeromag.tolles_lawson import TERMS_16, TollesLawson
+from aeromag.compensation.estimator import TollesLawson
+from aeromag.compensation.terms import TERMS_16
+from aeromag.synthetic.calibration import simulate_calibration
+from aeromag.synthetic.physics import default_aircraft_coef
 
 
 def test_get_params_clone_roundtrip():

@@ -119,7 +119,7 @@ CLEAN = ("time,mag,flux_x,flux_y,flux_z\n0.0,50000.1,20000,-3000,45000\n"
 
 def _no_arrow(monkeypatch):
     """Force the pandas reader (as when pyarrow is missing or cannot read the file)."""
-    monkeypatch.setattr(aio, "_read_csv_arrow", lambda path, names=None: None)
+    monkeypatch.setattr(aio, "read_csv_arrow", lambda path, names=None, **kw: None)
 
 
 @pytest.mark.parametrize("pandas_only", [False, True])
@@ -188,12 +188,12 @@ def test_property_csv_readers_agree(tmp_path, rows, trailing, blanks, text_col):
     p = tmp_path / "p.csv"
     p.write_text("\n".join(lines) + "\n")
     a = read_log(p)
-    real = aio._read_csv_arrow
+    real = aio.read_csv_arrow
     try:
-        aio._read_csv_arrow = lambda path, names=None: None
+        aio.read_csv_arrow = lambda path, names=None, **kw: None
         b = read_log(p)
     finally:
-        aio._read_csv_arrow = real
+        aio.read_csv_arrow = real
     pd.testing.assert_frame_equal(a, b, check_exact=True)
     np.testing.assert_array_equal(a["mag"].to_numpy(), [m for _, m in rows])
 
@@ -210,11 +210,8 @@ def test_duplicate_header_name_is_a_one_line_error(tmp_path, body):
         read_log(p)
 
 
-def test_duplicate_name_in_a_large_log_read_as_columns(tmp_path, monkeypatch):
-    """The numpy-column reader keys columns by name: a duplicate must not collapse silently."""
-    from aeromag.io import warm
-
-    monkeypatch.setattr(warm, "COLUMNS_MIN_BYTES", 0)
+def test_duplicate_name_in_a_numeric_log(tmp_path):
+    """Columns are keyed by name: a duplicate must not collapse silently."""
     p = _write(tmp_path, "big.csv", "time,mag,mag\n" + "".join(f"{i},1,2\n" for i in range(50)))
     with pytest.raises(InputError, match="'mag' appears twice"):
         read_log(p)

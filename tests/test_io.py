@@ -140,10 +140,9 @@ def test_outputs_get_normal_permissions(tmp_path):
     assert stat.S_IMODE(p.stat().st_mode) == 0o666 & ~mask
 
 
-def test_parallel_writer_is_byte_identical_to_one_thread(tmp_path, monkeypatch):
-    """Slices formatted on several threads give exactly the single-threaded file, including
-    NaN (empty), booleans, integers with missing values, whole-number floats (``.0``) and
-    text that needs quoting (the writer falls back to quoting on every slice)."""
+def test_writer_round_trips_missing_values_booleans_and_quoted_text(tmp_path):
+    """NaN (empty), booleans, integers with missing values, whole-number floats (``.0``) and
+    text that needs quoting (the writer falls back to quoting) read back as written."""
     from aeromag import io as aio
 
     rng = np.random.default_rng(3)
@@ -156,28 +155,19 @@ def test_parallel_writer_is_byte_identical_to_one_thread(tmp_path, monkeypatch):
                         dtype="Int64"),
         "kept": np.arange(n) % 3 > 0,
     })
-    monkeypatch.setattr(aio, "WRITE_SLICE_ROWS", 1000)
-    outs = {}
-    for threads in ("1", "3"):
-        monkeypatch.setenv("AEROMAG_WRITE_THREADS", threads)
-        outs[threads] = aio.write_csv(df, tmp_path / f"t{threads}.csv").read_bytes()
-        df2 = df.assign(note=np.where(np.arange(n) == n - 3, 'a "quoted", text', "plain"))
-        outs[threads + "q"] = aio.write_csv(df2, tmp_path / f"q{threads}.csv").read_bytes()
-    assert outs["1"] == outs["3"]
-    assert outs["1q"] == outs["3q"]
+    aio.write_csv(df, tmp_path / "t3.csv")
+    df2 = df.assign(note=np.where(np.arange(n) == n - 3, 'a "quoted", text', "plain"))
+    quoted = aio.write_csv(df2, tmp_path / "q3.csv").read_bytes()
     back = pd.read_csv(tmp_path / "t3.csv")
     np.testing.assert_array_equal(back["x"].to_numpy(), df["x"].to_numpy())
     assert back["whole"].dtype == np.float64
     assert back["kept"].dtype == bool
-    assert b'"a ""quoted"", text"' in outs["3q"]
+    assert b'"a ""quoted"", text"' in quoted
 
 
-def test_streaming_reader_falls_back_when_later_blocks_change_type(tmp_path, monkeypatch):
+def test_reader_takes_a_column_that_turns_decimal_or_text_further_down(tmp_path):
     """Types frozen on the first block must not break a log whose integer column turns
     decimal further down, or whose text column starts empty: the file is read whole."""
-    from aeromag.io import warm
-
-    monkeypatch.setattr(warm, "READ_BLOCK_BYTES", 1024)
     n = 3000
     rows = ["time,flux_x,flux_y,flux_z,mag,count,note"]
     for i in range(n):
@@ -266,39 +256,14 @@ def test_passthrough_only_when_the_log_is_as_read(tmp_path):
     assert "passthrough_csv" not in read_log(dup).attrs
 
 
-def test_prefetched_table_used_only_for_the_same_unchanged_file(tmp_path):
-    """The command line prefetches the log; read_log takes it only if the file is unchanged."""
-    import time
-
-    from aeromag.io import warm
-
-    p = tmp_path / "log.csv"
-    p.write_text("time,mag\n0,1.5\n1,2.5\n")
-    warm.prefetch_csv(p)
-    assert read_log(p)["mag"].tolist() == [1.5, 2.5]
-    assert warm.take_prefetched(p) is None  # taken once
-    warm.prefetch_csv(p)
-    time.sleep(0.05)
-    p.write_text("time,mag\n0,7.5\n1,8.5\n2,9.5\n")  # changed after the prefetch
-    assert read_log(p)["mag"].tolist() == [7.5, 8.5, 9.5]
-    warm.prefetch_csv(tmp_path / "missing.csv")  # nothing to prefetch: no error
-    assert warm.take_prefetched(tmp_path / "missing.csv") is None
-
-
-def test_large_logs_read_into_numpy_columns_equal_pandas(tmp_path, monkeypatch):
-    """The column reader (used for large files) gives pandas' values and dtypes, and hands
-    over to the table reader for empty integer cells or text."""
-    from aeromag.io import warm
-
-    monkeypatch.setattr(warm, "COLUMNS_MIN_BYTES", 0)
-    monkeypatch.setattr(warm, "READ_BLOCK_BYTES", 2048)
+def test_logs_read_equal_pandas_values_and_dtypes(tmp_path):
+    """read_log gives pandas' values and dtypes, also with an empty integer cell."""
     n = 4000
     rows = ["time,mag,line,flag"] + [
         f"{i * 0.1:.1f},{'' if i % 777 == 5 else 50000 + i / 7},{i // 100},"
         f"{'true' if i % 3 else 'false'}" for i in range(n)]
     p = tmp_path / "big.csv"
     p.write_text("\n".join(rows) + "\n")
-    assert isinstance(warm.read_csv_table(p), dict)
     df, ref = read_log(p), pd.read_csv(p)
     assert list(df.dtypes) == list(ref.dtypes)
     for c in ref.columns:
@@ -307,6 +272,5 @@ def test_large_logs_read_into_numpy_columns_equal_pandas(tmp_path, monkeypatch):
     rows[3000] = rows[3000].replace(",29,", ",,")
     q = tmp_path / "gap.csv"
     q.write_text("\n".join(rows) + "\n")
-    assert not isinstance(warm.read_csv_table(q), dict)
     got = read_log(q)["line"].to_numpy()
     np.testing.assert_array_equal(got, pd.read_csv(q)["line"].to_numpy())

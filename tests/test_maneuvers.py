@@ -147,14 +147,14 @@ def test_resolve_ambiguous_names_unsure_runs_by_the_missing_manoeuvres():
 
 
 def test_heading_unit_vector_is_the_heading_sources():
-    from aeromag.qc.maneuvers import _heading_source, _heading_unit
+    from aeromag.qc._heading import _heading_source, heading_unit
 
     df, _ = simulate_calibration(seed=2, n_boxes=1)
     df.loc[5:7, "flux_y"] = np.nan
     for cols, decl in (([], 0.0), (["heading"], 12.5), (["heading", "pitch", "roll"], -7.0)):
         d = df.drop(columns=cols)
         h, _ = _heading_source(d, decl)
-        cs, ok = _heading_unit(d, decl)
+        cs, ok = heading_unit(d, decl)
         assert (ok == np.isfinite(h)).all()
         np.testing.assert_allclose(cs[ok, 0], np.cos(np.deg2rad(h[ok])), atol=1e-12)
         np.testing.assert_allclose(cs[ok, 1], np.sin(np.deg2rad(h[ok])), atol=1e-12)

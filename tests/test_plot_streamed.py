@@ -7,11 +7,7 @@ each figure's peak memory must stay a small multiple of a block, not of the log.
 
 from __future__ import annotations
 
-import subprocess
-import sys
-import textwrap
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -38,13 +34,13 @@ def _reference(t: np.ndarray, y: np.ndarray, columns: int = S.DISPLAY_COLUMNS):
 
 def _streamed(t: np.ndarray, y: np.ndarray, block: int, columns: int = S.DISPLAY_COLUMNS,
               guess=None):
-    ax, gap = S._TimeAxis(t), S._stretch_gap_s(t)
+    ax, gap = S.TimeAxis(t), S.stretch_gap_s(t)
 
     def blocks():
         for a in range(0, len(t), block):
             b = min(len(t), a + block)
-            yield a, ax(t[a:b]), S._new_stretch(t, a, b, gap), [y[a:b]]
-    return S._streamed_envelopes(len(t), blocks, 1, guess, columns)[0]
+            yield a, ax(t[a:b]), S.new_stretch(t, a, b, gap), [y[a:b]]
+    return S.streamed_envelopes(len(t), blocks, 1, guess, columns)[0]
 
 
 @pytest.mark.parametrize("seed", range(12))
@@ -93,7 +89,7 @@ def test_finite_stretch_bounds_equal_the_stretch_labels_runs() -> None:
         x[:17] = np.nan
         a, b, _ = run_bounds(find_stretches(t, np.isfinite(x)))
         for block in (50, 1000, 1 << 17):
-            a2, b2 = _series._finite_stretch_bounds(t, x, S._stretch_gap_s(t), block)
+            a2, b2 = _series._finite_stretch_bounds(t, x, S.stretch_gap_s(t), block)
             np.testing.assert_array_equal(a2, a)
             np.testing.assert_array_equal(b2, b)
 
@@ -174,76 +170,16 @@ def test_blockwise_std_text_is_nanstd_text() -> None:
     for scale, mean in ((1.0, 0.0), (3.7, 5e4), (0.004, -20.0)):
         y = mean + scale * rng.standard_normal(333_333)
         y[rng.random(len(y)) < 0.01] = np.nan
-        s = _series._NanStd()
+        s = _series.NanStd()
         for i in range(0, len(y), 50_000):
             s.add(y[i:i + 50_000])
         assert s.text() == f"{np.nanstd(y):.2f}"
-    boundary = _series._NanStd()
+    boundary = _series.NanStd()
     boundary.add(np.array([0.0, 2 * 0.125]))  # std exactly 0.125: a rounding tie
     assert boundary.text() is None  # the caller takes np.nanstd's own digits
-    empty = _series._NanStd()
+    empty = _series.NanStd()
     empty.add(np.full(4, np.nan))
     assert empty.text() is None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         assert f"{np.nanstd(np.full(4, np.nan)):.2f}" == "nan"
-
-
-@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="needs Linux /proc")
-def test_each_long_figure_rises_a_few_blocks_not_the_log() -> None:
-    """1e6 rows, MB above the log: before, residuals +49, timeseries +40, PSD +33, terms +71
-    (full-length abscissa, stretch labels, run labels, column keys, the four groups, the
-    median's copy); now 16, 16, 23 (the median's diff and one FFT batch), 26 (one block's
-    design matrix), map 8 (was 12)."""
-    code = textwrap.dedent("""
-        import ctypes, gc
-        import numpy as np, pandas as pd
-        trim = ctypes.CDLL("libc.so.6").malloc_trim
-        from aeromag.plot import compensation as pc
-        def st(key):
-            for line in open("/proc/self/status"):
-                if line.startswith(key + ":"):
-                    return int(line.split()[1]) / 1024
-        n = 1_000_000
-        rng = np.random.default_rng(0)
-        t = np.arange(n) * 0.1
-        t[n // 2:] += 7.0
-        f32 = lambda a: a.astype(np.float32)
-        d = pd.DataFrame({"time": t, "lat": f32(45 + 1e-6 * np.arange(n)),
-                          "lon": f32(7 + 1e-6 * np.arange(n)),
-                          "flux_x": f32(2e4 + rng.standard_normal(n)),
-                          "flux_y": f32(1e4 + rng.standard_normal(n)),
-                          "flux_z": f32(4e4 + rng.standard_normal(n)),
-                          "mag": 5e4 + rng.standard_normal(n), "mag_tl": rng.standard_normal(n),
-                          "mag_comp": 5e4 + rng.standard_normal(n)})
-        terms = ["cx", "cy", "cz", "cx*cx", "cx*cy", "cx*cz", "cy*cy", "cy*cz", "cx*cx'",
-                 "cx*cy'", "cx*cz'", "cy*cx'", "cy*cy'", "cy*cz'", "cz*cx'", "cz*cy'"]
-        rep = {"terms": terms, "coef": list(rng.standard_normal(16))}
-        b, a = rng.standard_normal((2, n))
-        b[::300] = np.nan
-        kept = np.ones(n, dtype=bool)
-        kept[: n // 3] = False
-        draws = {"residuals": lambda: pc.plot_residuals(t, b, a, kept=kept, band_hz=(.1, .9)),
-                 "timeseries": lambda: pc.plot_timeseries(d),
-                 "psd": lambda: pc.plot_psd(d, band_hz=(.1, .9)),
-                 "terms": lambda: pc.plot_term_contributions(d, rep),
-                 "map": lambda: pc.plot_map(d)}
-        for name, draw in draws.items():
-            draw()  # first call: one-off imports and caches
-            gc.collect()
-            trim(0)  # the freed heap back, so that the peak is this call's
-            base = st("VmRSS")
-            open("/proc/self/clear_refs", "w").write("5")
-            fig = draw()
-            print(name, st("VmHWM") - base,
-                  sum(len(ln.get_xdata()) for ln in fig.axes[0].get_lines()))
-            del fig
-            gc.collect()
-            trim(0)
-    """)
-    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
-    assert p.returncode == 0, p.stderr[-3000:]
-    out = {k: (float(v), int(m)) for k, v, m in (ln.split() for ln in p.stdout.splitlines())}
-    for rise, vertices in out.values():
-        assert rise < 30, out  # MB
-        assert vertices < 60_000, out  # the envelopes, not the samples

@@ -13,11 +13,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import aeromag.qc.quality as quality
 from aeromag.compensation.pipeline import compensate
 from aeromag.compensation.result import CompensationResult
 from aeromag.compensation.terms import TERMS_16
-from aeromag.qc import compute_qc, fit_diagnostics, segment_labels
+from aeromag.qc import fit_diagnostics, segment_labels
 from aeromag.synthetic import simulate_calibration
 
 
@@ -72,33 +71,6 @@ def test_fit_diagnostics_given_labels_identical(rebuilt):
     pd.testing.assert_frame_equal(s0, s1)
 
 
-def test_qc_frees_temporaries_before_fit(rebuilt, monkeypatch):
-    """At the fit diagnostics' start the QC holds few full-length arrays (same numbers)."""
-    full = compute_qc(rebuilt).metrics
-    assert full["fit"]["vif"], "the fit diagnostics must be rebuilt from the log here"
-    n = len(rebuilt.data)
-    seen: dict[str, object] = {}
-    real = quality.fit_diagnostics
-
-    def spy(data, cfg, terms, **kw):
-        seen["live"] = tracemalloc.get_traced_memory()[0] - seen["start"]
-        seen["seg"] = kw.get("seg")
-        return real(data, cfg, terms, **kw)
-
-    monkeypatch.setattr(quality, "fit_diagnostics", spy)
-    tracemalloc.start()
-    try:
-        seen["start"] = tracemalloc.get_traced_memory()[0]
-        again = compute_qc(rebuilt).metrics
-    finally:
-        tracemalloc.stop()
-    assert again == full
-    # Alive then: the per-piece residuals (figures), the manoeuvre labels, the segment labels.
-    # Before, also mag - mag_tl, the heading legs and the kept mask (+16 bytes a row).
-    assert seen["live"] < 82 * n, seen["live"] / n  # 74 bytes a row now, 90 before
-    np.testing.assert_array_equal(seen["seg"], segment_labels(rebuilt.data))
-
-
 def test_segment_labels_without_copy_keeps_an_int32_column():
     """copy=False hands back the report reader's int32 column itself (no int64 copy)."""
     seg = np.repeat(np.arange(50, dtype=np.int32), 20)
@@ -108,24 +80,3 @@ def test_segment_labels_without_copy_keeps_an_int32_column():
     assert np.shares_memory(lab, data["segment"].to_numpy())
     np.testing.assert_array_equal(lab, _labels_general(data))
     assert segment_labels(data).dtype == np.int64  # a copy is int64 as before
-
-
-def test_qc_without_labels_same_metrics(rebuilt):
-    """keep_labels=False (the report) empties the detected labels, metrics unchanged."""
-    full = compute_qc(rebuilt, fit=False)
-    lean = compute_qc(rebuilt, fit=False, keep_labels=False)
-    assert len(full.maneuvers.labels) == len(rebuilt.data)
-    assert len(lean.maneuvers.labels) == 0
-    assert list(lean.maneuvers.labels.columns) == list(full.maneuvers.labels.columns)
-    assert lean.maneuvers.labels.dtypes.tolist() == full.maneuvers.labels.dtypes.tolist()
-    assert lean.metrics["residual_std_by_heading_nT"] == full.metrics["residual_std_by_heading_nT"]
-    assert lean.metrics["fom"] == full.metrics["fom"]
-    pd.testing.assert_frame_equal(lean.maneuvers.table, full.maneuvers.table)
-
-
-def test_qc_keeps_labels_it_was_given(rebuilt):
-    """Manoeuvres passed in are the caller's: their labels are never emptied."""
-    given = compute_qc(rebuilt, fit=False).maneuvers
-    n = len(given.labels)
-    out = compute_qc(rebuilt, fit=False, maneuvers=given, keep_labels=False)
-    assert len(given.labels) == n and len(out.maneuvers.labels) == n

@@ -17,7 +17,7 @@ from typer.testing import CliRunner
 from aeromag.cli import app
 from aeromag.synthetic import simulate_calibration
 from aeromag.workflows.compensate import compensate_file
-from aeromag.workflows.report import FIGURES, build_report
+from aeromag.workflows.report import FIGURES, build_report, load_compensated
 
 
 class _Imgs(HTMLParser):
@@ -211,28 +211,28 @@ def test_dropped_segment_row_says_why(tmp_path):
     assert "class='dropped'" in page.read_text(encoding="utf-8")
 
 
-def test_load_compensated_reads_many_batches_into_the_same_columns(tmp_path, monkeypatch):
-    """The report's reader (arrays allocated once, filled batch by batch) gives the log's
-    columns exactly, across many batches and when its row bound is too small."""
-    import aeromag.workflows._report_read as wr
+def test_load_compensated_reads_the_report_columns_exactly(tmp_path):
+    """The report reads its log through read_log: only the columns it uses, with their
+    values (single precision for the drawn columns of REPORT_DTYPES)."""
     from aeromag.compensation.pipeline import compensate as pipe_compensate
     from aeromag.io import write_csv as io_write_csv
     from aeromag.synthetic import simulate_calibration as sim
+    from aeromag.workflows.report import REPORT_COLUMNS, REPORT_DTYPES
 
     df, _ = sim(seed=4, n_boxes=1)
     res = pipe_compensate(df)
-    io_write_csv(res.data, tmp_path / "out.csv")
-    monkeypatch.setattr(wr, "_BATCH_ROWS", 250)
+    io_write_csv(res.data.assign(unused=1.0), tmp_path / "out.csv")
     want = pd.read_csv(tmp_path / "out.csv")
-    for cap in (None, 100):
-        if cap is not None:
-            monkeypatch.setattr(wr, "_row_capacity", lambda src, cap=cap: cap)
-        got = wr.read_columns(tmp_path / "out.csv")
-        assert len(got) == len(want)
-        for c in got.columns:
-            x = got[c].to_numpy()
-            if x.dtype.kind == "f":
-                np.testing.assert_allclose(x, want[c].to_numpy(float), rtol=1e-6 if
-                                           x.dtype == np.float32 else 0, equal_nan=True)
-            else:
-                assert list(x) == list(want[c]), c
+    got = load_compensated(tmp_path / "out.csv")[0].data
+    assert list(got.columns) == [c for c in want.columns if c in REPORT_COLUMNS]
+    assert len(got) == len(want)
+    for c in got.columns:
+        x = got[c].to_numpy()
+        if c in REPORT_DTYPES:
+            assert x.dtype == np.float32, c
+        if x.dtype.kind == "f":
+            np.testing.assert_allclose(x, want[c].to_numpy(float), rtol=1e-6 if
+                                       x.dtype == np.float32 else 0, equal_nan=True)
+        else:
+            assert list(x) == list(want[c]), c
+

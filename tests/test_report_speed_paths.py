@@ -1,8 +1,5 @@
-"""The report's fast paths give what the validating paths give (equivalence only, no timing).
+"""The report's fast paths give what the plain formulations give (equivalence only, no timing).
 
-* the plain-CSV reader (:func:`aeromag.workflows._report_read._read_csv_fast`, pyarrow straight into
-  numpy) reads the same frame as the validating batch reader (``_read_batches``), and hands
-  every file it is not sure of to it, so errors are worded the same;
 * the display envelope (in-place column keys, no masked copies when every sample is valid)
   equals the masked formulation it replaced;
 * the batched Welch PSD (linear detrend as a projection) is scipy's, stretch by stretch.
@@ -13,13 +10,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 import pytest
 
-from aeromag.errors import InputError
 from aeromag.synthetic import simulate_calibration
-from aeromag.workflows import _report_read as rep
 from aeromag.workflows.compensate import compensate_file
+from aeromag.workflows.report import load_compensated
 
 
 @pytest.fixture(scope="module")
@@ -31,17 +26,6 @@ def out_csv(tmp_path_factory) -> Path:
     return d / "out.csv"
 
 
-def test_fast_reader_equals_validating_reader(out_csv: Path) -> None:
-    fast = rep._read_csv_fast(out_csv)
-    slow = rep._read_batches(out_csv)
-    assert fast is not None
-    pd.testing.assert_frame_equal(fast, slow, check_exact=True)
-    assert fast.attrs == slow.attrs
-    assert fast["flux_x"].dtype == np.float32 and fast["mag_tl"].dtype == np.float64
-    # _read_columns takes the fast path on a plain CSV
-    pd.testing.assert_frame_equal(rep.read_columns(out_csv), slow, check_exact=True)
-
-
 def _edit(src: Path, dst: Path, row: int, col: str, value: str) -> Path:
     lines = src.read_text().splitlines()
     head = lines[0].split(",")
@@ -50,44 +34,6 @@ def _edit(src: Path, dst: Path, row: int, col: str, value: str) -> Path:
     lines[row + 1] = ",".join(f)
     dst.write_text("\n".join(lines) + "\n")
     return dst
-
-
-@pytest.mark.parametrize("col,value", [("mag", "abc"), ("time", ""), ("mag_tl", "inf"),
-                                       ("time", "1e300"), ("line", "1e20")])
-def test_fast_reader_declines_what_it_cannot_vouch_for(out_csv: Path, tmp_path: Path,
-                                                        col: str, value: str) -> None:
-    bad = _edit(out_csv, tmp_path / "bad.csv", 1000, col, value)
-    with pytest.raises(rep._NotPlain):
-        rep._read_csv_fast(bad)
-    # the validating reader decides, with its own words; _read_columns says the same
-    try:
-        slow = rep._read_batches(bad)
-    except InputError as exc:
-        with pytest.raises(InputError) as got:
-            rep.read_columns(bad)
-        assert str(got.value) == str(exc)
-    else:
-        pd.testing.assert_frame_equal(rep.read_columns(bad), slow, check_exact=True)
-
-
-def test_fast_reader_declines_iso_times_and_trailing_delimiters(out_csv: Path,
-                                                                 tmp_path: Path) -> None:
-    df = pd.read_csv(out_csv, nrows=50)
-    iso = tmp_path / "iso.csv"
-    d2 = df.copy()
-    d2["time"] = pd.to_datetime(d2["time"] + 1.7e9, unit="s").dt.strftime("%Y-%m-%dT%H:%M:%S.%f")
-    d2.to_csv(iso, index=False)
-    with pytest.raises(rep._NotPlain):
-        rep._read_csv_fast(iso)
-    pd.testing.assert_frame_equal(rep.read_columns(iso), rep._read_batches(iso),
-                                  check_exact=True)
-    trail = tmp_path / "trail.csv"
-    trail.write_text("\n".join(ln + "," for ln in
-                               df.to_csv(index=False).splitlines()) + "\n")
-    with pytest.raises(rep._NotPlain):
-        rep._read_csv_fast(trail)
-    pd.testing.assert_frame_equal(rep.read_columns(trail), rep._read_batches(trail),
-                                  check_exact=True)
 
 
 def _envelope_reference(x, y, columns=2000, breaks=None):
@@ -180,27 +126,12 @@ def test_envelope_bridges_only_subpixel_gaps_between_subpixel_stretches():
     assert ex[i - 1] == far[per * 4000 - 1] and ex[i + 1] == far[per * 4000]
 
 
-def test_fast_reader_hands_on_a_log_beating_its_row_bound(out_csv: Path, tmp_path: Path) -> None:
-    """The row bound comes from the first 64 kB; later rows far shorter overflow it, and the
-    validating reader reads the file (same frame as reading it through that reader)."""
-    lines = out_csv.read_text().splitlines()
-    head = lines[0].split(",")
-    short = [",".join(f"{1000 + i * 0.1:.1f}" if c == "time" else
-                      ("true" if c == "segment_kept" else "0") for c in head)
-             for i in range(20_000)]
-    f = tmp_path / "short.csv"
-    f.write_text("\n".join(lines[:400] + short) + "\n")
-    with pytest.raises(rep._NotPlain):
-        rep._read_csv_fast(f)
-    pd.testing.assert_frame_equal(rep.read_columns(f), rep._read_batches(f), check_exact=True)
-
-
 def test_map_of_single_precision_positions_equals_double(out_csv: Path) -> None:
     """The map converts only its drawn samples to float64: the same points and colours as a
     frame converted to float64 as a whole (the conversion is exact)."""
     from aeromag.plot.maps import plot_map
 
-    d32 = rep.read_columns(out_csv)
+    d32 = load_compensated(out_csv)[0].data
     d32.loc[d32.index[200:260], "segment_kept"] = False
     d32.loc[d32.index[10:20], "lat"] = np.nan
     d64 = d32.astype({c: np.float64 for c in ("lat", "lon", "alt")})
@@ -209,21 +140,3 @@ def test_map_of_single_precision_positions_equals_double(out_csv: Path) -> None:
         np.testing.assert_array_equal(ca.get_offsets(), cb.get_offsets())
         if ca.get_array() is not None:
             np.testing.assert_array_equal(ca.get_array(), cb.get_array())
-
-
-def test_report_command_asks_for_one_heap_arena(out_csv: Path, tmp_path: Path,
-                                                monkeypatch) -> None:
-    """`aeromag report` sets glibc to one heap arena before the QC starts its threads."""
-    from typer.testing import CliRunner
-
-    import aeromag.workflows.report as wr
-    from aeromag.cli import app
-
-    calls: list[str] = []
-    real_qc = wr.compute_qc
-    monkeypatch.setattr(wr, "one_heap_arena", lambda: calls.append("arena") or True)
-    monkeypatch.setattr(wr, "compute_qc",
-                        lambda *a, **k: calls.append("qc") or real_qc(*a, **k))
-    r = CliRunner().invoke(app, ["report", str(out_csv), "-o", str(tmp_path / "rep")])
-    assert r.exit_code == 0, r.output
-    assert calls[:2] == ["arena", "qc"]

@@ -6,15 +6,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from aeromag.compensate import (
-    CompensationConfig,
-    compensate,
-    prepare,
-    segment_normal_equations,
-)
-from aeromag.screening import pca_screen, shrunk_segment_fits
-from aeromag.simulate import simulate_calibration
-from aeromag.tolles_lawson import TERMS_16, solve_normal
+from aeromag._core.lstsq import solve_normal
+from aeromag.compensation.config import CompensationConfig
+from aeromag.compensation.normal import segment_normal_equations
+from aeromag.compensation.prepare import prepare
+from aeromag.compensation.screening import pca_screen, shrunk_segment_fits
+from aeromag.compensation.terms import TERMS_16
+from aeromag.synthetic.calibration import simulate_calibration
+from aeromag.workflows.compensate import compensate
 
 SEEDS = range(100, 106)
 
@@ -163,7 +162,7 @@ def test_fault_free_surveys_lose_no_line_to_geology():
     """Each survey line's pooled residual tracks its in-band geology, which no TL fit removes;
     the guard asks for an own-fit excess too, so clean lines over strong anomalies stay (the
     pooled residual alone dropped a clean line on 88 % of fault-free 10 Hz surveys)."""
-    from aeromag.simulate import simulate_survey
+    from aeromag.synthetic.survey import simulate_survey
 
     for seed in range(1, 9):
         df, _ = simulate_survey(seed=seed, rate_hz=10)
@@ -173,7 +172,7 @@ def test_fault_free_surveys_lose_no_line_to_geology():
 def test_a_fault_masked_in_the_score_plot_is_still_dropped():
     """8 survey lines give one or two components; a noise burst that kept a clean line out
     under the old rule is dropped itself, and only it."""
-    from aeromag.simulate import simulate_survey
+    from aeromag.synthetic.survey import simulate_survey
 
     df, truth = simulate_survey(seed=9, rate_hz=10, faults={1: "noise_burst"})
     assert compensate(df).report["screening"]["dropped"] == [1]

@@ -14,7 +14,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from aeromag.compensate import CompensationConfig, compensate
+from aeromag.compensation.config import CompensationConfig
+from aeromag.workflows.compensate import compensate
 
 _F, _INC, _DEC = 48000.0, np.radians(63.0), np.radians(2.0)
 _EARTH = _F * np.array([np.cos(_INC) * np.cos(_DEC), np.cos(_INC) * np.sin(_DEC), np.sin(_INC)])

@@ -8,16 +8,17 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import signal
 
-from aeromag.errors import InputError
-from aeromag.filters import (
+from aeromag._core.filters import (
     bandpass_stretches,
     butter_sos,
     lowpass_stretches,
-    run_bounds,
     sampling_rate,
     trim_mask,
 )
-from aeromag.segments import assign_segments, find_stretches, interpolate_short_gaps
+from aeromag._core.runs import run_bounds
+from aeromag._core.stretches import find_stretches, interpolate_short_gaps
+from aeromag.compensation.segments import assign_segments
+from aeromag.errors import InputError
 
 
 def test_stretches_split_at_time_gaps_and_invalid_samples():
@@ -105,7 +106,7 @@ def test_trim_mask_and_run_bounds():
 
 
 def test_non_integer_line_numbers_never_merge():
-    from aeromag.segments import line_labels
+    from aeromag.compensation.segments import line_labels
 
     t = np.arange(0, 30, 0.1)
     line = np.repeat([1002.02, 1002.2, 1003.0], 100)
@@ -116,7 +117,7 @@ def test_non_integer_line_numbers_never_merge():
 
 
 def test_batched_piece_normal_equations_equal_one_by_one():
-    from aeromag.filters import piece_normal_equations
+    from aeromag._core.filters import piece_normal_equations
 
     rng = np.random.default_rng(2)
     t = np.arange(0, 200, 0.1)
@@ -139,7 +140,8 @@ def test_batched_piece_normal_equations_equal_one_by_one():
 def test_trim_mask_by_search_equals_per_sample_test():
     """The binary-search trim gives exactly ``t - t_start >= trim`` and ``t_end - t >= trim``,
     also where rounding puts a sample right on the boundary (0.1 s steps, 2.5 s trim)."""
-    from aeromag.filters import _trim_mask_any, run_bounds
+    from aeromag._core.filters import _trim_mask_any
+    from aeromag._core.runs import run_bounds
 
     rng = np.random.default_rng(8)
     for t in (np.arange(20_000) * 0.1, np.cumsum(rng.uniform(0.01, 0.2, 20_000))):
@@ -156,7 +158,7 @@ def test_trim_mask_by_search_equals_per_sample_test():
 @given(L=st.integers(28, 400), m=st.integers(1, 5), order=st.integers(1, 6),
        seed=st.integers(0, 2**31 - 1))
 def test_zero_phase_rows_is_bitwise_scipy_sosfiltfilt(L, m, order, seed):
-    from aeromag.filters import pad_length, zero_phase_rows
+    from aeromag._core.filters import pad_length, zero_phase_rows
 
     sos = butter_sos("bandpass", (0.1, 0.9), 10.0, order)
     x = np.random.default_rng(seed).normal(0, 1, (m, L)) * 1e4
@@ -168,15 +170,17 @@ def test_zero_phase_rows_is_bitwise_scipy_sosfiltfilt(L, m, order, seed):
 
 
 def test_threaded_filters_equal_serial_and_never_deadlock(monkeypatch):
-    import aeromag.filters as F
+    import aeromag._core.filters as F
+    from aeromag._core import parallel
 
     sos = butter_sos("lowpass", 0.9, 10.0, 4)
     x = np.random.default_rng(1).normal(0, 1, (8, 200_000))
     ref = signal.sosfiltfilt(sos, x, axis=1)
-    monkeypatch.setattr(F, "FILTER_THREADS", 2)
+    monkeypatch.setattr(F, "THREADS", 2)
+    monkeypatch.setattr(parallel, "THREADS", 2)
     np.testing.assert_array_equal(F._sosfiltfilt(sos, x, 1), ref)
     np.testing.assert_array_equal(F._sosfiltfilt(sos, x.T, 0), ref.T)
     # Nested use (a pool task that filters a large array) runs serially, never waits on itself.
-    out = F.parallel_map(lambda i: F._sosfiltfilt(sos, x, 1)[i], [0, 1, 2])
+    out = parallel.parallel_map(lambda i: F._sosfiltfilt(sos, x, 1)[i], [0, 1, 2])
     for i, row in enumerate(out):
         np.testing.assert_array_equal(row, ref[i])

@@ -19,22 +19,20 @@ from typer.testing import CliRunner
 
 from aeromag.cli import app
 from aeromag.errors import InputError
-from aeromag.simulate import (
-    FAULT_KINDS,
-    TERM_NAMES,
+from aeromag.synthetic import FAULT_KINDS, TERM_NAMES
+from aeromag.synthetic.calibration import simulate_calibration
+from aeromag.synthetic.physics import (
     EarthField,
     body_field,
     default_aircraft_coef,
     geodetic_to_local,
     local_to_geodetic,
     ned_to_body_dcm,
-    simulate_calibration,
-    simulate_survey,
-    survey_plan,
     tl_interference,
     tl_terms,
-    write_simulation,
 )
+from aeromag.synthetic.survey import simulate_survey, survey_plan
+from aeromag.workflows.simulate import write_simulation
 
 from .conftest import ned_to_body
 

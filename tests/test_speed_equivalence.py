@@ -129,7 +129,7 @@ def test_block_means_with_non_finite_samples(bad: float) -> None:
     # gets the mean of its finite samples (NaN when it has none), as before.
     import pandas as pd
 
-    from aeromag.qc.maneuvers import _block_means
+    from aeromag.qc._blocks import block_means
 
     rng = np.random.default_rng(1)
     n, step = 1000, 5
@@ -138,7 +138,7 @@ def test_block_means_with_non_finite_samples(bad: float) -> None:
     x[[3, 4, 17]] = bad
     x[40:45] = bad  # a whole block
     df = pd.DataFrame({"time": t, "flux_x": x, "flux_y": x, "flux_z": x})
-    small, cnt = _block_means(df, t, step, 0.5)
+    small, cnt = block_means(df, t, step, 0.5)
     blocks = x.reshape(-1, step)
     fin = np.isfinite(blocks)
     with np.errstate(invalid="ignore"):

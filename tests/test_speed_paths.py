@@ -140,7 +140,7 @@ def test_qc_concurrent_equals_serial(monkeypatch) -> None:
     df, _ = simulate_calibration(seed=5, n_boxes=1)
     res = compensate(df)
     threaded = compute_qc(res, fit=False, fom=True).metrics
-    monkeypatch.setattr(parallel, "FILTER_THREADS", 1)  # submit() runs inline
+    monkeypatch.setattr(parallel, "THREADS", 1)  # submit() runs inline
     serial = compute_qc(res, fit=False, fom=True).metrics
     assert threaded == serial
     assert threaded["fom"]["applicable"]

@@ -10,19 +10,19 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from sklearn.base import clone
 
-from aeromag.errors import FitError, InputError
-from aeromag.tolles_lawson import (
+from aeromag._core.lstsq import solve_normal
+from aeromag.compensation.estimator import TollesLawson
+from aeromag.compensation.model import TLModel
+from aeromag.compensation.terms import (
     EDDY_8,
     INDUCED_5,
     PERMANENT,
     TERMS_16,
-    TLModel,
-    TollesLawson,
     design_matrix,
     parse_terms,
-    solve_normal,
     time_derivative,
 )
+from aeromag.errors import FitError, InputError
 
 from .conftest import COEF16, hand_flight
 
@@ -184,7 +184,7 @@ def test_design_matrix_is_scale_invariant_in_direction(scale, v):
 def test_blocked_prediction_equals_design_matrix(block):
     """Block-by-block evaluation (one sample of context each side) equals A @ coef, also
     where stretches begin or end on a block boundary and for one-sample stretches."""
-    from aeromag.tolles_lawson import predict_interference
+    from aeromag.compensation.model import predict_interference
 
     rng = np.random.default_rng(block)
     n = 300
@@ -202,7 +202,7 @@ def test_blocked_prediction_equals_design_matrix(block):
 def test_blocked_derivative_equals_whole_array():
     """time_derivative works block by block on long logs: bitwise the same as one pass, with
     stretch boundaries right at, before and after block edges."""
-    from aeromag.tolles_lawson import PREDICT_BLOCK, _time_derivative, time_derivative
+    from aeromag.compensation.terms import PREDICT_BLOCK, _time_derivative, time_derivative
 
     rng = np.random.default_rng(5)
     n = 3 * PREDICT_BLOCK + 123
@@ -221,7 +221,7 @@ def test_blocked_derivative_equals_whole_array():
 def test_derivative_of_rows_is_bitwise_the_per_row_derivative():
     """The batched derivative used by the fit equals time_derivative row by row, including
     stretch changes, one-sample stretches and labels marking samples beyond the log."""
-    from aeromag.tolles_lawson import time_derivative, time_derivative_rows
+    from aeromag.compensation.terms import time_derivative, time_derivative_rows
 
     rng = np.random.default_rng(11)
     q, m = 6, 40

@@ -289,39 +289,6 @@ def test_more_detectors_and_given_inputs(small_mission):
     assert same.legs == base.legs
 
 
-@pytest.mark.parametrize(("code", "new"), [
-    ("import aeromag.detect as m; m.heading_detector", "aeromag.detection.heading"),
-    ("from aeromag.simulate_mission import write_mission_files", "aeromag.synthetic.mission"),
-    ("from aeromag.track import track_file", "aeromag.workflows.track"),
-    ("from aeromag.track import read_plan", "aeromag.io.plans"),
-    ("from aeromag.track import geodetic_to_ned", "aeromag._core.geodesy"),
-])
-def test_old_track_paths_warn_and_work(code, new):
-    import subprocess
-    import sys
-
-    ok = subprocess.run([sys.executable, "-W", "ignore::DeprecationWarning", "-c", code],
-                        capture_output=True, text=True, timeout=120)
-    assert ok.returncode == 0, ok.stderr
-    bad = subprocess.run([sys.executable, "-W", "error::DeprecationWarning", "-c", code],
-                         capture_output=True, text=True, timeout=120)
-    assert bad.returncode != 0 and new in bad.stderr
-
-
-def test_old_two_detector_combine_still_works():
-    import warnings
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)
-        from aeromag.detect import combine_alarms as old
-
-    tr = np.array([0, 1, 0, 0, 1, 0], bool)
-    hd = np.array([0, 0, 0, 1, 1, 0], bool)
-    legs = np.array([0, 0, 0, 1, 1, -1])
-    assert old(tr, hd, legs, "and").tolist() == [0, 0, 0, 0, 1, 0]
-    assert old(tr, None, legs).tolist() == [0, 1, 0, 0, 1, 0]
-
-
 def test_messy_logs(small_mission):
     """GNSS on one row in ten (the other rows empty), repeated time stamps, times going
     backwards, absurd plan altitudes."""

@@ -1,10 +1,9 @@
 """Zero-phase Butterworth filters that never run across a time gap.
 
-Filters come from :mod:`scipy.signal`: ``butter`` in second-order sections, and
-``sosfiltfilt``'s method (odd extension, steady-state initial conditions, forward and backward
-passes) run on scipy's own section kernel without the wrapper's copies
-(:func:`zero_phase_rows`, bitwise equal to ``sosfiltfilt``).  Many rows are filtered on a
-thread pool (:func:`parallel_map`; the kernel releases the GIL).
+Filters come from :mod:`scipy.signal`: ``butter`` in second-order sections and the public
+``sosfiltfilt`` (odd extension, steady-state initial conditions, forward and backward
+passes).  Many rows are filtered on the package's one thread pool
+(:func:`aeromag._core.parallel.parallel_map`; scipy's kernel releases the GIL).
 Every function takes stretch labels (see :func:`aeromag._core.stretches.find_stretches`): each
 continuous stretch is filtered on its own, and a stretch too short for the filter is left NaN.
 """
@@ -17,7 +16,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..errors import InputError
-from .parallel import _THREADED_MIN_SAMPLES, FILTER_THREADS, _kernel, _signal, parallel_map
+from .parallel import THREADED_MIN_SAMPLES, THREADS, parallel_map, signal_module
 from .runs import run_bounds
 
 log = logging.getLogger(__name__)
@@ -86,7 +85,7 @@ def butter_sos(
             f" {nyq:g} Hz of this log (sampled at {fs_hz:g} Hz); choose a lower cut-off"
         )
     wn = edges if kind == "bandpass" else float(edges[0])
-    return _signal().butter(order, wn, btype=kind, fs=fs_hz, output="sos")
+    return signal_module().butter(order, wn, btype=kind, fs=fs_hz, output="sos")
 
 
 def min_filter_length(sos: np.ndarray) -> int:
@@ -189,7 +188,7 @@ def _filter_equal_lengths(xa: np.ndarray, out: np.ndarray, starts: np.ndarray,
         q = len(idx)
         res[:, idx] = zero_phase_rows(sos, rows.reshape(r * q, L)).reshape(r, q, L)
 
-    if len(tasks) > 1 and xr.size >= _THREADED_MIN_SAMPLES:
+    if len(tasks) > 1 and xr.size >= THREADED_MIN_SAMPLES:
         parallel_map(run, tasks)
     else:
         for task in tasks:
@@ -203,12 +202,7 @@ def pad_length(sos: np.ndarray) -> int:
 
 
 def zero_phase_rows(sos: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Zero-phase filter every row of ``x``: bitwise :func:`scipy.signal.sosfiltfilt` (axis 1).
-
-    The same steps as scipy's function (odd extension of ``3 * ntaps`` samples, initial
-    conditions ``sosfilt_zi * first sample``, a forward and a backward pass with scipy's own
-    kernel), with two copies fewer: 15 against 20 ns per sample and row on rows of 600
-    samples, 13.5 against 18.5 on rows of 6000 (this machine).
+    """Zero-phase filter every row of ``x`` (:func:`scipy.signal.sosfiltfilt`, axis 1).
 
     Parameters
     ----------
@@ -220,57 +214,21 @@ def zero_phase_rows(sos: np.ndarray, x: np.ndarray) -> np.ndarray:
     Returns
     -------
     ndarray, shape (m, L)
-        Filtered rows (a view with a negative stride along the rows).
+        Filtered rows.
     """
-    kern = _kernel()
-    xa = np.asarray(x, dtype=np.float64)
-    m, L = xa.shape
-    pad = pad_length(sos)
-    if kern is None or L <= pad:
-        return _signal().sosfiltfilt(sos, xa, axis=1)  # scipy's own checks and errors
-    s = np.ascontiguousarray(sos, dtype=np.float64)
-    zi0 = _sosfilt_zi(s)[None]  # (1, n_sections, 2)
-    ext = np.empty((m, L + 2 * pad))
-    ext[:, pad:pad + L] = xa
-    np.subtract(2 * xa[:, :1], xa[:, pad:0:-1], out=ext[:, :pad])
-    np.subtract(2 * xa[:, -1:], xa[:, -2:-(pad + 2):-1], out=ext[:, pad + L:])
-    kern(s, ext, np.ascontiguousarray(zi0 * ext[:, :1, None]))
-    back = ext[:, ::-1].copy()
-    del ext
-    kern(s, back, np.ascontiguousarray(zi0 * back[:, :1, None]))
-    return back[:, ::-1][:, pad:pad + L]
-
-
-_ZI: dict[bytes, np.ndarray] = {}
-
-
-def _sosfilt_zi(s: np.ndarray) -> np.ndarray:
-    """:func:`scipy.signal.sosfilt_zi` of ``s``, cached.
-
-    It solves a small linear system per section, which costs more than filtering a short
-    stretch (a log cut into 8000 stretches spent 14 s in it); the values are the same, so
-    results are bitwise unchanged.
-    """
-    key = s.tobytes()
-    zi = _ZI.get(key)
-    if zi is None:
-        zi = _ZI.setdefault(key, _signal().sosfilt_zi(s))
-    return zi
+    return signal_module().sosfiltfilt(sos, np.asarray(x, dtype=np.float64), axis=1)
 
 
 def _sosfiltfilt(sos: np.ndarray, x: np.ndarray, axis: int) -> np.ndarray:
-    """``sosfiltfilt`` along ``axis`` of a 2-D array, split over threads when large."""
-    if x.ndim == 1:
-        return zero_phase_rows(sos, x[None, :])[0]
-    if x.ndim != 2:
-        return _signal().sosfiltfilt(sos, x, axis=axis)
+    """``sosfiltfilt`` along ``axis``, the rows of a large 2-D array split over threads."""
+    if x.ndim != 2 or x.size < THREADED_MIN_SAMPLES or THREADS < 2:
+        return signal_module().sosfiltfilt(sos, x, axis=axis)
     rows = x if axis % 2 == 1 else x.T
     m = rows.shape[0]
-    if x.size < _THREADED_MIN_SAMPLES or m < 2 or FILTER_THREADS < 2:
-        out = zero_phase_rows(sos, rows)
-    else:
-        parts = np.array_split(np.arange(m), min(FILTER_THREADS, m))
-        out = np.concatenate(parallel_map(lambda i: zero_phase_rows(sos, rows[i]), parts))
+    if m < 2:
+        return signal_module().sosfiltfilt(sos, x, axis=axis)
+    parts = np.array_split(np.arange(m), min(THREADS, m))
+    out = np.concatenate(parallel_map(lambda i: zero_phase_rows(sos, rows[i]), parts))
     return out if axis % 2 == 1 else out.T
 
 

@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from .pf_operators import (
-    _as_rng,
+    as_rng,
     crossover,
     effective_sample_size,
     logsumexp,
@@ -244,7 +244,7 @@ class ParticleFilter:
         self.low_weight = float(low_weight)
         self.batched = batch is not None
         self.batch = int(batch) if batch is not None else 1
-        self.rng = _as_rng(seed)
+        self.rng = as_rng(seed)
         self.ut = (float(ut_alpha), float(ut_beta), float(ut_kappa))
         self._LQ = robust_sqrt(model.Q)
         ang = tuple(model.angle_y)
@@ -538,7 +538,7 @@ class FilterBank:
                  seed: int | np.random.Generator | None = None, **kwargs: Any) -> None:
         if not models:
             raise ValueError("a filter bank needs at least one hypothesis")
-        rng = _as_rng(seed)
+        rng = as_rng(seed)
         seeds = rng.spawn(len(models)) if hasattr(rng, "spawn") else [
             np.random.default_rng(s) for s in rng.integers(0, 2**63, len(models))]
         self.names = list(models)

@@ -1,14 +1,16 @@
 """Weights, resampling and the genetic operators of the particle filters (log-weights).
 
 Part of the particle-filter library (:mod:`aeromag._core.particles` re-exports every name):
-log-sum-exp and normalisation, effective sample size, multinomial (= roulette) and systematic
-resampling, neighbour crossover and the Gaussian mutation of low-weight particles.  Every
-function works over any leading batch axes (``(..., N)`` weights, ``(..., N, n)`` particles).
+normalisation (log-sum-exp: :func:`scipy.special.logsumexp`), effective sample size,
+multinomial (= roulette) and systematic resampling, neighbour crossover and the Gaussian
+mutation of low-weight particles.  Every function works over any leading batch axes
+(``(..., N)`` weights, ``(..., N, n)`` particles).
 """
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.special import logsumexp
 
 __all__ = [
     "crossover",
@@ -23,29 +25,6 @@ __all__ = [
 
 
 # --------------------------------------------------------------------------- weights
-def logsumexp(a: np.ndarray, axis: int = -1) -> np.ndarray:
-    """``log(sum(exp(a)))`` along ``axis`` without overflow or underflow.
-
-    Parameters
-    ----------
-    a : ndarray
-        Log-values (``-inf`` allowed).
-    axis : int
-        Axis to reduce.
-
-    Returns
-    -------
-    ndarray
-        The reduced log-sum; ``-inf`` where every entry is ``-inf``.
-    """
-    a = np.asarray(a, dtype=np.float64)
-    m = np.max(a, axis=axis, keepdims=True)
-    m_safe = np.where(np.isfinite(m), m, 0.0)
-    with np.errstate(divide="ignore"):
-        out = np.log(np.sum(np.exp(a - m_safe), axis=axis, keepdims=True)) + m_safe
-    return np.squeeze(out, axis=axis)
-
-
 def normalize_log_weights(logw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Normalise log-weights over the last axis.
 
@@ -91,7 +70,7 @@ def effective_sample_size(logw: np.ndarray) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- resampling
-def _as_rng(seed: int | np.random.Generator | None) -> np.random.Generator:
+def as_rng(seed: int | np.random.Generator | None) -> np.random.Generator:
     return seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
 
 

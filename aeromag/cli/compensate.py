@@ -12,25 +12,6 @@ from ._options import Options, command, config_errors
 from .online import dispatch as _online_dispatch  # registers --online and --forgetting
 
 
-def _warm(screen: bool, log: Path | None = None, fmt: str | None = None) -> None:
-    """Parse ``log`` on a thread while this thread imports what the run needs.
-
-    The CSV is prefetched (see :mod:`aeromag.io.warm`); scipy.signal, and scikit-learn when
-    screening, are imported meanwhile.
-    """
-    import importlib
-
-    from ..io.warm import prefetch_csv
-
-    if log is not None and fmt in (None, "csv"):
-        prefetch_csv(log)
-    mods = ["aeromag.compensation", "scipy.signal", "aeromag.qc"]
-    if screen:
-        mods += ["sklearn.decomposition", "sklearn.covariance", "scipy.stats"]
-    for name in mods:
-        importlib.import_module(name)
-
-
 @command("compensate")
 def compensate(opts: Options) -> None:
     """Compensate a log: fit on the log itself, or apply --model.
@@ -44,8 +25,6 @@ def compensate(opts: Options) -> None:
         return
     setup_logging(opts.verbose)
     output, model, chunk_rows = opts.output, opts.model, opts.chunk_rows
-    _warm(screen=model is None and not opts.no_screen, log=None if chunk_rows else opts.survey,
-          fmt=opts.fmt)
     # Library imports here, not at module level: 'aeromag --help' stays instant.
     from ..compensation.model import TLModel
     from ..io import json_path_for
@@ -90,7 +69,6 @@ def calibrate(opts: Options) -> None:
     and the FOM) for 'aeromag compensate --model'.
     """
     setup_logging(opts.verbose)
-    _warm(screen=not opts.no_screen, log=opts.cal, fmt=opts.fmt)
     from ..workflows.compensate import calibrate_file
 
     with user_errors(), strict_warnings(opts.strict), config_errors():
@@ -111,7 +89,7 @@ def _plot(res: object, plot: Path | None, cfg: object) -> Path | None:
         return None
     from ..workflows.report import write_report
 
-    return write_report(res, plot, cfg=cfg)
+    return write_report(res, plot, config=cfg)
 
 
 def _summary(report: dict, out: Path, out_json: Path | None) -> None:

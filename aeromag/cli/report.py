@@ -36,9 +36,7 @@ def report(
     """
     setup_logging(verbose)
     with user_errors(), progress_bar("aeromag report") as progress:
-        from ..workflows.report import build_report, one_heap_arena
-
-        one_heap_arena()  # before the QC's threads: their arenas kept ~90 MB resident
+        from ..workflows.report import build_report
 
         page = build_report(out_csv, output, report_json, maneuver_column=maneuver_column,
                             progress=progress)

@@ -51,9 +51,6 @@ def track(
         "--altitude-offset", metavar="auto|none|M",
         help="Constant height of the log above the plan to remove: detected (auto: a different "
         "altitude reference, reported), never (none) or given in metres.")] = "auto",
-    waypoint_radius: Annotated[float | None, typer.Option(
-        "--waypoint-radius", metavar="M", hidden=True,
-        help="Ignored (the old waypoint-sphere leg rule).")] = None,
     navigate: Annotated[bool, typer.Option(
         "--navigate", help="Run aeromag navigate's filter on the log (needs the IMU columns): "
         "check the navigated position where the log has no GNSS fix, and give the heading "
@@ -82,15 +79,10 @@ def track(
     alarm) and OUT.json ({"legs": [...]}, one object per leg).
     """
     setup_logging(verbose)
-    import logging
 
     from ..io import json_path_for
     from ..workflows.track import track_file
 
-    if waypoint_radius is not None:
-        logging.getLogger(__name__).warning(
-            "--waypoint-radius is ignored: legs are assigned from what the vehicle does"
-            " (see docs/track.md)")
     with user_errors():
         columns, unit_map = column_options(col, map_file, units)
         res = track_file(

@@ -16,7 +16,7 @@ from ..conventions import FLUX_COLUMNS
 from .checks import check_metrics
 from .config import CompensationConfig
 from .fit import check_interference
-from .metrics import _band_metrics
+from .metrics import band_metrics
 from .model import TLModel
 from .prepare import Prepared, prepare
 
@@ -104,7 +104,7 @@ def _apply(
     mag_bp_future = submit(
         lambda: filter_stretches(np.asarray(prep.mag, dtype=np.float64)[None, :], st_m,
                                  sos_band, axis=1)[0])
-    metrics, comp_bp = _band_metrics(prep.mag, comp, t, prep.stretch, cfg, kept=kept,
+    metrics, comp_bp = band_metrics(prep.mag, comp, t, prep.stretch, cfg, kept=kept,
                                      fs_hz=prep.fs, stretch_bp=st_m,
                                      mag_bp=mag_bp_future.result(), source=prep.source)
     if cfg.filter_output:
@@ -246,7 +246,7 @@ def isolate_dropped(stretch: np.ndarray, segment: np.ndarray, kept: np.ndarray) 
     return np.where(st >= 0, lab, -1)
 
 
-def _check_plausible(data: pd.DataFrame, metrics: dict[str, Any], prep: Prepared,
+def check_plausible(data: pd.DataFrame, metrics: dict[str, Any], prep: Prepared,
                      cfg: CompensationConfig, *, fitted: bool) -> None:
     """Refuse (fitted) or warn about (saved model) a non-physical compensation.
 

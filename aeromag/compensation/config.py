@@ -573,13 +573,11 @@ def config_dict(cfg: CompensationConfig) -> dict[str, Any]:
     return d
 
 
-_config_dict = config_dict
-
 #: The extended fit's keywords (:mod:`aeromag.compensation.extended`).
 _EXTENDED_KEYS = ("reference", "extras", "estimator")
 
 
-def _resolve_gap(cfg: CompensationConfig, df: pd.DataFrame) -> CompensationConfig:
+def resolve_gap(cfg: CompensationConfig, df: pd.DataFrame) -> CompensationConfig:
     """Fix the default gap (5 median time steps) once, so no step recomputes the median."""
     if cfg.max_gap_s is not None or "time" not in df.columns or len(df) < 2:
         return cfg

@@ -20,7 +20,7 @@ from sklearn.base import BaseEstimator, RegressorMixin
 from .._core.stretches import find_stretches
 from ..conventions import FLUX_COLUMNS
 from ..errors import InputError
-from .config import CompensationConfig, _resolve_gap
+from .config import CompensationConfig, resolve_gap
 from .fit import check_interference, fit_outcome
 from .metrics import compensation_metrics
 from .model import TLModel
@@ -148,7 +148,7 @@ class TollesLawson(RegressorMixin, BaseEstimator):
             raise InputError(f"X has {len(t)} rows but y has {len(yv)}")
         df = pd.DataFrame({"time": t, "flux_x": flux[:, 0], "flux_y": flux[:, 1],
                            "flux_z": flux[:, 2], "mag": yv})
-        cfg = _resolve_gap(self._config(), df)
+        cfg = resolve_gap(self._config(), df)
         prep = prepare(df, cfg, source="TollesLawson.fit")
         fit = fit_outcome(prep, cfg)
         model = TLModel(fit.terms, fit.coef)

@@ -9,7 +9,6 @@
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -21,10 +20,10 @@ from ..errors import FitError, InputError
 from .config import CompensationConfig
 from .decimation import fit_arrays
 from .model import TLModel
-from .normal import SegmentStats, _residual_std, segment_normal_equations
+from .normal import SegmentStats, segment_normal_equations, segment_residual_std
 from .prepare import Prepared, prepare
 from .report import fit_report
-from .result import CompensationResult
+from .result import CompensationResult, FitOutcome
 from .screening import ScreeningOutcome, screen_segments
 from .terms import design_matrix, parse_terms
 
@@ -116,54 +115,6 @@ def check_interference(mag_tl_nT: np.ndarray, field_nT: float, max_interference:
     log.warning("%s; check that the model belongs to this aircraft and sensor", msg)
 
 
-@dataclass
-class FitOutcome:
-    """Everything the fit decided and measured (the report is built from it).
-
-    Attributes
-    ----------
-    prep : Prepared
-        The arrays the fit used.
-    cfg : CompensationConfig
-        Its options.
-    terms, fit_terms : tuple of str
-        All terms, and those fitted in the band (no ``bias``).
-    coef : ndarray
-        Coefficients of ``terms``.
-    stats : SegmentStats
-        Per-segment normal equations.
-    screening : ScreeningOutcome
-        What the screening loop kept.
-    cond, cond_scaled : float
-        Condition numbers of the final fit.
-    diagnostics : dict
-        VIF and leave-one-segment-out CV (:mod:`aeromag._core.fit_diagnostics`).
-    cv_residual, residual, segment_condition : ndarray
-        Per segment: CV residual, in-sample residual [nT], scaled condition number.
-    sse : float
-        Band-passed residual sum of squares of the kept segments [nT^2].
-    decimation : int
-        Factor by which the log was decimated for the fit (1 = none;
-        :func:`aeromag.compensation.decimation.fit_arrays`); ``stats`` count decimated samples.
-    """
-
-    prep: Prepared
-    cfg: CompensationConfig
-    terms: tuple[str, ...]
-    fit_terms: tuple[str, ...]
-    coef: np.ndarray
-    stats: SegmentStats
-    screening: ScreeningOutcome
-    cond: float
-    cond_scaled: float
-    diagnostics: dict
-    cv_residual: np.ndarray
-    residual: np.ndarray
-    segment_condition: np.ndarray
-    sse: float
-    decimation: int = 1
-
-
 def screen_stats(stats: SegmentStats, cfg: CompensationConfig, source: str,
                  ) -> tuple[ScreeningOutcome, np.ndarray, np.ndarray]:
     """Refuse no fittable segment, warn about short ones, screen; the kept segments' sums.
@@ -232,8 +183,9 @@ def fit_outcome(prep: Prepared, cfg: CompensationConfig) -> FitOutcome:
     diag, cv_segs = diagnostics_from_stats(stats, kept, fit_terms, cfg.ridge)
     sse = float(stats.yy[kept].sum() - 2 * coef_fit @ b + coef_fit @ G @ coef_fit)
     return FitOutcome(prep, cfg, terms, fit_terms, coef, stats, out, cond, cond_s, diag,
-                      cv_segs["cv_residual_std_nT"].to_numpy(), _residual_std(stats, coef_fit),
-                      scaled_condition(stats.gram), sse, q)
+                      cv_segs["cv_residual_std_nT"].to_numpy(),
+                      segment_residual_std(stats, coef_fit), scaled_condition(stats.gram), sse,
+                      q)
 
 
 def fit_model(

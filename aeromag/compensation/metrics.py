@@ -52,10 +52,10 @@ def compensation_metrics(
         the kept segments, and ``all_*`` over all samples.  Pass ``mag - mag_tl`` (unfiltered)
         as ``mag_comp`` for the figures the pipeline reports.
     """
-    return _band_metrics(mag, mag_comp, time_s, stretch, cfg, kept=kept)[0]
+    return band_metrics(mag, mag_comp, time_s, stretch, cfg, kept=kept)[0]
 
 
-def _band_metrics(
+def band_metrics(
     mag: np.ndarray, mag_comp: np.ndarray, time_s: np.ndarray, stretch: np.ndarray,
     cfg: CompensationConfig, kept: np.ndarray | None = None, fs_hz: float | None = None,
     stretch_bp: np.ndarray | None = None, mag_bp: np.ndarray | None = None,

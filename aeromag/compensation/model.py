@@ -11,11 +11,10 @@ from typing import Any
 
 import numpy as np
 
-from .._core import parallel as _parallel
 from ..errors import InputError
 from .terms import (
-    _ALL_TERMS,
-    _AXIS,
+    ALL_TERMS,
+    AXIS,
     FIELD_SCALE_NT,
     PREDICT_BLOCK,
     direction_cosines,
@@ -85,16 +84,8 @@ def predict_interference(
         if bias:
             r += bias
 
-    # Contiguous runs of blocks on the filter threads (each block's arithmetic is the same
-    # whichever thread runs it, so the result does not depend on the thread count).
-    starts = list(range(0, n, step))
-    parts = max(1, min(_parallel.FILTER_THREADS, len(starts) // 4))
-
-    def run_part(i: int) -> None:
-        for a in starts[len(starts) * i // parts:len(starts) * (i + 1) // parts]:
-            run(a)
-
-    _parallel.parallel_map(run_part, list(range(parts)))
+    for a in range(0, n, step):
+        run(a)
     return out
 
 
@@ -134,13 +125,13 @@ def coefficient_forms(
         if name == "bias":
             bias += float(v)
         elif "*" not in name:
-            p[_AXIS[name]] += v
+            p[AXIS[name]] += v
         else:
             a, b = name.split("*")
             if b.endswith("'"):
-                N[_AXIS[a], _AXIS[b[:-1]]] += v
+                N[AXIS[a], AXIS[b[:-1]]] += v
             else:
-                M[_AXIS[a], _AXIS[b]] += v
+                M[AXIS[a], AXIS[b]] += v
     return p, M, N, bias
 
 
@@ -225,7 +216,7 @@ class TLModel:
                 f"{source}: not a model file (needs 'terms' and 'coef' lists);"
                 " write one with 'aeromag calibrate'"
             ) from None
-        unknown = [t for t in terms if t not in _ALL_TERMS]
+        unknown = [t for t in terms if t not in ALL_TERMS]
         if unknown:
             raise InputError(f"{source}: unknown term(s) {', '.join(unknown)} in the model")
         if len(coef) != len(terms):

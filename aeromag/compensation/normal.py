@@ -217,7 +217,7 @@ def _compact(x: np.ndarray, keep: np.ndarray, block: int = 1024) -> np.ndarray:
 
 
 
-def _residual_std(stats: SegmentStats, coef: np.ndarray) -> np.ndarray:
+def segment_residual_std(stats: SegmentStats, coef: np.ndarray) -> np.ndarray:
     """Band-passed residual std per segment for coefficients ``coef`` (k,) or (m, k)."""
     c = np.broadcast_to(coef, stats.rhs.shape)
     sse = stats.yy - 2 * np.einsum("mk,mk->m", c, stats.rhs) + np.einsum(

@@ -33,8 +33,8 @@ import dataclasses
 import numpy as np
 import pandas as pd
 
-from .apply import _apply, _check_plausible
-from .config import CompensationConfig, _resolve_gap, refuse_unused_options
+from .apply import _apply, check_plausible
+from .config import CompensationConfig, refuse_unused_options, resolve_gap
 from .extended_fit import extended_inputs_for, extended_result
 from .fit import fit_result
 from .model import TLModel
@@ -79,7 +79,7 @@ def compensate(
     """
     cfg = cfg or CompensationConfig()
     refuse_unused_options(cfg, model=model is not None)  # as the command line does
-    cfg = _resolve_gap(cfg, df)
+    cfg = resolve_gap(cfg, df)
     prep = prepare(df, cfg, source=source)
     if model is None:
         inputs = extended_inputs_for(df, cfg, prep.source)
@@ -87,7 +87,7 @@ def compensate(
         kept_ids = np.array([s["id"] for s in fit.report["segments"] if s["kept"]], dtype=np.int64)
         data, metrics, comp_bp = _apply(df, fit.model, cfg, prep=prep, kept_segments=kept_ids,
                                         source=source, release_flux=True)
-        _check_plausible(data, metrics, prep, cfg, fitted=True)
+        check_plausible(data, metrics, prep, cfg, fitted=True)
         report = dict(fit.report)
         report["metrics"] = metrics
         report["model_source"] = "fitted"
@@ -103,7 +103,7 @@ def compensate(
                         "extras the model was fitted with: the log must log them too")
     data, metrics, comp_bp = _apply(df, model, cfg, prep=prep, kept_segments=None,
                                     source=source, release_flux=True)
-    _check_plausible(data, metrics, prep, cfg, fitted=False)
+    check_plausible(data, metrics, prep, cfg, fitted=False)
     seg_ids, counts = segment_counts(prep.segment)
     report = applied_report(AppliedRun(prep.source, model, cfg, prep.fs,
                                        dict(zip(seg_ids.tolist(), counts.tolist(), strict=True)),

@@ -1,7 +1,7 @@
 """The one builder of the JSON report (``OUT.json``, ``MODEL.json``) from typed results.
 
 Three runs write a report: a fit (:func:`fit_report`, from a
-:class:`~aeromag.compensation.fit.FitOutcome`), and a saved model applied in memory or chunk by
+:class:`~aeromag.compensation.result.FitOutcome`), and a saved model applied in memory or chunk by
 chunk (:func:`applied_report`, from an :class:`AppliedRun`).  Modules pass these dataclasses;
 only this module turns them into the dictionary that becomes JSON.
 """
@@ -17,13 +17,13 @@ import numpy as np
 from .. import __version__
 from .._core.angles import circular_mean_rad
 from ..conventions import EPOCH_DISPLAY_S
-from .config import FIT_ONLY, CompensationConfig, _config_dict
+from .config import FIT_ONLY, CompensationConfig, config_dict
 from .model import TLModel
 from .screening import RULE
 from .segments import segment_counts
 
 if TYPE_CHECKING:
-    from .fit import FitOutcome
+    from .result import FitOutcome
 
 __all__ = ["AppliedRun", "applied_report", "dropped_summary", "fit_report", "format_time",
            "is_epoch", "name_segments", "segment_name", "time_span"]
@@ -101,7 +101,7 @@ def applied_report(run: AppliedRun) -> dict[str, Any]:
         "metrics": run.metrics,
         # What the application used: the fit-only options played no part (the model's terms
         # are ``terms`` above).
-        "config": {k: v for k, v in _config_dict(cfg).items() if k not in FIT_ONLY},
+        "config": {k: v for k, v in config_dict(cfg).items() if k not in FIT_ONLY},
     }
     if run.qc is not None:
         report["qc"] = run.qc
@@ -172,14 +172,14 @@ def _explain_dropped(fit: FitOutcome, segments: list[dict[str, Any]]) -> None:
     the entries ``kept`` and not ``readmitted``), so that ``residual_excess =
     pool_residual_nT / pool_median_nT``.
     """
-    from .normal import _residual_std
+    from .normal import segment_residual_std
     from .screening import own_fit_excess
 
     stats, out, prep = fit.stats, fit.screening, fit.prep
     row = {int(s): j for j, s in enumerate(stats.ids)}
     own = None
     if out.residual_pool_nT is not None:
-        own = own_fit_excess(out.residual_pool_nT, _residual_std(stats, out.seg_coef))
+        own = own_fit_excess(out.residual_pool_nT, segment_residual_std(stats, out.seg_coef))
     for e in segments:
         if e["kept"]:
             continue
@@ -412,6 +412,6 @@ def fit_report(fit: FitOutcome) -> dict[str, Any]:
         },
         "segments": _segment_entries(fit),
         "screening": _screening_block(fit),
-        "config": _config_dict(cfg),
+        "config": config_dict(cfg),
     }
 

@@ -1,19 +1,66 @@
-"""What the compensation returns: :class:`CompensationResult`."""
+"""What the compensation returns: :class:`CompensationResult`, and the fit's :class:`FitOutcome`."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from .config import CompensationConfig
 from .model import TLModel
-from .screening import ScreenResult
+from .normal import SegmentStats
+from .prepare import Prepared
+from .screening import ScreeningOutcome, ScreenResult
 
-if TYPE_CHECKING:
-    from .fit import FitOutcome
+
+@dataclass
+class FitOutcome:
+    """Everything the fit decided and measured (the report is built from it).
+
+    Attributes
+    ----------
+    prep : Prepared
+        The arrays the fit used.
+    cfg : CompensationConfig
+        Its options.
+    terms, fit_terms : tuple of str
+        All terms, and those fitted in the band (no ``bias``).
+    coef : ndarray
+        Coefficients of ``terms``.
+    stats : SegmentStats
+        Per-segment normal equations.
+    screening : ScreeningOutcome
+        What the screening loop kept.
+    cond, cond_scaled : float
+        Condition numbers of the final fit.
+    diagnostics : dict
+        VIF and leave-one-segment-out CV (:mod:`aeromag._core.fit_diagnostics`).
+    cv_residual, residual, segment_condition : ndarray
+        Per segment: CV residual, in-sample residual [nT], scaled condition number.
+    sse : float
+        Band-passed residual sum of squares of the kept segments [nT^2].
+    decimation : int
+        Factor by which the log was decimated for the fit (1 = none;
+        :func:`aeromag.compensation.decimation.fit_arrays`); ``stats`` count decimated samples.
+    """
+
+    prep: Prepared
+    cfg: CompensationConfig
+    terms: tuple[str, ...]
+    fit_terms: tuple[str, ...]
+    coef: np.ndarray
+    stats: SegmentStats
+    screening: ScreeningOutcome
+    cond: float
+    cond_scaled: float
+    diagnostics: dict
+    cv_residual: np.ndarray
+    residual: np.ndarray
+    segment_condition: np.ndarray
+    sse: float
+    decimation: int = 1
 
 
 @dataclass

@@ -43,7 +43,7 @@ import numpy as np
 
 from .._core.lstsq import solve_normal, solve_normal_batch
 from .config import CompensationConfig
-from .normal import SegmentStats, _residual_std
+from .normal import SegmentStats, segment_residual_std
 
 log = logging.getLogger(__name__)
 
@@ -428,8 +428,8 @@ def _add_one_guard(stats: SegmentStats, kept: np.ndarray, cfg: CompensationConfi
     G = stats.gram[kept].sum(axis=0)
     b = stats.rhs[kept].sum(axis=0)
     pooled = solve_normal(G, b, ridge)[0]
-    r = _residual_std(stats, pooled)
-    own = _residual_std(stats, shrunk_segment_fits(stats.gram, stats.rhs, n, pooled,
+    r = segment_residual_std(stats, pooled)
+    own = segment_residual_std(stats, shrunk_segment_fits(stats.gram, stats.rhs, n, pooled,
                                                    np.diag(G) / n[kept].sum(), cfg.shrink))
     d = np.flatnonzero(~kept)
     if d.size:
@@ -439,8 +439,8 @@ def _add_one_guard(stats: SegmentStats, kept: np.ndarray, cfg: CompensationConfi
         msd = np.diagonal(Gd, axis1=1, axis2=2) / (n[kept].sum() + n[d])[:, None]
         sub = SegmentStats(stats.ids[d], stats.n[d], stats.gram[d], stats.rhs[d],
                            stats.yy[d], {})
-        r[d] = _residual_std(sub, cd)
-        own[d] = _residual_std(sub, shrunk_segment_fits(sub.gram, sub.rhs, n[d], cd, msd,
+        r[d] = segment_residual_std(sub, cd)
+        own[d] = segment_residual_std(sub, shrunk_segment_fits(sub.gram, sub.rhs, n[d], cd, msd,
                                                         cfg.shrink))
     return r, own_fit_excess(r, own), own
 
@@ -558,8 +558,8 @@ def screen_segments(stats: SegmentStats, cfg: CompensationConfig) -> ScreeningOu
                                            col_ms, cfg.shrink)
             screen = pca_screen(seg_coef, variance=cfg.pca_variance,
                                 quantile=cfg.screen_quantile)
-            r_pool = _residual_std(stats, pooled)
-            r_own = _residual_std(stats, seg_coef)
+            r_pool = segment_residual_std(stats, pooled)
+            r_own = segment_residual_std(stats, seg_coef)
             own = own_fit_excess(r_pool, r_own)
             noise = band_noise_level(r_own, kept)
             excess = r_pool / np.median(r_pool[kept])

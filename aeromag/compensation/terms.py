@@ -71,8 +71,8 @@ _PRESETS: dict[str, tuple[str, ...]] = {
     "3": PERMANENT,
     "8": PERMANENT + INDUCED_5,
 }
-_ALL_TERMS = set(PERMANENT + INDUCED_6 + EDDY_9 + BIAS)
-_AXIS = {"cx": 0, "cy": 1, "cz": 2}
+ALL_TERMS = set(PERMANENT + INDUCED_6 + EDDY_9 + BIAS)
+AXIS = {"cx": 0, "cy": 1, "cz": 2}
 
 
 def parse_terms(spec: str | Sequence[str]) -> tuple[str, ...]:
@@ -108,7 +108,7 @@ def parse_terms(spec: str | Sequence[str]) -> tuple[str, ...]:
         k = it.lower().lstrip(":")
         if k in _GROUPS:
             chosen.update(_GROUPS[k])
-        elif it in _ALL_TERMS:
+        elif it in ALL_TERMS:
             chosen.add(it)
         elif k in _PRESETS:
             chosen.update(_PRESETS[k])
@@ -290,11 +290,11 @@ def _term_column(
     if name == "bias":
         return np.ones(len(cos))
     if "*" not in name:
-        return cos[:, _AXIS[name]]
+        return cos[:, AXIS[name]]
     a, b = name.split("*")
     if b.endswith("'"):
-        return scale * cos[:, _AXIS[a]] * dcos[:, _AXIS[b[:-1]]]
-    return scale * cos[:, _AXIS[a]] * cos[:, _AXIS[b]]
+        return scale * cos[:, AXIS[a]] * dcos[:, AXIS[b[:-1]]]
+    return scale * cos[:, AXIS[a]] * cos[:, AXIS[b]]
 
 
 def design_matrix(

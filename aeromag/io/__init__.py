@@ -18,7 +18,6 @@ module             what it holds
 ``json``           JSON reports and models (a report records the command's warnings)
 ``model_file``     model JSON and column-map TOML: size limits and schema
 ``messages``       echoed names without control characters
-``warm``           prefetching a CSV while the command line starts
 ``plans``          mission plans (``.csv``, QGroundControl ``.plan``, ``.waypoints``)
 ``base``           base-station records: CSV ``time,mag`` and IAGA-2002 (``.min``, ``.sec``)
 =================  ===============================================================
@@ -46,17 +45,16 @@ from .columns import (
     unit_factor,
 )
 from .csv import (
-    _EXTRA_FIELD,  # noqa: F401 - kept for callers of the old aeromag.io
-    _UNNAMED_FIELD,  # noqa: F401 - kept for callers of the old aeromag.io
+    EXTRA_FIELD,  # noqa: F401 - kept for callers of the old aeromag.io
     PASSTHROUGH_BLOCK_BYTES,
-    _first_data_fields,  # noqa: F401 - kept for callers of the old aeromag.io
-    _read_csv_arrow,  # noqa: F401 - kept for callers of the old aeromag.io
+    UNNAMED_FIELD,  # noqa: F401 - kept for callers of the old aeromag.io
+    first_data_fields,  # noqa: F401 - kept for callers of the old aeromag.io
     read_csv,
+    read_csv_arrow,  # noqa: F401 - kept for callers of the old aeromag.io
 )
 from .csv_write import (
-    WRITE_SLICE_ROWS,
-    _csv_header,  # noqa: F401 - kept for callers of the old aeromag.io
-    _floats_as_pandas_text,  # noqa: F401 - kept for callers of the old aeromag.io
+    csv_header,  # noqa: F401 - kept for callers of the old aeromag.io
+    floats_as_pandas_text,  # noqa: F401 - kept for callers of the old aeromag.io
     write_arrow_csv,
     write_csv,
     write_csv_passthrough,
@@ -75,7 +73,7 @@ from .rows import (
 
 __all__ = [
     "CANONICAL_COLUMNS", "FIELD_UNITS_TO_NT", "FLUX_COLUMNS", "NUMERIC_COLUMNS",
-    "PASSTHROUGH_BLOCK_BYTES", "ROWS_ATTR", "UNIT_GROUPS", "WRITE_SLICE_ROWS",
+    "PASSTHROUGH_BLOCK_BYTES", "ROWS_ATTR", "UNIT_GROUPS",
     "apply_column_map", "atomic_path", "check_outputs", "check_unique_names", "convert_units",
     "datetime_seconds", "filled_cells", "json_path_for", "numeric_values",
     "output_set", "parse_column_map", "plain_number", "read_csv", "read_log", "read_map_file",

@@ -256,8 +256,11 @@ def apply_column_map(
 
 
 def to_numeric(df: pd.DataFrame, cols: Sequence[str], source: str,
-                rows: Mapping[str, Any] | None = None) -> pd.DataFrame:
+                rows: Mapping[str, Any] | None = None, keep: Sequence[str] = ()
+                ) -> pd.DataFrame:
     """Convert ``cols`` to float, naming the first unparseable cell (and its line) in the error.
+
+    Numeric columns named in ``keep`` stay in the type they were read in (e.g. float32).
 
     A ``time`` column of date-times (ISO 8601 text, or datetime / duration values from Parquet)
     becomes float seconds since 1970-01-01 UTC (see :func:`datetime_seconds`).
@@ -272,7 +275,7 @@ def to_numeric(df: pd.DataFrame, cols: Sequence[str], source: str,
             df.attrs["_time_converted"] = True
             continue
         if pd.api.types.is_numeric_dtype(s.dtype) and not pd.api.types.is_bool_dtype(s.dtype):
-            if s.dtype != np.float64 and c not in INTEGER_COLUMNS:
+            if s.dtype != np.float64 and c not in INTEGER_COLUMNS and c not in keep:
                 df[c] = s.astype(np.float64)
         else:
             df[c] = numeric_values(s, source, c, rows)
@@ -308,7 +311,7 @@ def _check_magnitudes(s: pd.Series, source: str, column: str,
 
 
 #: ISO 8601 date and time at the start of a text value (``2024-01-01T00:00:00``, with a space too).
-_ISO_DATETIME = re.compile(r"^\s*[+-]?\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}")
+ISO_DATETIME = re.compile(r"^\s*[+-]?\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}")
 
 
 def _is_datetime_like(s: pd.Series) -> bool:
@@ -320,7 +323,7 @@ def _is_datetime_like(s: pd.Series) -> bool:
         return False
     first = s.first_valid_index()
     return first is not None and isinstance(s.loc[first], str) and bool(
-        _ISO_DATETIME.match(s.loc[first]))
+        ISO_DATETIME.match(s.loc[first]))
 
 
 #: Ticks per second of the datetime64 / timedelta64 units.

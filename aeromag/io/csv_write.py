@@ -1,8 +1,8 @@
 """The one CSV writer of aeromag.
 
 Numbers in their shortest round-trip form (an integral float as ``x.0``), booleans
-``true``/``false``, missing values empty, written atomically; formatted on several threads by
-pyarrow, byte-identical whatever the number of threads.  The reader is :mod:`aeromag.io.csv`.
+``true``/``false``, missing values empty, written atomically by pyarrow's CSV writer.
+The reader is :mod:`aeromag.io.csv`.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
-from .csv import _line_arrays
+from .csv import line_arrays
 from .messages import clean
 from .outputs import atomic_path, display_path
 
@@ -59,9 +59,8 @@ def check_no_binary(df: pd.DataFrame, target: Path) -> None:
 def write_csv(df: pd.DataFrame, path: str | os.PathLike[str]) -> Path:
     """Write a log to CSV atomically; booleans are written ``true``/``false``.
 
-    Uses pyarrow's CSV writer when available, formatting slices of rows on several threads
-    (numbers in their shortest round-trip form, missing values empty), pandas otherwise.
-    The output is byte-identical whatever the number of threads.
+    Uses pyarrow's CSV writer when available (numbers in their shortest round-trip form,
+    missing values empty), pandas otherwise.
 
     Parameters
     ----------
@@ -83,7 +82,7 @@ def write_csv(df: pd.DataFrame, path: str | os.PathLike[str]) -> Path:
     return target
 
 
-def _csv_header(columns: Iterable[Any]) -> str:
+def csv_header(columns: Iterable[Any]) -> str:
     """The header row, quoted only where a name needs it (as pandas writes it)."""
     import csv
     import io as _io
@@ -93,7 +92,7 @@ def _csv_header(columns: Iterable[Any]) -> str:
     return buf.getvalue()
 
 
-def _floats_as_pandas_text(table: Any) -> Any:
+def floats_as_pandas_text(table: Any) -> Any:
     """Format float columns as pandas does: shortest round trip, integral values with ``.0``.
 
     Arrow writes ``1.0`` as ``1``; read back, a float column whose values are all integral
@@ -130,27 +129,8 @@ def _has_integral(column: Any) -> bool:
     return False
 
 
-#: Rows formatted per task by the CSV writer (small slices keep each text buffer in cache).
-WRITE_SLICE_ROWS = 8192
-
-
-def _writer_threads() -> int:
-    """Threads used to format CSV text (pyarrow's CPU count, so ``pa.set_cpu_count`` rules)."""
-    import pyarrow as pa
-
-    env = os.environ.get("AEROMAG_WRITE_THREADS")
-    n = int(env) if env else pa.cpu_count()
-    return max(1, min(n, 16))
-
-
-def write_arrow_csv(table: Any, fh: Any, quoting: str = "none",
-                    slice_rows: int = WRITE_SLICE_ROWS) -> None:
-    """Write an Arrow table as CSV rows (no header) to a binary file, formatting in parallel.
-
-    pyarrow's CSV writer formats on one thread.  The table is cut into slices of
-    ``slice_rows`` rows (zero-copy), each formatted to text on a thread pool (pyarrow releases
-    the GIL) and written in order, with at most two slices per thread in flight: the output is
-    byte-identical to one ``pyarrow.csv.write_csv`` call and memory stays bounded.
+def write_arrow_csv(table: Any, fh: Any, quoting: str = "none") -> None:
+    """Write an Arrow table as CSV rows (no header) to a binary file (``pyarrow.csv``).
 
     Parameters
     ----------
@@ -160,39 +140,10 @@ def write_arrow_csv(table: Any, fh: Any, quoting: str = "none",
         Open destination.
     quoting : str
         pyarrow quoting style (``"none"`` raises ``ArrowInvalid`` on a value needing quotes).
-    slice_rows : int
-        Rows per formatting task.
     """
-    import pyarrow as pa
     import pyarrow.csv as pacsv
 
-    opts = pacsv.WriteOptions(include_header=False, quoting_style=quoting)
-    n = table.num_rows
-    threads = _writer_threads()
-    if threads == 1 or n <= 2 * slice_rows:
-        pacsv.write_csv(table, fh, opts)
-        return
-
-    def fmt(offset: int) -> Any:
-        sink = pa.BufferOutputStream()
-        pacsv.write_csv(table.slice(offset, slice_rows), sink, opts)
-        return sink.getvalue()
-
-    from collections import deque
-    from concurrent.futures import ThreadPoolExecutor
-
-    offsets = iter(range(0, n, slice_rows))
-    with ThreadPoolExecutor(threads, thread_name_prefix="aeromag-csv") as pool:
-        pending: deque = deque()
-        for off in offsets:
-            pending.append(pool.submit(fmt, off))
-            if len(pending) >= 2 * threads:
-                break
-        while pending:
-            fh.write(pending.popleft().result())
-            nxt = next(offsets, None)
-            if nxt is not None:
-                pending.append(pool.submit(fmt, nxt))
+    pacsv.write_csv(table, fh, pacsv.WriteOptions(include_header=False, quoting_style=quoting))
 
 
 def write_csv_passthrough(
@@ -202,8 +153,8 @@ def write_csv_passthrough(
     """Write ``source``'s lines verbatim with ``extra``'s columns appended to each.
 
     The columns a log came with are copied as the text they were read from (no reformatting,
-    no precision lost), and only the added columns are formatted, in parallel: 4 columns
-    formatted instead of 13 on a typical log, so about 3x less writing work.  The source is
+    no precision lost), and only the added columns are formatted: 4 columns formatted
+    instead of 13 on a typical log, so about 3x less writing work.  The source is
     streamed block by block (memory bounded).  Used by the pipeline only for a plain CSV read
     without column map, unit conversion or dropped rows.
 
@@ -230,7 +181,7 @@ def write_csv_passthrough(
     import pyarrow.csv as pacsv
 
     try:
-        table = _floats_as_pandas_text(pa.Table.from_pandas(extra, preserve_index=False))
+        table = floats_as_pandas_text(pa.Table.from_pandas(extra, preserve_index=False))
     except (pa.ArrowException, TypeError, ValueError):
         return False
     if any(pa.types.is_temporal(f.type) or pa.types.is_nested(f.type) for f in table.schema):
@@ -270,13 +221,8 @@ def write_csv_passthrough(
                             offset=4 * joined.offset)
         return memoryview(joined.buffers()[2])[off[0]:off[-1]]
 
-    from collections import deque
-    from concurrent.futures import ThreadPoolExecutor
-
-    threads = _writer_threads()
     row = 0
-    with open(source, "rb") as fin, open(dest, "wb") as fout, \
-            ThreadPoolExecutor(threads, thread_name_prefix="aeromag-csv") as pool:
+    with open(source, "rb") as fin, open(dest, "wb") as fout:
         header = fin.readline()
         head = header.rstrip(b"\r\n")
         try:
@@ -285,25 +231,16 @@ def write_csv_passthrough(
             return False
         if names != list(source_columns) or b'"' in head:
             return False
-        fout.write(head + b"," + _csv_header(extra.columns).encode("utf-8"))
-        pending: deque = deque()
-        # Blocks are joined on the pool, written here in order, at most 2 per thread ahead.
-        for raw in _line_arrays(fin):
+        fout.write(head + b"," + csv_header(extra.columns).encode("utf-8"))
+        for raw in line_arrays(fin):
             k = int(np.count_nonzero(raw == 10))  # (numpy: 3-4x faster than bytes.count)
             if row + k > n:
                 return False
-            pending.append(pool.submit(join, raw, row, k))
-            row += k
-            while len(pending) > 2 * threads:
-                out = pending.popleft().result()
-                if out is None:
-                    return False
-                fout.write(out)
-        while pending:
-            out = pending.popleft().result()
+            out = join(raw, row, k)
             if out is None:
                 return False
             fout.write(out)
+            row += k
     return row == n
 
 
@@ -319,8 +256,8 @@ def _write_csv_arrow(df: pd.DataFrame, dest: Path) -> bool:
         return False
     if any(pa.types.is_temporal(f.type) or pa.types.is_nested(f.type) for f in table.schema):
         return False
-    table = _floats_as_pandas_text(table)
-    header = _csv_header(df.columns).encode("utf-8")
+    table = floats_as_pandas_text(table)
+    header = csv_header(df.columns).encode("utf-8")
     with open(dest, "wb") as fh:
         fh.write(header)
         try:

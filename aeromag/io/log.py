@@ -69,6 +69,8 @@ def read_log(
     fmt: str | None = None,
     min_rows: int = 2,
     allow_truncated: bool | None = None,
+    usecols: Sequence[str] | None = None,
+    dtypes: Mapping[str, Any] | None = None,
 ) -> pd.DataFrame:
     """Read a survey log into canonical columns and validate it.
 
@@ -97,6 +99,15 @@ def read_log(
         Drop a last row that is cut short (a log that ended in the middle of a row), with a
         warning (recorded in the report of a command), instead of refusing the file; default
         False (see :func:`reading_options`).  A shorter row anywhere else is always an error.
+    usecols : sequence of str, optional
+        Read only these columns (canonical names, or names of the file that are not mapped;
+        those the log lacks are left out): a CSV parses no other column (pyarrow's
+        ``include_columns``), so the memory and time are those of the columns kept.  Default:
+        every column.
+    dtypes : mapping, optional
+        ``{column: numpy dtype}`` of columns to hold in another type than float64 once
+        validated (e.g. ``np.float32`` for columns only drawn); columns the log lacks are
+        ignored.
 
     Returns
     -------
@@ -107,7 +118,12 @@ def read_log(
     source = str(p)
     check_input_file(p)
     register_input(p, "input log")
-    df = read_table_rows(p, fmt, allow_truncated=allow_truncated_default(allow_truncated))
+    source_cols = None
+    if usecols is not None:
+        source_cols = [(columns or {}).get(c, c) for c in usecols]
+    source_types = {(columns or {}).get(c, c): dt for c, dt in (dtypes or {}).items()}
+    df = read_table_rows(p, fmt, allow_truncated=allow_truncated_default(allow_truncated),
+                         usecols=source_cols, dtypes=source_types)
     rows = df.attrs.pop(ROWS_ATTR, None)
     check_unique_names([str(c) for c in df.columns], source, what="table")
     df = apply_column_map(df, columns, source=source)
@@ -122,7 +138,7 @@ def read_log(
         raise InputError(f"{source}: only {len(df)} data row(s); need at least {min_rows}:"
                          " give a longer log")
     present = [c for c in NUMERIC_COLUMNS if c in df.columns]
-    df = to_numeric(df, present, source, rows)
+    df = to_numeric(df, present, source, rows, keep=tuple(dtypes or ()))
     df = convert_units(df, units, source=source, rows=rows)
     n_read = len(df)
     plain = df.attrs.pop("_plain_csv_columns", None)
@@ -134,6 +150,9 @@ def read_log(
         raise InputError(f"{source}: only {len(df)} usable row(s); need at least {min_rows}:"
                          " give a longer log")
     df.attrs.pop("_plain_csv_columns", None)
+    for c, dt in (dtypes or {}).items():
+        if c in df.columns:
+            df[c] = df[c].to_numpy().astype(dt, copy=False)
     df.attrs["source"] = source
     if plain is not None and not columns and not units and len(df) == n_read:
         # Every row and column is exactly as in the file: outputs may copy its lines.

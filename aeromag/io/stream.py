@@ -23,7 +23,7 @@ import pandas as pd
 
 from ..errors import InputError
 from .columns import (
-    _ISO_DATETIME,
+    ISO_DATETIME,
     NUMERIC_COLUMNS,
     apply_column_map,
     check_unique_names,
@@ -31,10 +31,10 @@ from .columns import (
     to_numeric,
 )
 from .csv import (
-    _EXTRA_FIELD,
-    _csv_header_fields,
-    _first_data_fields,
+    EXTRA_FIELD,
     check_text_file,
+    csv_header_fields,
+    first_data_fields,
     not_utf8_message,
     short_row,
     truncated_row_message,
@@ -94,16 +94,16 @@ def _csv_batches(path: Path, columns: list[str] | None, batch_rows: int,
     import pyarrow.csv as pacsv
 
     check_text_file(path)
-    head = _csv_header_fields(path)
+    head = csv_header_fields(path)
     if head is None:
         raise InputError(not_utf8_message(path))
     header, header_line = head
     check_unique_names(header, str(path))
     n = len(header)
-    first = _first_data_fields(path, header_line)
+    first = first_data_fields(path, header_line)
     # ISO 8601 times are text: read as text, converted by to_numeric as read_log does.
     iso_time = (first is not None and "time" in header and len(first[0]) > header.index("time")
-                and bool(_ISO_DATETIME.match(first[0][header.index("time")])))
+                and bool(ISO_DATETIME.match(first[0][header.index("time")])))
     types = {c: (pa.string() if c == "time" and iso_time else pa.float64())
              for c in header if c in NUMERIC_COLUMNS}
     avg = max(16, path.stat().st_size // max(1, _count_lines_estimate(path)))
@@ -111,9 +111,9 @@ def _csv_batches(path: Path, columns: list[str] | None, batch_rows: int,
     # A logger that ends every row with the delimiter: read the empty extra field under a
     # name of its own, check it stays empty, drop it (as read_log does).
     extra = first is not None and len(first[0]) == n + 1 and not first[0][-1].strip()
-    names = header + ([_EXTRA_FIELD] if extra else [])
+    names = header + ([EXTRA_FIELD] if extra else [])
     ro = pacsv.ReadOptions(block_size=block, column_names=names, skip_rows=header_line)
-    keep = None if columns is None else [c for c in names if c in columns or c == _EXTRA_FIELD]
+    keep = None if columns is None else [c for c in names if c in columns or c == EXTRA_FIELD]
     co = pacsv.ConvertOptions(column_types=types, include_columns=keep,
                               strings_can_be_null=True)
     skipped: list[tuple[int, str]] = []
@@ -132,14 +132,14 @@ def _csv_batches(path: Path, columns: list[str] | None, batch_rows: int,
         for rb in reader:
             df = rb.to_pandas()
             if extra:
-                bad = df[_EXTRA_FIELD].notna().to_numpy()
+                bad = df[EXTRA_FIELD].notna().to_numpy()
                 if bad.any():
                     i = int(np.flatnonzero(bad)[0])
                     raise InputError(
                         f"{clean(path)}: {row_location(rows, done + i)}: more fields than the"
-                        f" {n} columns of the header (value {df[_EXTRA_FIELD].iloc[i]!r} has"
+                        f" {n} columns of the header (value {df[EXTRA_FIELD].iloc[i]!r} has"
                         " no column); remove the extra value or add its name to the header")
-                df = df.drop(columns=_EXTRA_FIELD)
+                df = df.drop(columns=EXTRA_FIELD)
             df.attrs[ROWS_ATTR] = shift_rows(rows, done)
             done += len(df)
             yield df
@@ -321,7 +321,7 @@ def locate_row(path: Path, fmt: str | None, i: int) -> str:
     """Where data row ``i`` (0-based) of a log is, worded as :func:`read_log` words it."""
     f = detect_format(path, fmt)
     if f == "csv":
-        head = _csv_header_fields(Path(path))
+        head = csv_header_fields(Path(path))
         rows = rows_after_header(path, head[1] if head else 1)
     elif f == "parquet":
         rows = rows_numbered("row")

@@ -4,7 +4,7 @@ Block by block, so that a figure of a 2e6-row log costs a few MB of temporaries 
 log, not several full-length arrays (issue 15): the uncompensated field, the blocks of rows
 that :func:`aeromag.plot._style._streamed_envelopes` envelopes, the stretches and Welch PSD
 of :func:`_welch`, and the term contributions (:func:`term_contributions`) with the
-standard deviation of each group (:class:`_NanStd`).
+standard deviation of each group (:class:`NanStd`).
 """
 
 from __future__ import annotations
@@ -19,12 +19,12 @@ from .._core.filters import sampling_rate
 from .._core.stretches import find_stretches
 from ..compensation.terms import BIAS, EDDY_9, INDUCED_6, PERMANENT, design_matrix
 from ..errors import InputError
-from ._style import ENVELOPE_BLOCK, _median_step, _new_stretch, _stretch_gap_s, _TimeAxis
+from ._style import ENVELOPE_BLOCK, TimeAxis, median_step, new_stretch, stretch_gap_s
 
 __all__ = ["TERM_BLOCK", "term_contributions"]
 
 
-def _field_before_rows(data: pd.DataFrame) -> Any:
+def field_before_rows(data: pd.DataFrame) -> Any:
     """``rows(a, b)``: the uncompensated field [nT] of rows ``[a, b)`` as float64.
 
     ``mag``, or the fluxgate's magnitude when there is no ``mag`` (row by row, the same
@@ -38,30 +38,30 @@ def _field_before_rows(data: pd.DataFrame) -> Any:
         np.column_stack([f[a:b] for f in fl]).astype(np.float64, copy=False), axis=1)
 
 
-def _field_before(data: pd.DataFrame) -> np.ndarray:
+def field_before(data: pd.DataFrame) -> np.ndarray:
     """The uncompensated field [nT] of every row (``mag``, else the fluxgate's magnitude)."""
     if "mag" in data.columns:
         return data["mag"].to_numpy(dtype=np.float64)
-    rows, n = _field_before_rows(data), len(data)
+    rows, n = field_before_rows(data), len(data)
     out = np.empty(n)
     for a in range(0, n, ENVELOPE_BLOCK):
         out[a:a + ENVELOPE_BLOCK] = rows(a, min(n, a + ENVELOPE_BLOCK))
     return out
 
 
-def _time_blocks(t: np.ndarray, lines: Any, block: int = ENVELOPE_BLOCK) -> Any:
+def time_blocks(t: np.ndarray, lines: Any, block: int = ENVELOPE_BLOCK) -> Any:
     """``blocks()`` for :func:`_streamed_envelopes`: time axis, stretch starts, ``lines(a, b)``.
 
     The stretches are ``find_stretches(t)``'s (gap: 5 median steps), decided block by block.
     """
-    ax = _TimeAxis(t)
-    gap = _stretch_gap_s(t)
+    ax = TimeAxis(t)
+    gap = stretch_gap_s(t)
     n = len(t)
 
     def blocks() -> Any:
         for a in range(0, n, block):
             b = min(n, a + block)
-            yield a, ax(t[a:b]), _new_stretch(t, a, b, gap), lines(a, b)
+            yield a, ax(t[a:b]), new_stretch(t, a, b, gap), lines(a, b)
     return ax, blocks
 
 
@@ -104,7 +104,7 @@ def _welch(x: np.ndarray, t: np.ndarray, nperseg: int,
     a few FFT batches, not one call per stretch.  ``step_s`` is ``t``'s median step (computed
     when not given); the stretches are ``find_stretches(t, np.isfinite(x))``'s.
     """
-    dt = _median_step(t) if step_s is None else step_s
+    dt = median_step(t) if step_s is None else step_s
     if not dt > 0:
         sampling_rate(t)  # raises its error (too short, not increasing)
     fs = 1.0 / dt  # sampling_rate(t), without its two full-length temporaries
@@ -154,13 +154,13 @@ _GROUPS = {"permanent": PERMANENT, "induced": INDUCED_6, "eddy": EDDY_9, "bias":
 TERM_BLOCK = 50_000
 
 
-def _term_groups(terms: tuple[str, ...]) -> dict[str, list[int]]:
+def term_groups(terms: tuple[str, ...]) -> dict[str, list[int]]:
     """Column indices of each non-empty term group, in :data:`_GROUPS` order."""
     idx = {g: [j for j, x in enumerate(terms) if x in m] for g, m in _GROUPS.items()}
     return {g: v for g, v in idx.items() if v}
 
 
-def _term_blocks(data: pd.DataFrame, terms: Any, coef: Any, block: int = TERM_BLOCK) -> Any:
+def term_blocks(data: pd.DataFrame, terms: Any, coef: Any, block: int = TERM_BLOCK) -> Any:
     """Yield ``(a, b, {group: values [nT] of rows [a, b)})`` for consecutive blocks of rows.
 
     Each block's design matrix is built from the rows ``[a - 2, b + 2)`` (derivatives at the
@@ -173,9 +173,9 @@ def _term_blocks(data: pd.DataFrame, terms: Any, coef: Any, block: int = TERM_BL
     t = data["time"].to_numpy(dtype=np.float64)
     # The fluxgate as stored (float32 in the report), converted block by block below.
     fcols = [data[k].to_numpy() for k in ("flux_x", "flux_y", "flux_z")]
-    idx = _term_groups(terms)
+    idx = term_groups(terms)
     n = len(t)
-    gap = _stretch_gap_s(t)
+    gap = stretch_gap_s(t)
     pad = 2
     for a in range(0, n, block):
         b = min(n, a + block)
@@ -217,14 +217,14 @@ def term_contributions(data: pd.DataFrame, terms: Any, coef: Any,
         ``mag_tl``.
     """
     n = len(data)
-    out = {g: np.full(n, np.nan) for g in _term_groups(tuple(terms))}
-    for a, b, parts in _term_blocks(data, terms, coef, block):
+    out = {g: np.full(n, np.nan) for g in term_groups(tuple(terms))}
+    for a, b, parts in term_blocks(data, terms, coef, block):
         for g, y in parts.items():
             out[g][a:b] = y
     return pd.DataFrame(out, index=data.index, copy=False)  # the arrays, not a copy
 
 
-class _NanStd:
+class NanStd:
     """``np.nanstd`` of a series given block by block (Chan's pairwise update, float64)."""
 
     def __init__(self) -> None:

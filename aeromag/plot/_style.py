@@ -39,7 +39,7 @@ log = logging.getLogger(__name__)
 
 #: Resolution of saved PNGs [dots per inch].
 DPI = 150
-_PathLike = str | os.PathLike[str]
+PathLike = str | os.PathLike[str]
 
 #: Pixel columns a line is reduced to for display (min and max per column).
 DISPLAY_COLUMNS = 2000
@@ -98,7 +98,7 @@ def new_figure(figsize: tuple[float, float] = (7.0, 4.5)) -> tuple[Figure, Axes]
     return fig, fig.add_subplot(1, 1, 1)
 
 
-def _target(ax: Axes | None, figsize: tuple[float, float]) -> tuple[Figure, Axes]:
+def target(ax: Axes | None, figsize: tuple[float, float]) -> tuple[Figure, Axes]:
     if ax is None:
         return new_figure(figsize)
     return ax.figure, ax  # type: ignore[return-value]
@@ -126,7 +126,7 @@ def figure_png(fig: Figure, dpi: int = DPI) -> bytes:
     return buf.getvalue()
 
 
-def save_figure(fig: Figure, path: _PathLike, dpi: int = DPI) -> Path:
+def save_figure(fig: Figure, path: PathLike, dpi: int = DPI) -> Path:
     """Write a figure as PNG atomically (a partial file never appears).
 
     Parameters
@@ -155,7 +155,7 @@ def save_figure(fig: Figure, path: _PathLike, dpi: int = DPI) -> Path:
     return p
 
 
-def _finish(fig: Figure, path: _PathLike | None) -> Figure:
+def finish(fig: Figure, path: PathLike | None) -> Figure:
     if path is not None:
         save_figure(fig, path)
     return fig
@@ -179,14 +179,14 @@ def time_axis(time_s: np.ndarray) -> tuple[np.ndarray, str, bool]:
     is_date : bool
     """
     t = np.asarray(time_s, dtype=np.float64)
-    ax = _TimeAxis(t)
+    ax = TimeAxis(t)
     return ax(t), ax.label, ax.is_date
 
 
-class _TimeAxis:
+class TimeAxis:
     """The abscissa of :func:`time_axis` as a function of a block of times (no full copy).
 
-    ``_TimeAxis(t)(t[a:b])`` is ``time_axis(t)[0][a:b]``, value for value.
+    ``TimeAxis(t)(t[a:b])`` is ``time_axis(t)[0][a:b]``, value for value.
     """
 
     def __init__(self, t: np.ndarray) -> None:
@@ -207,7 +207,7 @@ class _TimeAxis:
         return t / 86400.0 if self.is_date else t - self.t0
 
 
-def _median_step(time_s: np.ndarray) -> float:
+def median_step(time_s: np.ndarray) -> float:
     """``np.median(np.diff(t))`` [s] (the same value) without the copy ``np.median`` makes.
 
     The step :func:`aeromag._core.filters.sampling_rate` and :func:`find_stretches`'s default
@@ -220,13 +220,13 @@ def _median_step(time_s: np.ndarray) -> float:
     return float(np.median(np.diff(t), overwrite_input=True))
 
 
-def _stretch_gap_s(time_s: np.ndarray) -> float:
+def stretch_gap_s(time_s: np.ndarray) -> float:
     """The largest step inside a stretch that :func:`find_stretches` uses by default [s]."""
-    med = _median_step(time_s) if len(time_s) >= 2 else 1.0
+    med = median_step(time_s) if len(time_s) >= 2 else 1.0
     return 5.0 * med
 
 
-def _new_stretch(t: np.ndarray, a: int, b: int, gap_s: float) -> np.ndarray:
+def new_stretch(t: np.ndarray, a: int, b: int, gap_s: float) -> np.ndarray:
     """Where ``find_stretches(t)`` (no validity mask, gap ``gap_s``) starts a stretch in [a, b).
 
     True at the first sample of the log and after every step that is not ``<= gap_s``
@@ -244,7 +244,7 @@ def _new_stretch(t: np.ndarray, a: int, b: int, gap_s: float) -> np.ndarray:
     return new
 
 
-def _format_time(ax: Axes, is_date: bool, label: str) -> None:
+def format_time(ax: Axes, is_date: bool, label: str) -> None:
     ax.set_xlabel(label)
     if is_date:
         import matplotlib.dates as mdates
@@ -385,7 +385,7 @@ class _EnvelopeStream:
     Notes
     -----
     The stretches are given as a flag per sample, True where ``find_stretches(t)`` (no
-    validity mask: every sample is in a stretch) starts a new one; see :func:`_new_stretch`.
+    validity mask: every sample is in a stretch) starts a new one; see :func:`new_stretch`.
     """
 
     def __init__(self, lo: float, hi: float, columns: int = DISPLAY_COLUMNS) -> None:
@@ -468,7 +468,7 @@ def _drawable_bounds(lines: list[tuple[float, float]], x: np.ndarray,
             lines[i] = (min(lo, float(np.min(xg))), max(hi, float(np.max(xg))))
 
 
-def _streamed_envelopes(
+def streamed_envelopes(
     n: int, blocks: Any, n_lines: int, bounds: list[tuple[float, float]] | None = None,
     columns: int = DISPLAY_COLUMNS,
 ) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -483,7 +483,7 @@ def _streamed_envelopes(
         Samples per line.
     blocks : callable
         ``blocks()`` yields ``(offset, x, new, ys)`` for consecutive blocks of rows covering
-        ``[0, n)`` in order: abscissae, stretch starts (:func:`_new_stretch`) and the list
+        ``[0, n)`` in order: abscissae, stretch starts (:func:`new_stretch`) and the list
         of the lines' ordinates.  Called once or twice (or three times, see ``bounds``).
     n_lines : int
         Number of lines.

@@ -37,35 +37,35 @@ from matplotlib.patches import Ellipse
 
 from ..errors import InputError
 from ._series import (
-    _field_before,
-    _field_before_rows,
-    _NanStd,
-    _term_blocks,
-    _term_groups,
-    _time_blocks,
+    NanStd,
     _welch,
+    field_before,
+    field_before_rows,
+    term_blocks,
     term_contributions,
+    term_groups,
+    time_blocks,
 )
 from ._style import (
     DPI,
     ENVELOPE_BLOCK,
+    PathLike,
     QCFigure,
+    TimeAxis,
     _data,
-    _finish,
-    _format_time,
-    _median_step,
-    _new_stretch,
-    _PathLike,
     _report,
-    _streamed_envelopes,
-    _stretch_gap_s,
-    _target,
-    _TimeAxis,
     envelope,
     figure_png,
+    finish,
+    format_time,
+    median_step,
     new_figure,
+    new_stretch,
     plain_log_ticks,
     save_figure,
+    streamed_envelopes,
+    stretch_gap_s,
+    target,
     time_axis,
 )
 from .maps import plot_map
@@ -88,7 +88,7 @@ def _segments_frame(report: dict[str, Any]) -> pd.DataFrame:
 
 # --------------------------------------------------------------------------- PCA
 def plot_pca_scores(
-    report: Any, *, ax: Axes | None = None, path: _PathLike | None = None,
+    report: Any, *, ax: Axes | None = None, path: PathLike | None = None,
     annotate: bool = True,
 ) -> Figure:
     """PCA score plot: each segment's scores on PC1 (x) and PC2 (y), kept vs dropped.
@@ -118,7 +118,7 @@ def plot_pca_scores(
     report = _report(report)
     seg = _segments_frame(report)
     scr = report.get("screening") or {}
-    fig, ax = _target(ax, (6.0, 5.0))
+    fig, ax = target(ax, (6.0, 5.0))
     sc = np.array([np.r_[s, 0.0][:2] if len(s) < 2 else s[:2] for s in seg["scores"]],
                   dtype=float)
     kept = seg["kept"].to_numpy(dtype=bool)
@@ -165,11 +165,11 @@ def plot_pca_scores(
     ax.grid(alpha=0.3)
     ax.legend(loc="upper right", fontsize=8)  # "best" costs seconds with many segments
     ax.autoscale_view()
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 def plot_explained_variance(
-    report: Any, *, ax: Axes | None = None, path: _PathLike | None = None,
+    report: Any, *, ax: Axes | None = None, path: PathLike | None = None,
 ) -> Figure:
     """Explained-variance ratio per principal component (bars) and cumulative (line).
 
@@ -190,7 +190,7 @@ def plot_explained_variance(
     evr = np.asarray(scr.get("explained_variance_ratio") or [], dtype=float)
     if evr.size == 0:
         raise InputError("the report has no explained-variance ratios (no PCA screening)")
-    fig, ax = _target(ax, (6.0, 4.0))
+    fig, ax = target(ax, (6.0, 4.0))
     x = np.arange(1, evr.size + 1)
     ncomp = int(scr.get("n_components", 0))
     colors = ["C0" if i < ncomp else "0.7" for i in range(evr.size)]
@@ -206,12 +206,12 @@ def plot_explained_variance(
     ax.set_title(f"Explained variance ({ncomp} component(s) retained)")
     ax.legend(loc="center right", fontsize=8)
     ax.grid(axis="y", alpha=0.3)
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 # --------------------------------------------------------------------------- time series
 def plot_timeseries(
-    data: Any, *, ax: Axes | None = None, path: _PathLike | None = None,
+    data: Any, *, ax: Axes | None = None, path: PathLike | None = None,
 ) -> Figure:
     """Uncompensated (``mag``) and compensated (``mag_comp``) total field against time.
 
@@ -229,29 +229,29 @@ def plot_timeseries(
     Figure
     """
     data = _data(data)
-    fig, ax = _target(ax, (9.0, 4.0))
+    fig, ax = target(ax, (9.0, 4.0))
     t = data["time"].to_numpy(dtype=np.float64)
-    before = _field_before_rows(data)
+    before = field_before_rows(data)
     comp = data["mag_comp"].to_numpy()
     # Enveloped block by block: no full-length abscissa, labels or keys (issue 15).
-    tax, blocks = _time_blocks(
+    tax, blocks = time_blocks(
         t, lambda a, b: [before(a, b), np.asarray(comp[a:b], dtype=np.float64)])
-    (xb, yb), (xc, yc) = _streamed_envelopes(len(t), blocks, 2)
+    (xb, yb), (xc, yc) = streamed_envelopes(len(t), blocks, 2)
     ax.plot(xb, yb, color="0.55", lw=0.8, label="uncompensated (mag)")
     ax.plot(xc, yc, color="C0", lw=0.9, label="compensated (mag_comp)")
-    _format_time(ax, tax.is_date, tax.label)
+    format_time(ax, tax.is_date, tax.label)
     ax.ticklabel_format(axis="y", useOffset=False, style="plain")
     ax.set_ylabel("total field (nT)")
     ax.set_title("Uncompensated vs compensated total field")
     ax.legend(loc="upper right", fontsize=8)
     ax.grid(alpha=0.3)
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 def plot_residuals(
     time_s: Any, before_bp: np.ndarray | None = None, after_bp: np.ndarray | None = None, *,
     kept: np.ndarray | None = None, band_hz: tuple[float, float] | None = None,
-    ax: Axes | None = None, path: _PathLike | None = None,
+    ax: Axes | None = None, path: PathLike | None = None,
 ) -> Figure:
     """Band-passed field before (``mag``) and after (``mag - mag_tl``) compensation.
 
@@ -288,7 +288,7 @@ def plot_residuals(
         kept = kept_mask(data) if kept is None else kept
         band_hz = tuple(q.metrics["band_hz"]) if band_hz is None else band_hz
         time_s = data["time"].to_numpy()
-    fig, ax = _target(ax, (9.0, 4.0))
+    fig, ax = target(ax, (9.0, 4.0))
     t = np.asarray(time_s, dtype=np.float64)
     bp = np.asarray(before_bp)
     ap = np.asarray(after_bp)
@@ -306,24 +306,24 @@ def plot_residuals(
         return out
 
     # Enveloped block by block: no full-length abscissa, masked copies, labels or keys.
-    tax, blocks = _time_blocks(t, lines)
-    env = _streamed_envelopes(len(t), blocks, 3 if dropped else 2)
+    tax, blocks = time_blocks(t, lines)
+    env = streamed_envelopes(len(t), blocks, 3 if dropped else 2)
     ax.plot(*env[0], color="0.6", lw=0.7, label="before: mag")
     ax.plot(*env[1], color="C0", lw=0.8, label="after: mag - mag_tl (kept segments)")
     if dropped:
         ax.plot(*env[2], color="C3", lw=0.8, label="after (dropped segments)")
-    _format_time(ax, tax.is_date, tax.label)
+    format_time(ax, tax.is_date, tax.label)
     ax.set_ylabel("band-passed field (nT)")
     band = f" {band_hz[0]:g}-{band_hz[1]:g} Hz" if band_hz else ""
     ax.set_title(f"Band-passed{band} field before and after compensation")
     ax.legend(loc="upper right", fontsize=8)
     ax.grid(alpha=0.3)
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 def plot_psd(
     data: Any, *, band_hz: tuple[float, float] | None = None, nperseg: int = 512,
-    ax: Axes | None = None, path: _PathLike | None = None,
+    ax: Axes | None = None, path: PathLike | None = None,
 ) -> Figure:
     """Power spectral density (Welch, per stretch) of the field before and after compensation.
 
@@ -348,10 +348,10 @@ def plot_psd(
     if band_hz is None and _report(data).get("band_hz"):
         band_hz = tuple(_report(data)["band_hz"])
     data = _data(data)
-    fig, ax = _target(ax, (7.0, 4.5))
+    fig, ax = target(ax, (7.0, 4.5))
     t = data["time"].to_numpy(dtype=np.float64)
-    step = _median_step(t)
-    f, pb = _welch(_field_before(data), t, nperseg, step)
+    step = median_step(t)
+    f, pb = _welch(field_before(data), t, nperseg, step)
     f2, pa = _welch(data["mag_comp"].to_numpy(dtype=np.float64), t, nperseg, step)
     ax.loglog(f[1:], pb[1:], color="0.55", lw=1, label="uncompensated (mag)")
     ax.loglog(f2[1:], pa[1:], color="C0", lw=1, label="compensated (mag_comp)")
@@ -366,12 +366,12 @@ def plot_psd(
     ax.legend(loc="upper right", fontsize=8)
     ax.grid(alpha=0.3, which="both")
     plain_log_ticks(ax)
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 def plot_term_contributions(
     data: Any, report: dict[str, Any] | None = None, *, ax: Axes | None = None,
-    path: _PathLike | None = None,
+    path: PathLike | None = None,
 ) -> Figure:
     """Permanent, induced and eddy contributions to ``mag_tl`` against time.
 
@@ -402,20 +402,20 @@ def plot_term_contributions(
     if not report.get("terms") or not report.get("coef"):
         raise InputError("the report has no model (terms, coef)")
     terms, coef = tuple(report["terms"]), report["coef"]
-    names = list(_term_groups(terms))
-    fig, ax = _target(ax, (9.0, 4.0))
+    names = list(term_groups(terms))
+    fig, ax = target(ax, (9.0, 4.0))
     t = data["time"].to_numpy(dtype=np.float64)
-    tax, gap, n = _TimeAxis(t), _stretch_gap_s(t), len(t)
-    stats = {g: _NanStd() for g in names}
+    tax, gap, n = TimeAxis(t), stretch_gap_s(t), len(t)
+    stats = {g: NanStd() for g in names}
     counted = [False]
 
     def blocks() -> Any:
-        for a, b, parts in _term_blocks(data, terms, coef):
+        for a, b, parts in term_blocks(data, terms, coef):
             ys = [parts[g] for g in names]
             if not counted[0]:
                 for g, y in zip(names, ys, strict=True):
                     stats[g].add(y)
-            yield a, tax(t[a:b]), _new_stretch(t, a, b, gap), ys
+            yield a, tax(t[a:b]), new_stretch(t, a, b, gap), ys
         counted[0] = True
 
     # Each line's drawable x range, guessed from the rows with a fluxgate sample (the groups
@@ -429,7 +429,7 @@ def plot_term_contributions(
             ok &= np.isfinite(f[a:a + ENVELOPE_BLOCK])
         if ok.any():
             lo, hi = min(lo, float(np.min(x[ok]))), max(hi, float(np.max(x[ok])))
-    env = _streamed_envelopes(n, blocks, len(names), [(lo, hi)] * len(names))
+    env = streamed_envelopes(n, blocks, len(names), [(lo, hi)] * len(names))
     exact = None
     for j, name in enumerate(names):
         sd = stats[name].text()
@@ -439,17 +439,17 @@ def plot_term_contributions(
             sd = f"{np.nanstd(exact[name].to_numpy()):.2f}"
         ax.plot(*env[j], lw=0.9, color=f"C{j}", label=f"{name} (std {sd} nT)")
     del exact
-    _format_time(ax, tax.is_date, tax.label)
+    format_time(ax, tax.is_date, tax.label)
     ax.set_ylabel("interference (nT)")
     ax.set_title("Term contributions to the modelled interference")
     ax.legend(loc="upper right", fontsize=8)
     ax.grid(alpha=0.3)
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 # --------------------------------------------------------------------------- FOM
 def plot_fom(
-    fom: Any, *, ax: Axes | None = None, path: _PathLike | None = None,
+    fom: Any, *, ax: Axes | None = None, path: PathLike | None = None,
 ) -> Figure:
     """FOM bar chart: peak-to-peak per heading and manoeuvre, before and after compensation.
 
@@ -481,7 +481,7 @@ def plot_fom(
         fom = q.fom
     if fom is None or len(fom) == 0:
         raise InputError("no manoeuvres: no FOM chart")
-    fig, ax = _target(ax, (9.0, 4.5))
+    fig, ax = target(ax, (9.0, 4.5))
     agg = fom.groupby(["heading_leg", "maneuver"])[["ptp_before_nT", "ptp_after_nT"]].mean()
     labels, before, after = [], [], []
     for h in range(4):
@@ -501,4 +501,4 @@ def plot_fom(
     ax.set_title(f"Figure of Merit: {np.sum(before):.2f} nT before, {np.sum(after):.3f} nT after")
     ax.legend(loc="upper right", fontsize=8)
     ax.grid(axis="y", alpha=0.3, which="both")
-    return _finish(fig, path)
+    return finish(fig, path)

@@ -12,14 +12,14 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from ..errors import InputError
-from ._style import _data, _finish, _PathLike, _target
+from ._style import PathLike, _data, finish, target
 
 __all__ = ["plot_map"]
 
 
 def plot_map(
     data: Any, *, column: str = "mag_comp", ax: Axes | None = None,
-    path: _PathLike | None = None, max_points: int = 20_000,
+    path: PathLike | None = None, max_points: int = 20_000,
 ) -> Figure:
     """The flight in metres (east, north of its first fix), coloured by the compensated field.
 
@@ -74,7 +74,7 @@ def plot_map(
     # (a full-length int64 copy, 16 MB at 2e6 rows); both are decided row by row.
     drawn = data.iloc[idx]
     kept = kept_mask(drawn)
-    fig, ax = _target(ax, (6.5, 6.0))
+    fig, ax = target(ax, (6.5, 6.0))
     vk = v[kept]
     lo, hi = np.percentile(vk if vk.size else v, [2, 98])
     sc = ax.scatter(east[kept], north[kept], c=vk, s=4, cmap="viridis", vmin=lo, vmax=hi,
@@ -101,7 +101,7 @@ def plot_map(
     ax.ticklabel_format(useOffset=False, style="plain")
     ax.set_title(f"Flight coloured by {column} (origin: first fix)")
     ax.grid(alpha=0.3)
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 def _every_nth(mask: np.ndarray, step: int, block: int = 1 << 18) -> np.ndarray:

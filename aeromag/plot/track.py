@@ -19,7 +19,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from .._core.geodesy import geodetic_to_ned
-from ._style import _finish, _format_time, _line, _target, new_figure, save_figure, time_axis
+from ._style import _line, finish, format_time, new_figure, save_figure, target, time_axis
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..track import TrackResult
@@ -61,7 +61,7 @@ def plot_track_map(result: TrackResult, plan: pd.DataFrame | None = None, *,
     Figure
     """
     p = _plan_of(result, plan)
-    fig, ax = _target(ax, (7.0, 7.0))
+    fig, ax = target(ax, (7.0, 7.0))
     d = result.data
     origin = tuple(float(p[c].iloc[0]) for c in ("lat", "lon", "alt"))
     wps = geodetic_to_ned(p["lat"], p["lon"], p["alt"], origin)
@@ -94,7 +94,7 @@ def plot_track_map(result: TrackResult, plan: pd.DataFrame | None = None, *,
         ax.set_title("Planned vs flown track: no leg checked (no sample on any leg)")
     else:
         ax.set_title(f"Planned vs flown track: legs flagged {flagged if flagged else 'none'}")
-    return _finish(fig, path)
+    return finish(fig, path)
 
 
 def plot_track_timeseries(result: TrackResult, *, threshold_m: float | None = None,
@@ -128,7 +128,7 @@ def plot_track_timeseries(result: TrackResult, *, threshold_m: float | None = No
             fig.clear()
             ax0, ax1 = fig.subplots(2, 1, sharex=True)
     else:
-        fig, ax0 = _target(ax, (10.0, 3.5))
+        fig, ax0 = target(ax, (10.0, 3.5))
     xt = d["xtrack_m"].to_numpy(dtype=np.float64)
     legs = d["leg"].fillna(-1).to_numpy(dtype=np.int64)
     _line(ax0, x, xt, legs, color="C0", lw=0.8, label="xtrack_m")
@@ -146,10 +146,10 @@ def plot_track_timeseries(result: TrackResult, *, threshold_m: float | None = No
             ax1.plot(x[ha], hd[ha], "r.", ms=2, label="heading alarm")
         ax1.set_ylabel("heading diff (deg)")
         ax1.legend(loc="upper right", fontsize=8)
-        _format_time(ax1, is_date, label)
+        format_time(ax1, is_date, label)
     else:
-        _format_time(ax0, is_date, label)
-    return _finish(fig, path)
+        format_time(ax0, is_date, label)
+    return finish(fig, path)
 
 
 def plot_track(result: TrackResult, plan: pd.DataFrame | None, out_dir: _PathLike, *,

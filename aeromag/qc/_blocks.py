@@ -17,7 +17,7 @@ from .._core.filters import filter_stretches
 __all__: list[str] = []
 
 #: Samples per chunk of the block means' passes over the full-rate log.
-_CHUNK = 1 << 18
+CHUNK = 1 << 18
 
 
 def _gap_runs(t: np.ndarray, max_gap_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -30,14 +30,14 @@ def _gap_runs(t: np.ndarray, max_gap_s: float) -> tuple[np.ndarray, np.ndarray]:
     if n == 0:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     brk = [np.zeros(1, dtype=np.int64)]
-    for s in range(0, max(n - 1, 0), _CHUNK):
-        dt = np.diff(t[s: s + _CHUNK + 1])
+    for s in range(0, max(n - 1, 0), CHUNK):
+        dt = np.diff(t[s: s + CHUNK + 1])
         brk.append(np.flatnonzero(~(dt <= max_gap_s)) + (s + 1))
     s0 = np.concatenate(brk)
     return s0, np.r_[s0[1:], n].astype(np.int64)
 
 
-def _block_means(df: pd.DataFrame, t: np.ndarray, step: int, max_gap_s: float
+def block_means(df: pd.DataFrame, t: np.ndarray, step: int, max_gap_s: float
                  ) -> tuple[pd.DataFrame, np.ndarray]:
     """Means over blocks of ``step`` samples that never cross a time gap.
 
@@ -55,10 +55,10 @@ def _block_means(df: pd.DataFrame, t: np.ndarray, step: int, max_gap_s: float
 
     nb_all = len(first)
     ends = np.r_[first[1:], n]
-    # Blocks of blocks (about _CHUNK samples each): the heading's and the time's full-length
+    # Blocks of blocks (about CHUNK samples each): the heading's and the time's full-length
     # float64 temporaries (five of 16 MB at 2e6 rows: 132 MB peak) are made a chunk at a time.
     # Each block's sum is one reduceat segment whatever the chunk, so the means are the same.
-    k_bounds = np.r_[0:nb_all:max(1, _CHUNK // max(step, 1)), nb_all]
+    k_bounds = np.r_[0:nb_all:max(1, CHUNK // max(step, 1)), nb_all]
 
     def mean(get: Any) -> np.ndarray:
         """Block means of ``get(s, e)`` (samples ``[s, e)``, any float dtype) in float64."""
@@ -137,7 +137,7 @@ def max_gap(t: np.ndarray, max_gap_s: float | None) -> float:
 
 def run_edges(t: np.ndarray, valid: Callable[[int, int], np.ndarray], max_gap_s: float,
               split: Callable[[int, int], np.ndarray] | None = None,
-              chunk: int = _CHUNK) -> tuple[np.ndarray, np.ndarray]:
+              chunk: int = CHUNK) -> tuple[np.ndarray, np.ndarray]:
     """``[start, stop)`` of the stretches of a log, a chunk of samples at a time.
 
     The runs of :func:`~aeromag._core.stretches.find_stretches`, also cut where ``split``
@@ -195,7 +195,7 @@ def run_edges(t: np.ndarray, valid: Callable[[int, int], np.ndarray], max_gap_s:
             else np.zeros(0, dtype=np.int64))
 
 
-def run_blocks(starts: np.ndarray, stops: np.ndarray, chunk: int = _CHUNK
+def run_blocks(starts: np.ndarray, stops: np.ndarray, chunk: int = CHUNK
                ) -> list[tuple[int, int, np.ndarray, np.ndarray]]:
     """Consecutive runs grouped into blocks of about ``chunk`` samples (a longer run alone).
 
@@ -230,7 +230,7 @@ def local_labels(m: int, starts: np.ndarray, stops: np.ndarray) -> np.ndarray:
 def filter_runs(get: Callable[[int, int], np.ndarray], out: np.ndarray, starts: np.ndarray,
                 stops: np.ndarray, sos: np.ndarray, *,
                 each: Callable[[int, int, np.ndarray], None] | None = None,
-                chunk: int = _CHUNK) -> None:
+                chunk: int = CHUNK) -> None:
     """Zero-phase filter every run on its own, a block of runs at a time, into ``out``.
 
     Every row of every run is filtered alone whatever the grouping

@@ -33,7 +33,7 @@ def _heading_source(df: pd.DataFrame, declination_deg: float) -> tuple[np.ndarra
     return h, "fluxgate"
 
 
-def _heading_unit(df: pd.DataFrame, declination_deg: float) -> tuple[np.ndarray, np.ndarray]:
+def heading_unit(df: pd.DataFrame, declination_deg: float) -> tuple[np.ndarray, np.ndarray]:
     """``(cos, sin)`` of :func:`_heading_source`'s heading and where it is finite.
 
     From the fluxgate without trigonometry: ``(Xh, -Yh) / |(Xh, Yh)|``, rotated by the

@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 
 if TYPE_CHECKING:
-    from .maneuvers import ManeuverResult
+    from .maneuver_result import ManeuverResult
 
 log = logging.getLogger(__name__)
 

@@ -72,7 +72,7 @@ def moving_mean(x: np.ndarray, stretch: np.ndarray, half_width: int) -> np.ndarr
     return out if xv.ndim == 2 else out[:, 0]
 
 
-def _run_index(n: int, starts: np.ndarray, stops: np.ndarray) -> np.ndarray:
+def run_index(n: int, starts: np.ndarray, stops: np.ndarray) -> np.ndarray:
     """Index of the (disjoint, ordered) run holding each sample, -1 outside every run."""
     mark = np.zeros(n + 1, dtype=np.int64)
     j = np.arange(1, len(starts) + 1, dtype=np.int64)
@@ -81,7 +81,7 @@ def _run_index(n: int, starts: np.ndarray, stops: np.ndarray) -> np.ndarray:
     return np.cumsum(mark[:-1]) - 1
 
 
-def _run_sums(x: np.ndarray, starts: np.ndarray, stops: np.ndarray) -> np.ndarray:
+def run_sums(x: np.ndarray, starts: np.ndarray, stops: np.ndarray) -> np.ndarray:
     """Sums of ``x`` (shape (n,) or (n, m)) over the runs ``[starts, stops)``."""
     if len(starts) == 0:
         return np.zeros((0,) + x.shape[1:])

@@ -13,7 +13,6 @@ import numpy as np
 import pandas as pd
 
 from .._core.fit_diagnostics import diagnostics_from_stats, loso_cv, variance_inflation
-from .._core.libc import trim_heap
 from ..compensation.config import CompensationConfig
 from ..compensation.normal import segment_normal_equations
 from ..compensation.prepare import prepare
@@ -71,14 +70,9 @@ def fit_diagnostics(
     # (8 MB fewer at 2e6 rows while they are built), the same values (prepare's
     # flux_columns=True already gives int32).
     prep.stretch = prep.stretch.astype(np.int32, copy=False)
-    # prepare's temporaries (the sampling rate's median, the magnitude blocks) were freed but
-    # stay resident in glibc's heap: given back, the normal equations' batches reuse
-    # nothing of them and the rise stays lower (~10 MB at 2e6 rows; ~1 ms).
-    trim_heap()
     # Small filtering batches: ~4 MB per filter-pool thread instead of 33 MB.
     stats = segment_normal_equations(prep, fit_terms, cfg, batch_samples=8_192)
     del prep  # its full-length arrays: the diagnostics need only the per-segment sums
-    trim_heap()
     kept_samples = kept_mask(data)
     kept_ids = _kept_segment_ids(seg, kept_samples) if has_seg else stats.ids
     kept = np.isin(stats.ids, kept_ids)

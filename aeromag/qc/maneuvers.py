@@ -34,7 +34,6 @@ none) overrides the detection.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -42,94 +41,26 @@ import pandas as pd
 
 from .._core.angles import wrap_deg
 from .._core.filters import sampling_rate
-from .._core.libc import trim_heap
 from .._core.runs import run_bounds
 from .._core.stretches import find_stretches
 from ..errors import InputError
-from ._blocks import _block_means, _gap_runs  # noqa: F401 - _gap_runs: tests
-from ._heading import _heading_source, _heading_unit  # noqa: F401 - _heading_source: tests
+from ._blocks import block_means
+from ._heading import heading_unit
 from ._lines import clip_to_lines
-from ._windows import _run_index, _run_sums, moving_mean
+from ._windows import moving_mean, run_index, run_sums
+from .maneuver_result import (
+    CARDINALS,
+    LABEL_DTYPES,
+    MANEUVERS,
+    ManeuverResult,
+)
 
 __all__ = ["CARDINALS", "MANEUVERS", "ManeuverResult", "detect_heading_legs",
            "detect_maneuvers", "moving_mean"]
 
 log = logging.getLogger(__name__)
 
-#: Cardinal headings in order of ``heading_leg`` (N=0, E=1, S=2, W=3).
-CARDINALS: tuple[str, ...] = ("N", "E", "S", "W")
-#: Manoeuvre names in customary flight order (also the order of the body rotation axes used:
-#: pitch = body y, roll = body x, yaw = body z).
-MANEUVERS: tuple[str, ...] = ("pitch", "roll", "yaw")
 _AXIS_OF = {"pitch": 1, "roll": 0, "yaw": 2}
-#: dtypes of the per-sample labels (:attr:`ManeuverResult.labels`): -1 to 3 for the cardinal,
-#: run and visit numbers far below 2**31 (a 2e6-row log has ~2,700 legs): 28 bytes a row
-#: fewer than int64 (66 -> 28 MB at 2e6 rows).
-LABEL_DTYPES: dict[str, Any] = {"heading_leg": np.int8, "leg_id": np.int32, "box": np.int32,
-                                "maneuver_id": np.int32}
-
-
-@dataclass
-class ManeuverResult:
-    """Heading legs and manoeuvres of a flight.
-
-    Attributes
-    ----------
-    labels : DataFrame
-        One row per input sample (same index): ``heading_leg`` (0-3, -1 outside legs;
-        int8), ``leg_id`` (run number, -1; int32), ``box`` (visit number of that heading, -1;
-        int32), ``maneuver`` ("pitch"/"roll"/"yaw" or ""; categorical), ``maneuver_id`` (row
-        of ``table``, -1; int32) (:data:`LABEL_DTYPES`).
-    table : DataFrame
-        One row per manoeuvre: ``id``, ``box``, ``heading_leg``, ``heading`` (N/E/S/W),
-        ``maneuver``, ``t_start``/``t_end`` [s], ``duration_s`` [s], ``n`` (samples),
-        ``rms_deg`` (rms angle of the manoeuvre axis, deg; NaN from a column), ``ambiguous``.
-    legs : DataFrame
-        One row per heading leg: ``leg_id``, ``box``, ``heading_leg``, ``heading``,
-        ``t_start``/``t_end`` [s], ``mean_heading_deg``.
-    method : str
-        ``"attitude"``, ``"fluxgate"`` or ``"column:<name>"``.
-    heading_offset_deg : float
-        Common offset of the flown headings from the cardinals [deg].
-    notes : list of str
-        Anything the user should know (ambiguities, incomplete boxes).
-    """
-
-    labels: pd.DataFrame
-    table: pd.DataFrame
-    legs: pd.DataFrame
-    method: str
-    heading_offset_deg: float = 0.0
-    notes: list[str] = field(default_factory=list)
-
-    @property
-    def complete_boxes(self) -> list[int]:
-        """Boxes with all 12 (heading, manoeuvre) pairs."""
-        return complete_boxes(self.table)
-
-
-def complete_boxes(table: pd.DataFrame) -> list[int]:
-    """Boxes of a manoeuvre table that hold all 12 (heading, manoeuvre) pairs.
-
-    Parameters
-    ----------
-    table : DataFrame
-        ``box``, ``heading_leg`` (0-3) and ``maneuver`` (pitch/roll/yaw) per manoeuvre.
-
-    Returns
-    -------
-    list of int
-        Box numbers, ascending.
-    """
-    if table.empty:
-        return []
-    code = pd.Categorical(table["maneuver"], categories=MANEUVERS).codes.astype(np.int64)
-    box = table["box"].to_numpy(dtype=np.int64)
-    ok = code >= 0
-    pair = np.unique(box[ok] * 12 + table["heading_leg"].to_numpy(dtype=np.int64)[ok] * 3
-                     + code[ok])
-    boxes, count = np.unique(pair // 12, return_counts=True)
-    return [int(b) for b in boxes[count == 12]]
 
 
 # --------------------------------------------------------------------------- helpers
@@ -185,7 +116,7 @@ def detect_heading_legs(
         offset = 0.0
         stretch = find_stretches(t, None, max_gap_s)
     else:
-        unit, ok = _heading_unit(df, declination_deg)
+        unit, ok = heading_unit(df, declination_deg)
         stretch = find_stretches(t, ok, max_gap_s)
         del ok
         half = max(1, int(round(smooth_s * fs / 2)))
@@ -221,7 +152,7 @@ def detect_heading_legs(
     for c in range(4):
         sel = card_of_leg == c
         box_of_leg[sel] = np.arange(int(sel.sum()))
-    leg_id = _run_index(n, ks, ke)
+    leg_id = run_index(n, ks, ke)
     inleg = leg_id >= 0
     if len(kv):
         heading_leg = np.where(inleg, card_of_leg[np.maximum(leg_id, 0)], -1)
@@ -406,21 +337,18 @@ def detect_maneuvers(
     if step < 2 or maneuver_column is not None or leg_column is not None:
         res = _narrow(_detect_full(df, max_gap_s=max_gap_s, **kw))
     else:
-        small, cnt = _block_means(df, t, step, 5.0 / fs if max_gap_s is None else max_gap_s)
-        trim_heap()  # the block means' freed temporaries, before the detection's own
+        small, cnt = block_means(df, t, step, 5.0 / fs if max_gap_s is None else max_gap_s)
         if len(small) < 10:
             del small
             res = _narrow(_detect_full(df, max_gap_s=max_gap_s, **kw))
         else:
             red = _detect_full(small, max_gap_s=None, **kw)
             del small
-            trim_heap()  # the reduced log and the detection's temporaries, before expanding
             res = _expand(red, df, t, fs, cnt)
             del red
     # a manoeuvre never spans two lines (its tail would sample a neighbour, maybe a fault)
     if "line" in df.columns:
         res = clip_to_lines(res, df["line"], t, fs)
-    trim_heap()  # only the labels and tables stay
     return res
 
 
@@ -492,7 +420,6 @@ def _detect_full(
     labels, legs, offset = detect_heading_legs(
         df, min_leg_s=min_leg_s, smooth_s=smooth_s, tolerance_deg=tolerance_deg,
         declination_deg=declination_deg, max_gap_s=max_gap_s, leg_column=leg_column)
-    trim_heap()  # the leg detection's freed temporaries, before the energy's own
     t = df["time"].to_numpy(dtype=np.float64)
     n = len(t)
     fs = sampling_rate(t)
@@ -535,13 +462,13 @@ def _detect_full(
     lid = (vals // 3).astype(np.int64)
     man_code = (vals % 3).astype(np.int64)
     length = stops - starts
-    amb = (2 * _run_sums(ambiguous.astype(np.int64), starts, stops) > length) \
+    amb = (2 * run_sums(ambiguous.astype(np.int64), starts, stops) > length) \
         if len(starts) else np.zeros(0, dtype=bool)
     if method == "fluxgate":
         _resolve_ambiguous(lid, man_code, amb, notes)
     leg_box = legs["box"].to_numpy(dtype=np.int64)
     leg_card = legs["heading_leg"].to_numpy(dtype=np.int64)
-    rms_sum = _run_sums(np.where(np.isfinite(rms_axis), rms_axis, np.nan), starts, stops)
+    rms_sum = run_sums(np.where(np.isfinite(rms_axis), rms_axis, np.nan), starts, stops)
     table = pd.DataFrame({
         "id": np.arange(len(starts)), "box": leg_box[lid], "heading_leg": leg_card[lid],
         "heading": np.asarray(CARDINALS, dtype=object)[leg_card[lid]],
@@ -549,7 +476,7 @@ def _detect_full(
         "t_start": t[starts], "t_end": t[stops - 1],
         "duration_s": t[stops - 1] - t[starts] + 1.0 / fs, "n": length,
         "rms_deg": rms_sum / np.maximum(length, 1), "ambiguous": amb.astype(bool)})
-    mid = _run_index(n, starts, stops)
+    mid = run_index(n, starts, stops)
     codes = np.where(mid >= 0, man_code[np.maximum(mid, 0)] + 1, 0) if len(starts) \
         else np.zeros(n, dtype=np.int64)
     labels["maneuver"] = pd.Categorical.from_codes(codes, categories=["", *MANEUVERS])

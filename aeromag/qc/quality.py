@@ -25,7 +25,6 @@ import numpy as np
 import pandas as pd
 
 from .._core.filters import sampling_rate
-from .._core.libc import trim_heap
 from .._core.stretches import find_stretches
 from ..compensation.apply import isolate_dropped
 from ..compensation.config import CompensationConfig
@@ -178,7 +177,6 @@ def compute_qc(
     maneuver_column: str | None = None,
     fit: bool = True,
     fom: bool = True,
-    keep_labels: bool = True,
 ) -> QCResult:
     """All quality-control metrics of a compensated log.
 
@@ -201,10 +199,6 @@ def compute_qc(
     fom : bool
         Detect manoeuvres and compute the FOM (a calibration flight); False skips it unless
         ``maneuvers`` or ``maneuver_column`` is given.
-    keep_labels : bool
-        Keep the per-sample manoeuvre labels of manoeuvres detected here in the result
-        (``maneuvers.labels``).  False (the report, which shows only the tables) empties them
-        once the FOM table is built: 26 MB less at the per-piece band-pass of a 2e6-row log.
 
     Returns
     -------
@@ -218,20 +212,20 @@ def compute_qc(
         warnings.warn("compute_qc(data, report, cfg) is deprecated: pass the CompensationResult",
                       DeprecationWarning, stacklevel=2)
         rep = (legacy[0] if legacy else None) or {}
-        cfg = config or (legacy[1] if len(legacy) > 1 else None) or _config_of(rep)
+        cfg = config or (legacy[1] if len(legacy) > 1 else None) or config_of(rep)
         return _compute(result, rep, cfg, maneuvers=maneuvers, maneuver_column=maneuver_column,
-                        fit=fit, fom_on=fom, keep_labels=keep_labels)
+                        fit=fit, fom_on=fom)
     if legacy:
         raise TypeError("compute_qc(result): too many positional arguments")
     cfg = config if config is not None else getattr(result, "config", None)
     report = getattr(result, "report", None) or {}
     if cfg is None:
-        cfg = _config_of(report)
+        cfg = config_of(report)
     data = result.data
     if data is None:
         raise InputError("this result holds no compensated data (use compensate())")
     return _compute(data, report, cfg, maneuvers=maneuvers, maneuver_column=maneuver_column,
-                    fit=fit, fom_on=fom, keep_labels=keep_labels)
+                    fit=fit, fom_on=fom)
 
 
 def _noise_pair(mag: np.ndarray, tl: np.ndarray | None, comp: np.ndarray, t: np.ndarray,
@@ -248,7 +242,6 @@ def _noise_pair(mag: np.ndarray, tl: np.ndarray | None, comp: np.ndarray, t: np.
 def _compute(
     data: pd.DataFrame, report: dict[str, Any], cfg: CompensationConfig, *,
     maneuvers: ManeuverResult | None, maneuver_column: str | None, fit: bool, fom_on: bool,
-    keep_labels: bool = True,
 ) -> QCResult:
     terms = tuple(report.get("terms") or TERMS_16)
     base_metrics = report.get("metrics") or None
@@ -289,10 +282,8 @@ def _compute(
             fit_out = fit_diagnostics(data, cfg, terms, seg=seg.copy())
         except AeromagError as exc:
             fit_error = exc
-        trim_heap()
     noise_before, noise_after = _noise_pair(mag, tl if has_tl else None, comp, t,
                                             cfg.max_gap_s)
-    trim_heap()  # the noise's freed block temporaries, before the manoeuvre detection
     detect_error: AeromagError | None = None
     detected = maneuvers is None and (fom_on or maneuver_column is not None)
     if detected:
@@ -309,14 +300,9 @@ def _compute(
     heading_leg = None
     if maneuvers is not None:
         heading_leg = maneuvers.labels["heading_leg"].to_numpy()
-        if detected and not keep_labels:
-            heading_leg = heading_leg.copy()  # the labels' other columns go now
-            maneuvers = dataclasses.replace(maneuvers, labels=maneuvers.labels.iloc[:0].copy())
-    trim_heap()
     kept = kept_mask(data)
     pieces = piece_residuals(t, mag, tl, seg, kept, band, cfg.order, trim_s=cfg.trim_s,
                              max_gap_s=cfg.max_gap_s, fs_hz=fs)
-    trim_heap()  # the pieces' freed block temporaries
     # The headline is the compensation's own metrics of this log (OUT.json metrics, computed on
     # its prepared arrays: gaps interpolated, stretches as fitted); recomputed only without them.
     cm = (base_metrics if base_metrics and "all_improvement_ratio" in base_metrics
@@ -348,7 +334,6 @@ def _compute(
         metrics["residual_std_by_heading_nT"] = {
             CARDINALS[k]: v for k, v in grouped_std(resid_bp, hl).items()}
         del hl
-        trim_heap()  # grouped_std's freed temporaries, before the tables are assembled
         metrics["maneuvers"] = {
             "method": maneuvers.method, "n_legs": len(maneuvers.legs),
             "n_maneuvers": len(maneuvers.table), "complete_boxes": maneuvers.complete_boxes,
@@ -419,12 +404,12 @@ def quality_metrics(
         See :func:`compute_qc`.
     """
     rep = report or {}
-    cfg = cfg if cfg is not None else _config_of(rep)
+    cfg = cfg if cfg is not None else config_of(rep)
     return _compute(data, rep, cfg, maneuvers=maneuvers, maneuver_column=maneuver_column,
                     fit=fit, fom_on=detect).metrics
 
 
-def _config_of(report: dict[str, Any]) -> CompensationConfig:
+def config_of(report: dict[str, Any]) -> CompensationConfig:
     """The configuration recorded in an in-memory report (defaults for what it lacks).
 
     Only for results that do not carry their configuration; files are read by the report

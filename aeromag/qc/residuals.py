@@ -19,7 +19,7 @@ import numpy as np
 
 from .._core.filters import butter_sos, sampling_rate, trim_mask
 from .._core.stretches import find_stretches
-from ._blocks import _CHUNK, filter_runs, max_gap, run_edges
+from ._blocks import CHUNK, filter_runs, max_gap, run_edges
 
 __all__ = ["PieceResiduals", "piece_labels", "piece_residuals", "rms_summary"]
 
@@ -121,8 +121,8 @@ def _summary(before: np.ndarray, after: np.ndarray, use: np.ndarray) -> dict[str
     n = len(use)
     for x in (before, after):
         p = 0
-        for a in range(0, n, _CHUNK):  # x[use] a chunk at a time (no index array)
-            sel = x[a:a + _CHUNK][use[a:a + _CHUNK]]
+        for a in range(0, n, CHUNK):  # x[use] a chunk at a time (no index array)
+            sel = x[a:a + CHUNK][use[a:a + CHUNK]]
             buf[p:p + sel.size] = sel
             p += sel.size
         np.multiply(buf, buf, out=buf)
@@ -196,8 +196,8 @@ def piece_residuals(
     st, sp = run_edges(t, valid, g, lambda a, b: seg[a:b])
     filter_runs(rows, xf, st, sp, sos, each=trimmed, chunk=1 << 16)
     del st, sp
-    for a in range(0, n, _CHUNK):
-        b = min(n, a + _CHUNK)
+    for a in range(0, n, CHUNK):
+        b = min(n, a + CHUNK)
         u = use[a:b]
         u &= np.isfinite(xf[:, a:b]).all(axis=0)
         xf[:, a:b][:, ~u] = np.nan
@@ -222,8 +222,8 @@ def _by_segment(after: np.ndarray, use: np.ndarray, seg: np.ndarray
     n = len(after)
     top = -1
     cnt_ok = 0
-    for a in range(0, n, _CHUNK):
-        b = min(n, a + _CHUNK)
+    for a in range(0, n, CHUNK):
+        b = min(n, a + CHUNK)
         ok = use[a:b] & (seg[a:b] >= 0)
         c = int(np.count_nonzero(ok))
         if c:
@@ -242,8 +242,8 @@ def _by_segment(after: np.ndarray, use: np.ndarray, seg: np.ndarray
         bins = np.arange(top + 1, dtype=np.int64)
         ss_all = np.zeros(top + 1)
         cnt_all = np.zeros(top + 1, dtype=np.int64)
-        for a in range(0, n, _CHUNK):
-            b = min(n, a + _CHUNK)
+        for a in range(0, n, CHUNK):
+            b = min(n, a + CHUNK)
             ok = use[a:b] & (seg[a:b] >= 0)
             s = seg[a:b][ok]
             if not s.size:

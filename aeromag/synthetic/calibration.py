@@ -9,17 +9,17 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
-from .faults import _assemble, _check_nonneg, _check_positive, _common_truth, _resolve_faults
+from .faults import assemble, check_nonneg, check_positive, common_truth, resolve_faults
 from .physics import (
     CAL_HEADINGS_DEG,
     DEFAULT_ORIGIN,
     MANEUVER_AMPLITUDE_DEG,
     MANEUVERS,
     EarthField,
-    _diurnal,
-    _flight_setup,
-    _taper,
     band_noise,
+    diurnal_field,
+    flight_setup,
+    taper,
 )
 
 log = logging.getLogger(__name__)
@@ -111,12 +111,12 @@ def simulate_calibration(
     """
     if manoeuvre_s is not None:
         maneuver_s = manoeuvre_s
-    _check_positive(rate_hz=rate_hz, maneuver_s=maneuver_s, speed_mps=speed_mps)
-    _check_nonneg(noise_nT=noise_nT, flux_noise_nT=flux_noise_nT, turn_s=turn_s,
+    check_positive(rate_hz=rate_hz, maneuver_s=maneuver_s, speed_mps=speed_mps)
+    check_nonneg(noise_nT=noise_nT, flux_noise_nT=flux_noise_nT, turn_s=turn_s,
                   turbulence_deg=turbulence_deg, pos_noise_m=pos_noise_m)
     if int(n_boxes) < 1:
         raise InputError(f"n_boxes: must be at least 1, got {n_boxes!r}")
-    earth, k, rng, rng_noise, rng_fault = _flight_setup(seed, 1, earth, coef)
+    earth, k, rng, rng_noise, rng_fault = flight_setup(seed, 1, earth, coef)
     m = int(round(maneuver_s * rate_hz))
     if m < 20:
         raise InputError(f"maneuver_s: {maneuver_s} s at {rate_hz} Hz gives under 20 samples")
@@ -148,7 +148,7 @@ def simulate_calibration(
                 phase = float(rng.uniform(0, 2 * np.pi))
                 amp = MANEUVER_AMPLITUDE_DEG[man]
                 att[man][sl] += (
-                    amp * _taper(m, ramp) * np.sin(2 * np.pi * tau[:m] / period + phase)
+                    amp * taper(m, ramp) * np.sin(2 * np.pi * tau[:m] / period + phase)
                 )
                 man_col[sl] = man
                 line_col[sl] = seg
@@ -183,10 +183,10 @@ def simulate_calibration(
                 t0 += nt / rate_hz
 
     time = np.concatenate(times)
-    diurnal, diurnal_comps = _diurnal(rng, time, diurnal_nT)
+    diurnal, diurnal_comps = diurnal_field(rng, time, diurnal_nT)
     line = np.concatenate(lines)
-    plan = _resolve_faults(faults, np.unique(line[line >= 0]), rng_fault)
-    df, records = _assemble(
+    plan = resolve_faults(faults, np.unique(line[line >= 0]), rng_fault)
+    df, records = assemble(
         time=time, line=line, enu=np.concatenate(enus), heading=np.concatenate(hdgs),
         pitch=np.concatenate(pits), roll=np.concatenate(rols),
         anomaly_ned=np.zeros((len(time), 3)), diurnal=diurnal, earth=earth, coef=k,
@@ -196,7 +196,7 @@ def simulate_calibration(
     )  # fmt: skip
     df["truth_maneuver"] = np.concatenate(mans).astype(str)
     df["truth_heading_leg"] = np.concatenate(legs).astype(int)
-    truth = _common_truth(
+    truth = common_truth(
         "calibration", seed=seed, rate_hz=rate_hz, earth=earth, coef=k, noise_nT=noise_nT,
         flux_noise_nT=flux_noise_nT, pos_noise_m=pos_noise_m, origin=origin,
     )  # fmt: skip

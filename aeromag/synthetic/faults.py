@@ -24,7 +24,7 @@ from .physics import (
 log = logging.getLogger(__name__)
 
 
-def _resolve_faults(
+def resolve_faults(
     faults: float | Mapping[int, str] | None, segments: np.ndarray, rng: np.random.Generator
 ) -> dict[int, str]:
     """Turn the ``faults`` argument into ``{segment_id: kind}``."""
@@ -116,7 +116,7 @@ def _apply_faults(
     return scalar, flux, kind_col, records
 
 
-def _assemble(
+def assemble(
     *,
     time: np.ndarray,
     line: np.ndarray,
@@ -182,7 +182,7 @@ def _assemble(
     return df, records
 
 
-def _common_truth(
+def common_truth(
     kind: str,
     *,
     seed: int,
@@ -194,6 +194,11 @@ def _common_truth(
     pos_noise_m: float,
     origin: tuple[float, float, float],
 ) -> dict[str, Any]:
+    """The truth fields every simulated flight records.
+
+    Kind, seed, rate [Hz], Earth field [nT], coefficients, noise levels [nT, m] and origin
+    [deg, deg, m], as JSON-ready values.
+    """
     return {
         "flight": kind,
         "seed": int(seed),
@@ -212,13 +217,15 @@ def _common_truth(
     }
 
 
-def _check_positive(**values: float) -> None:
+def check_positive(**values: float) -> None:
+    """Refuse (InputError) any value that is not a finite number > 0, naming it."""
     for name, v in values.items():
         if not np.isfinite(v) or v <= 0:
             raise InputError(f"{name}: must be a positive number, got {v!r}")
 
 
-def _check_nonneg(**values: float) -> None:
+def check_nonneg(**values: float) -> None:
+    """Refuse (InputError) any value that is not a finite number >= 0, naming it."""
     for name, v in values.items():
         if not np.isfinite(v) or v < 0:
             raise InputError(f"{name}: must be zero or positive, got {v!r}")

@@ -69,7 +69,7 @@ MANOEUVRE_AMPLITUDE_DEG = MANEUVER_AMPLITUDE_DEG
 #: Nominal calibration headings [deg]; ``truth_heading_leg`` is the index (N=0, E=1, S=2, W=3).
 CAL_HEADINGS_DEG: tuple[float, ...] = (0.0, 90.0, 180.0, 270.0)
 
-_MU0_4PI_NT = 100.0  # mu0 / (4 pi) in nT * m / A (1e-7 T m / A)
+MU0_4PI_NT = 100.0  # mu0 / (4 pi) in nT * m / A (1e-7 T m / A)
 
 
 # --------------------------------------------------------------------------- physics
@@ -298,7 +298,7 @@ def dipole_field_ned(points_ned: Any, source_ned: Any, moment_ned: Any) -> np.nd
     rn = np.linalg.norm(r, axis=1)
     rhat = r / rn[:, None]
     mr = rhat @ m
-    return _MU0_4PI_NT * (3.0 * mr[:, None] * rhat - m) / rn[:, None] ** 3
+    return MU0_4PI_NT * (3.0 * mr[:, None] * rhat - m) / rn[:, None] ** 3
 
 
 # --------------------------------------------------------------------------- geodesy
@@ -395,7 +395,7 @@ def _streams(seed: int, flight: int) -> tuple[np.random.Generator, ...]:
     return tuple(np.random.default_rng(s) for s in ss.spawn(3))
 
 
-def _flight_setup(seed: int, flight: int, earth: EarthField | None, coef: Any | None,
+def flight_setup(seed: int, flight: int, earth: EarthField | None, coef: Any | None,
                   ) -> tuple[EarthField, np.ndarray, np.random.Generator, np.random.Generator,
                              np.random.Generator]:
     """The main field, checked TL coefficients and the three streams of one flight.
@@ -440,7 +440,7 @@ def band_noise(
     return x * (rms / sd) if sd > 0 else np.zeros(n)
 
 
-def _taper(n: int, ramp: int) -> np.ndarray:
+def taper(n: int, ramp: int) -> np.ndarray:
     """A window rising from 0 to 1 over ``ramp`` samples at each end (raised cosine)."""
     w = np.ones(n)
     r = max(1, min(ramp, n // 2))
@@ -450,7 +450,7 @@ def _taper(n: int, ramp: int) -> np.ndarray:
     return w
 
 
-def _diurnal(rng: np.random.Generator, time: np.ndarray, amplitude_nT: float) -> tuple[
+def diurnal_field(rng: np.random.Generator, time: np.ndarray, amplitude_nT: float) -> tuple[
     np.ndarray, list[dict[str, float]]
 ]:
     """Slow diurnal variation: three sinusoids with periods of 15-120 min."""

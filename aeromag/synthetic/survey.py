@@ -9,17 +9,17 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
-from .faults import _assemble, _check_nonneg, _check_positive, _common_truth, _resolve_faults
+from .faults import assemble, check_nonneg, check_positive, common_truth, resolve_faults
 from .physics import (
-    _MU0_4PI_NT,
     DEFAULT_ORIGIN,
+    MU0_4PI_NT,
     EarthField,
-    _diurnal,
-    _flight_setup,
-    _taper,
     band_noise,
     dipole_field_ned,
+    diurnal_field,
+    flight_setup,
     local_to_geodetic,
+    taper,
 )
 
 log = logging.getLogger(__name__)
@@ -115,14 +115,14 @@ def simulate_survey(
         ``{"lat", "lon", "alt"}`` in flight order: start and end of each line), ``lines`` and
         ``dipoles``.
     """
-    _check_positive(rate_hz=rate_hz, line_length_m=line_length_m, spacing_m=spacing_m,
+    check_positive(rate_hz=rate_hz, line_length_m=line_length_m, spacing_m=spacing_m,
                     speed_mps=speed_mps, height_m=height_m)
-    _check_nonneg(noise_nT=noise_nT, flux_noise_nT=flux_noise_nT, gust_deg=gust_deg,
+    check_nonneg(noise_nT=noise_nT, flux_noise_nT=flux_noise_nT, gust_deg=gust_deg,
                   yaw_wobble_deg=yaw_wobble_deg, wander_m=wander_m, pos_noise_m=pos_noise_m,
                   turn_s=turn_s)
     if int(n_lines) < 1:
         raise InputError(f"n_lines: must be at least 1, got {n_lines!r}")
-    earth, k, rng, rng_noise, rng_fault = _flight_setup(seed, 2, earth, coef)
+    earth, k, rng, rng_noise, rng_fault = flight_setup(seed, 2, earth, coef)
     n = int(round(line_length_m / speed_mps * rate_hz)) + 1
     if n < 20:
         raise InputError(f"line_length_m: {line_length_m} m at {speed_mps} m/s is too short")
@@ -145,8 +145,8 @@ def simulate_survey(
             a, b = b, a
         hdg = np.rad2deg(az) + (180.0 if i % 2 else 0.0)
         u = (b - a) / line_length_m
-        xt = band_noise(rng, n, rate_hz, 0.01, 0.2, wander_m) * _taper(n, int(rate_hz * 3))
-        zt = band_noise(rng, n, rate_hz, 0.01, 0.2, 0.5 * wander_m) * _taper(n, int(rate_hz * 3))
+        xt = band_noise(rng, n, rate_hz, 0.01, 0.2, wander_m) * taper(n, int(rate_hz * 3))
+        zt = band_noise(rng, n, rate_hz, 0.01, 0.2, 0.5 * wander_m) * taper(n, int(rate_hz * 3))
         enus.append(a + np.outer(s_along, u) + np.outer(xt, right) + np.outer(zt, up))
         hdgs.append(hdg + band_noise(rng, n, rate_hz, 0.05, 0.5, yaw_wobble_deg))
         pits.append(trim_pitch_deg + band_noise(rng, n, rate_hz, 0.1, 1.0, gust_deg))
@@ -177,15 +177,15 @@ def simulate_survey(
         rem = rng.normal(size=3)
         direction = e_unit + 0.5 * rem / np.linalg.norm(rem)
         direction /= np.linalg.norm(direction)
-        moment = peak * (depth + height_m) ** 3 / (2.0 * _MU0_4PI_NT) * direction
+        moment = peak * (depth + height_m) ** 3 / (2.0 * MU0_4PI_NT) * direction
         src = np.array([north, east, depth])
         anomaly_ned += dipole_field_ned(sensor_ned, src, moment)
         dipoles.append({"north_m": float(north), "east_m": float(east), "depth_m": depth,
                         "moment_ned_Am2": moment.tolist(), "nominal_peak_nT": float(peak)})
 
-    diurnal, diurnal_comps = _diurnal(rng, time, diurnal_nT)
-    plan = _resolve_faults(faults, np.unique(line), rng_fault)
-    df, records = _assemble(
+    diurnal, diurnal_comps = diurnal_field(rng, time, diurnal_nT)
+    plan = resolve_faults(faults, np.unique(line), rng_fault)
+    df, records = assemble(
         time=time, line=line, enu=enu, heading=np.concatenate(hdgs),
         pitch=np.concatenate(pits), roll=np.concatenate(rols), anomaly_ned=anomaly_ned,
         diurnal=diurnal, earth=earth, coef=k, noise_nT=noise_nT, flux_noise_nT=flux_noise_nT,
@@ -193,7 +193,7 @@ def simulate_survey(
         rng_noise=rng_noise, rng_fault=rng_fault,
     )  # fmt: skip
     lat, lon, alt = local_to_geodetic(wp[:, 0], wp[:, 1], wp[:, 2], origin)
-    truth = _common_truth(
+    truth = common_truth(
         "survey", seed=seed, rate_hz=rate_hz, earth=earth, coef=k, noise_nT=noise_nT,
         flux_noise_nT=flux_noise_nT, pos_noise_m=pos_noise_m, origin=origin,
     )  # fmt: skip

@@ -500,7 +500,6 @@ def assign_legs(
     *,
     time_s: np.ndarray | None = None,
     model: LegModel | None = None,
-    waypoint_radius_m: float | None = None,
 ) -> np.ndarray:
     """Assign each sample to a mission leg (see :func:`assign_track_legs`).
 
@@ -514,15 +513,12 @@ def assign_legs(
         Sample times, s (default: 10 Hz from 0).
     model : LegModel, optional
         Parameters (default :class:`LegModel`).
-    waypoint_radius_m : float, optional
-        Ignored (the old rule's waypoint sphere); kept so that old calls still run.
 
     Returns
     -------
     ndarray of int, shape (n,)
         Leg index per sample, -1 for none.
     """
-    del waypoint_radius_m
     model = model or LegModel()
     p = np.asarray(ned, dtype=np.float64)
     t = np.arange(len(p)) / 10.0 if time_s is None else np.asarray(time_s, dtype=np.float64)

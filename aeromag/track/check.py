@@ -121,7 +121,6 @@ def check_track(
     heading_deg: np.ndarray | None = None,
     detectors: Sequence[Alarms] = (),
     source: str | None = None,
-    waypoint_radius_m: float | None = None,
 ) -> TrackResult:
     """Flag DGPS track deviations per leg, run the heading detector and combine them.
 
@@ -168,14 +167,11 @@ def check_track(
         each adds ``<name>_alarm`` (on legs only), enters ``alarm`` and the per-leg summary.
     source : str, optional
         Name of the log quoted in errors (default ``log_df.attrs["source"]``).
-    waypoint_radius_m : float, optional
-        Ignored (the old waypoint-sphere rule); kept so that old calls run.
 
     Returns
     -------
     TrackResult
     """
-    del waypoint_radius_m
     src = source or str(log_df.attrs.get("source", "<log>"))
     if not np.isfinite(threshold_m) or threshold_m <= 0:
         raise InputError(f"threshold_m={threshold_m!r}: must be a positive number of metres")

@@ -13,7 +13,7 @@ from .._core.runs import run_bounds
 from .geometry import cross_track
 
 if TYPE_CHECKING:
-    from .legs import LegModel
+    from .leg_model import LegModel
 
 __all__ = ["CONTINUATION_WAYPOINT_MARGIN_M", "continue_legs"]
 

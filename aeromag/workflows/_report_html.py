@@ -15,7 +15,7 @@ import numpy as np
 
 from ..compensation.report import is_epoch
 
-_CSS = """
+CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:2em auto;
 max-width:1100px;color:#222;padding:0 1em}
 h1{font-size:1.5em}h2{font-size:1.2em;margin-top:1.6em;border-bottom:1px solid #ccc}
@@ -29,7 +29,7 @@ figcaption{font-size:.9em;color:#555}.note{color:#a60}.na{color:#a60;font-weight
 """
 
 
-def _fmt(v: Any, digits: int = 4) -> str:
+def fmt(v: Any, digits: int = 4) -> str:
     if v is None:
         return "–"
     if isinstance(v, bool):
@@ -43,16 +43,16 @@ def _fmt(v: Any, digits: int = 4) -> str:
     return html.escape(str(v))
 
 
-def _table(rows: list[list[Any]], header: list[str], classes: list[str] | None = None) -> str:
+def html_table(rows: list[list[Any]], header: list[str], classes: list[str] | None = None) -> str:
     h = "".join(f"<th>{html.escape(c)}</th>" for c in header)
     cls = classes or [""] * len(rows)
     body = "".join((f"<tr class='{c}'>" if c else "<tr>")
-                   + "".join(f"<td>{_fmt(v)}</td>" for v in r) + "</tr>"
+                   + "".join(f"<td>{fmt(v)}</td>" for v in r) + "</tr>"
                    for r, c in zip(rows, cls, strict=True))
     return f"<table><thead><tr>{h}</tr></thead><tbody>{body}</tbody></table>"
 
 
-def _time(t: float | None) -> str:
+def html_time(t: float | None) -> str:
     """A time for the tables: UTC when epoch seconds, else seconds."""
     if t is None or not np.isfinite(t):
         return "–"
@@ -61,7 +61,7 @@ def _time(t: float | None) -> str:
     return f"{t:.1f}"
 
 
-def _fom_rows(fom: dict[str, Any]) -> list[list[Any]]:
+def fom_rows(fom: dict[str, Any]) -> list[list[Any]]:
     """FOM table rows: the manoeuvres in kept segments first, all manoeuvres beside them."""
     def reduction(before: Any, after: Any) -> float | None:
         return float(before / after) if before is not None and after else None
@@ -78,7 +78,7 @@ def _fom_rows(fom: dict[str, Any]) -> list[list[Any]]:
     return rows
 
 
-def _headline_words(check: dict[str, Any]) -> str:
+def headline_words(check: dict[str, Any]) -> str:
     """Where the headline comes from and how it was checked, in one sentence."""
     src = Path(check.get("recorded_in") or "OUT.json").name
     if not check:
@@ -121,13 +121,13 @@ def extended_html(ext: dict[str, Any] | None) -> str:
     if mlp:
         rows.append(["network kept", mlp.get("kept")])
         rows.append(["network / linear held-out std, last 20 % (nT)",
-                     f"{_fmt(mlp.get('mlp_std_nT'))} / {_fmt(mlp.get('linear_std_nT'))}"])
-    parts = ["<h2>Beyond the 16 terms</h2>", _table(rows, ["", "value"]),
+                     f"{fmt(mlp.get('mlp_std_nT'))} / {fmt(mlp.get('linear_std_nT'))}"])
+    parts = ["<h2>Beyond the 16 terms</h2>", html_table(rows, ["", "value"]),
              f"<p class='small'>{html.escape(str(held.get('method', '')))}</p>"]
     contrib = {c["name"]: c for c in held.get("contributions") or []}
     extras = ext.get("extras") or []
     if extras:
-        parts.append(_table(
+        parts.append(html_table(
             [[e["name"], e["coef_nT_per_unit"], e["center"], e["scale"],
               contrib.get(e["name"], {}).get("increase_nT"),
               contrib.get(e["name"], {}).get("increase_pct")] for e in extras],

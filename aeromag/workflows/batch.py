@@ -54,13 +54,13 @@ from .batch_engines import run_dask, run_local
 from .batch_inputs import (  # noqa: F401 - FINGERPRINT_SUFFIX ... importable from here too
     FINGERPRINT_SUFFIX,
     LOG_EXTENSIONS,
-    _stored_fingerprint,
-    _up_to_date,
     batch_fingerprint,
     expand_inputs,
     file_sha256,
     output_names,
+    stored_fingerprint,
     unmatched_reason,
+    up_to_date,
 )
 
 log = logging.getLogger(__name__)
@@ -487,8 +487,8 @@ def run_batch(
     jobs: list[dict[str, Any]] = []
     for f in files:
         outs = per_file[f]
-        if (not force and _up_to_date(outs, [f])
-                and _stored_fingerprint(output_names(f, out)["fingerprint"])
+        if (not force and up_to_date(outs, [f])
+                and stored_fingerprint(output_names(f, out)["fingerprint"])
                 == fingerprint["fingerprint"]):
             results[str(f)] = FileResult(str(f), "skipped", [str(p) for p in outs])
             continue

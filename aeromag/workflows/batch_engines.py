@@ -20,7 +20,6 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
-from .._core.libc import libc
 from ..errors import InputError
 
 
@@ -97,10 +96,6 @@ def _worker_init(parent_pid: int) -> None:
         raise SystemExit(128 + signum)
 
     signal.signal(signal.SIGTERM, on_term)
-    lib = libc()
-    if lib is not None:
-        with contextlib.suppress(Exception):
-            lib.prctl(1, int(signal.SIGTERM), 0, 0, 0)  # PR_SET_PDEATHSIG
 
     def watch() -> None:
         while True:

@@ -114,7 +114,8 @@ def output_names(inp: Path, out_dir: Path) -> dict[str, Path]:
             "fingerprint": out_dir / f".{inp.stem}{FINGERPRINT_SUFFIX}"}
 
 
-def _up_to_date(outputs: Sequence[Path], sources: Sequence[Path]) -> bool:
+def up_to_date(outputs: Sequence[Path], sources: Sequence[Path]) -> bool:
+    """True when every output exists and is newer than every source (modification times)."""
     try:
         oldest_out = min(p.stat().st_mtime for p in outputs)
         newest_in = max(p.stat().st_mtime for p in sources)
@@ -188,7 +189,7 @@ def batch_fingerprint(
     return {"fingerprint": hashlib.sha256(text.encode()).hexdigest(), **parts}
 
 
-def _stored_fingerprint(path: Path) -> str | None:
+def stored_fingerprint(path: Path) -> str | None:
     """The fingerprint stored by a file's last successful run, or None."""
     try:
         return str(json.loads(path.read_text(encoding="utf-8"))["fingerprint"])

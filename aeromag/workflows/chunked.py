@@ -47,9 +47,9 @@ from ..compensation.report import AppliedRun, applied_report
 from ..errors import InputError
 from ..io import (
     FLUX_COLUMNS,
-    _csv_header,
-    _floats_as_pandas_text,
     atomic_path,
+    csv_header,
+    floats_as_pandas_text,
     json_path_for,
     plain_number,
     write_arrow_csv,
@@ -403,9 +403,9 @@ def apply_model_chunked(
                     if np.all(v[fin] == np.round(v[fin])):
                         out[c] = pd.arrays.IntegerArray(np.where(fin, v, 0).astype(np.int64),
                                                         ~fin)
-            table = _floats_as_pandas_text(pa.Table.from_pandas(out, preserve_index=False))
+            table = floats_as_pandas_text(pa.Table.from_pandas(out, preserve_index=False))
             if not header_written:
-                fh.write(_csv_header(out.columns).encode("utf-8"))
+                fh.write(csv_header(out.columns).encode("utf-8"))
                 header_written = True
             pos = fh.tell()
             try:

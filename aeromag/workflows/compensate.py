@@ -262,7 +262,7 @@ class CompensationRun(CompensationResult):
         """Write the figures, ``qc.json`` and ``report.html`` into ``out_dir``."""
         from .report import write_report
 
-        return write_report(self._data(), self.report, out_dir)
+        return write_report(self, out_dir)
 
     def _data(self) -> pd.DataFrame:
         if self.data is None:

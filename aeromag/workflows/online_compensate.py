@@ -28,7 +28,7 @@ from .._core.stretches import find_stretches
 from ..compensation.checks import check_metrics
 from ..compensation.config import CompensationConfig
 from ..compensation.fit import check_interference
-from ..compensation.metrics import _band_metrics, compensation_metrics
+from ..compensation.metrics import band_metrics, compensation_metrics
 from ..compensation.online import LATENCY_SAMPLES, NIS_THRESHOLD, OnlineTL, OnlineTLResult
 from ..compensation.prepare import prepare
 from ..errors import FitError, InputError
@@ -105,7 +105,7 @@ def online_metrics(time_s: np.ndarray, mag: np.ndarray, mag_tl: np.ndarray,
     st = find_stretches(t, np.isfinite(after), cfg.max_gap_s)  # as contract_metrics
     marked = kept is not None and not np.all(kept)
     kept = np.ones(len(t), dtype=bool) if kept is None else np.asarray(kept, dtype=bool)
-    metrics, comp_bp = _band_metrics(mag, after, t, st, cfg, kept=kept, source=source)
+    metrics, comp_bp = band_metrics(mag, after, t, st, cfg, kept=kept, source=source)
     metrics["coverage"] = COVERAGE_MARKED if marked else COVERAGE
     fin_t = t[np.isfinite(after)]
     warmup_s = round(1.0 / (1.0 - forgetting) / sampling_rate(t), 6) if forgetting < 1 else 0.0

@@ -21,7 +21,6 @@ import html
 import json
 import logging
 import os
-import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -34,11 +33,10 @@ from ..compensation.config import CompensationConfig
 from ..compensation.model import TLModel
 from ..compensation.result import CompensationResult
 from ..errors import AeromagError, InputError
-from ..io import atomic_path, json_path_for, write_json
+from ..io import atomic_path, json_path_for, read_log, write_json
 from ..plot import compensation as pc
 from ..qc import QCResult, compute_qc, kept_mask, segment_labels
-from ._report_html import _CSS, _fmt, _fom_rows, _headline_words, _table, _time, extended_html
-from ._report_read import read_columns
+from ._report_html import CSS, extended_html, fmt, fom_rows, headline_words, html_table, html_time
 from .report_check import headline_from_data, headline_record
 
 __all__ = ["FIGURES", "build_report", "load_compensated", "render_html", "write_report"]
@@ -47,6 +45,16 @@ log = logging.getLogger(__name__)
 
 #: ``progress(done, total, step)``: called as the report advances.
 Progress = Callable[[int, int, str], None]
+
+#: Columns of a compensated log the report uses (others in the log are not read).
+REPORT_COLUMNS = ("time", "mag", "mag_tl", "mag_comp", "segment", "segment_kept", "line",
+                  "flux_x", "flux_y", "flux_z", "heading", "pitch", "roll", "lat", "lon", "alt",
+                  "truth_mag_tl", "maneuver")
+
+#: Columns only drawn or used for manoeuvre detection, read in single precision: 7 digits
+#: (0.005 nT of a 50000 nT fluxgate, 0.3 m of latitude) are ample and halve their memory.
+REPORT_DTYPES = {c: np.float32 for c in ("flux_x", "flux_y", "flux_z", "heading", "pitch",
+                                         "roll", "lat", "lon", "alt")}
 
 #: Figure files written by :func:`write_report`, with their captions.
 FIGURES: dict[str, str] = {
@@ -92,9 +100,8 @@ def _figures(result: CompensationResult, qc: QCResult, band: tuple[float, float]
 
 
 def write_report(
-    result: CompensationResult, out_dir: Any, *legacy: Any,
-    config: CompensationConfig | None = None, title: str | None = None,
-    progress: Progress | None = None, **qc_kw: Any,
+    result: CompensationResult, out_dir: Any, *, config: CompensationConfig | None = None,
+    title: str | None = None, progress: Progress | None = None, **qc_kw: Any,
 ) -> Path:
     """Compute QC, write the figures, ``qc.json`` and ``report.html`` into ``out_dir``.
 
@@ -118,38 +125,6 @@ def write_report(
     Path
         The HTML page.
     """
-    import gc
-
-    # Each figure is freed by a collection of its reference cycles (_trim_heap); the
-    # objects that exist before the report (the imported modules, the log's report) are
-    # frozen for its duration so that these collections do not traverse them again (nine
-    # full collections cost 1.6 s at 2e6 rows).  Unfrozen at the end: nothing is kept.
-    gc.freeze()
-    try:
-        return _write_report(result, out_dir, *legacy, config=config, title=title,
-                             progress=progress, **qc_kw)
-    finally:
-        gc.unfreeze()
-
-
-def _write_report(
-    result: CompensationResult, out_dir: Any, *legacy: Any,
-    config: CompensationConfig | None, title: str | None, progress: Progress | None,
-    **qc_kw: Any,
-) -> Path:
-    """:func:`write_report` (with the collector's older objects frozen)."""
-    if config is None:
-        config = qc_kw.pop("cfg", None)
-    if isinstance(result, pd.DataFrame):  # the old write_report(data, report, out_dir) call
-        warnings.warn("write_report(data, report, out_dir) is deprecated: pass the"
-                      " CompensationResult", DeprecationWarning, stacklevel=2)
-        if not legacy:
-            raise TypeError("write_report(data, report, out_dir): out_dir missing")
-        result, out_dir = CompensationResult(result, None, out_dir), legacy[0]
-        if config is None:
-            config = _config_from(result.report)
-    elif legacy:
-        raise TypeError("write_report(result, out_dir): too many positional arguments")
     if result.data is None:
         raise InputError("this result holds no compensated data (use compensate())")
     result = headline_from_data(result, config)  # the headline of the data shown (issue 15)
@@ -166,13 +141,11 @@ def _write_report(
         if progress is not None:
             progress(step, total, what)
 
-    # the report shows the manoeuvre tables only: no per-sample labels kept (26 MB at 2e6 rows)
-    qc = compute_qc(result, config=config, **{"keep_labels": False, **qc_kw})
+    qc = compute_qc(result, config=config, **qc_kw)
     qc.metrics.update(headline_record(report))
     # Only the metrics, the FOM table and the band-passed fields are shown: the per-sample
-    # manoeuvre labels (~65 MB at 2e6 rows) go before the figures.
+    # manoeuvre labels go before the figures.
     qc.maneuvers = None
-    _trim_heap()
     advance("quality metrics")
     band = tuple(qc.metrics["band_hz"])
     pngs: dict[str, bytes] = {}
@@ -185,7 +158,6 @@ def _write_report(
             log.info("report: %s skipped: %s", name, exc)
         if name == "residuals.png":
             qc.residuals = None  # the band-passed fields (32 MB at 2e6 rows): drawn
-        _trim_heap()
         advance(name)
     for name, data in pngs.items():
         with atomic_path(out / name) as tmp:
@@ -201,54 +173,6 @@ def _write_report(
     advance("report.html")
     log.info("wrote %s (%d figures)", html_path, len(pngs))
     return html_path
-
-
-def one_heap_arena() -> bool:
-    """Make glibc's allocator use one heap arena for the rest of the process (``mallopt``).
-
-    Each thread that allocates (the QC's filter pool, pyarrow's readers) otherwise gets an
-    arena of its own, and memory freed there stays resident: on a 2e6-row report the peak
-    was 950 MB with the default arenas and 861 MB with one, at the same CPU time.  Meant for
-    a command's process (``aeromag report`` calls it first); a no-op off glibc.
-
-    (A fixed mmap threshold, so that every freed full-length array is unmapped, lowered the
-    peak by another 70 MB but cost 3.5-4.5 s more CPU on 2e6 rows, in page faults: not set.)
-
-    Returns
-    -------
-    bool
-        Whether the setting was applied.
-    """
-    libc = _libc()
-    return bool(libc) and bool(libc.mallopt(_M_ARENA_MAX, 1))
-
-
-#: glibc's ``mallopt`` parameter number of ``M_ARENA_MAX`` (malloc.h).
-_M_ARENA_MAX = -8
-
-
-def _libc() -> Any:
-    """The C library (glibc) with ``mallopt`` and ``malloc_trim``, or None."""
-    from .._core.libc import libc
-
-    lib = libc()
-    return lib if lib is not None and hasattr(lib, "mallopt") \
-        and hasattr(lib, "malloc_trim") else None
-
-
-def _trim_heap() -> None:
-    """Collect the figures' reference cycles and give the C heap's free pages back.
-
-    A matplotlib figure is a web of reference cycles: its Agg renderer (and the rasteriser's
-    cells, tens of MB for a long line) lives until the cyclic collector runs, so it is
-    run here; then glibc's ``malloc_trim`` returns the heap's free pages (else nothing).
-    """
-    import gc
-
-    gc.collect()
-    libc = _libc()
-    if libc:
-        libc.malloc_trim(0)
 
 
 def segment_rows(result: CompensationResult, qc: QCResult) -> list[dict[str, Any]]:
@@ -383,7 +307,7 @@ def load_compensated(
     """
     src = Path(out_csv)
     rj = Path(report_json) if report_json is not None else json_path_for(src)
-    data = read_columns(src)
+    data = read_log(src, usecols=REPORT_COLUMNS, dtypes=REPORT_DTYPES, required=())
     if "mag_comp" not in data.columns:
         raise InputError(f"{src}: no mag_comp column: this log is not compensated; run"
                          f" `aeromag compensate {src} -o OUT.csv` first, then"
@@ -446,7 +370,7 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
     title = title or f"aeromag compensation report: {report.get('source', '')}"
     band = metrics["band_hz"]
     parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
-             f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
+             f"<title>{html.escape(title)}</title><style>{CSS}</style></head><body>",
              f"<h1>{html.escape(title)}</h1>",
              f"<p class='small'>aeromag {html.escape(__version__)}; fitting band "
              f"{band[0]:g}–{band[1]:g} Hz</p>"]
@@ -466,7 +390,7 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
         header.append(f"recorded in {Path(check.get('recorded_in') or 'OUT.json').name}"
                       " (kept / all)")
         for r, (_, k) in zip(rows, names, strict=True):
-            r.append(f"{_fmt(rec.get(k))} / {_fmt(rec.get('all_' + k))}")
+            r.append(f"{fmt(rec.get(k))} / {fmt(rec.get('all_' + k))}")
     parts.append("<h2>Summary</h2>")
     if check.get("warning"):
         parts.append(f"<p class='warn' id='headline-warning'>Warning: "
@@ -475,15 +399,15 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
     if comp_warning:
         parts.append(f"<p class='warn' id='mag-comp-warning'>Warning: "
                      f"{html.escape(comp_warning)}</p>")
-    parts.append(_table(rows, header))
-    words = _headline_words(check)
+    parts.append(html_table(rows, header))
+    words = headline_words(check)
     if metrics.get("definition"):
         words = f"{metrics['definition']}. {words}"
     parts.append(f"<p class='small'>{html.escape(words)}</p>")
     more = [
         ["4th-difference noise before / after (nT)",
-         f"{_fmt(noise.get('fourth_difference_before_nT'))} / "
-         f"{_fmt(noise.get('fourth_difference_after_nT'))}"],
+         f"{fmt(noise.get('fourth_difference_before_nT'))} / "
+         f"{fmt(noise.get('fourth_difference_after_nT'))}"],
         ["condition number (unit-norm columns)", fit.get("condition_number_scaled")],
         ["largest VIF", fit.get("max_vif")],
         ["leave-one-segment-out CV residual (nT)", fit.get("cv_residual_std_nT")],
@@ -493,22 +417,22 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
     if scr.get("n_segments") is not None:
         more.append(["segments kept / fitted", f"{scr.get('n_kept', '–')} / "
                      f"{scr.get('n_segments', '–')}"])
-    parts.append(_table(more, ["diagnostic", "value"]))
+    parts.append(html_table(more, ["diagnostic", "value"]))
     # FOM: numbers only for complete calibration boxes.
     parts.append("<h2>Figure of Merit</h2>")
     if fom.get("applicable"):
-        parts.append(_table(_fom_rows(fom), ["metric", "manoeuvres in kept segments",
+        parts.append(html_table(fom_rows(fom), ["metric", "manoeuvres in kept segments",
                                              "all manoeuvres"]))
         boxes = fom.get("complete_boxes", [])
         parts.append(f"<p class='small'>Complete boxes: {len(boxes)} (box "
                      f"{html.escape(', '.join(map(str, boxes)))}); manoeuvres in kept segments:"
-                     f" {_fmt(fom.get('n_maneuvers_kept'))} of {_fmt(fom.get('n_maneuvers'))}."
+                     f" {fmt(fom.get('n_maneuvers_kept'))} of {fmt(fom.get('n_maneuvers'))}."
                      f" {html.escape(fom.get('kept_reason') or '')}"
                      f" {html.escape(fom.get('kept_definition') or '')}</p>")
         pm = fom.get("per_maneuver") or []
         if pm:
             keys = [k for k in ("ptp_before_nT", "ptp_after_nT", "ptp_truth_nT") if k in pm[0]]
-            parts.append(_table([[r["heading"], r["maneuver"], *(r[k] for k in keys)]
+            parts.append(html_table([[r["heading"], r["maneuver"], *(r[k] for k in keys)]
                                  for r in pm],
                                 ["heading", "manoeuvre", *[f"{k[4:-3]} (nT p-p)" for k in keys]]))
     else:
@@ -525,9 +449,9 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
         mrows += [["fit samples", fitb.get("n_samples")],
                   ["segments fitted", fitb.get("n_segments_fitted")],
                   ["fit residual (nT)", fitb.get("residual_std_nT")]]
-    parts.append(_table(mrows, ["", "value"]))
+    parts.append(html_table(mrows, ["", "value"]))
     if report.get("terms") and report.get("coef"):
-        parts.append(_table(
+        parts.append(html_table(
             [[t, c] for t, c in zip(report["terms"], report["coef"], strict=True)],
             ["term", "coefficient (nT; eddy nT·s)"]))
     parts.append(extended_html(report.get("extended")))
@@ -535,8 +459,8 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
     segs = metrics.get("segments") or []
     if segs:
         parts.append("<h2>Lines and segments</h2>")
-        parts.append(_table(
-            [[s["segment"], s["line"], _time(s["t_start"]), _time(s["t_end"]), s["n"],
+        parts.append(html_table(
+            [[s["segment"], s["line"], html_time(s["t_start"]), html_time(s["t_end"]), s["n"],
               s["kept"], s["residual_std_nT"], s["model_residual_std_nT"], s["reason"] or ""]
              for s in segs],
             ["segment", "line", "start", "end", "samples", "kept", "residual (nT)",
@@ -545,10 +469,10 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
     by_h = metrics.get("residual_std_by_heading_nT") or {}
     if by_h:
         parts.append("<h2>Residual per heading (nT)</h2>"
-                     + _table([[k, v] for k, v in by_h.items()], ["heading", "residual"]))
+                     + html_table([[k, v] for k, v in by_h.items()], ["heading", "residual"]))
     if fit.get("vif"):
         parts.append("<h2>Variance inflation factors</h2>"
-                     + _table([[k, v] for k, v in fit["vif"].items()], ["term", "VIF"]))
+                     + html_table([[k, v] for k, v in fit["vif"].items()], ["term", "VIF"]))
     notes = list(metrics.get("notes") or [])
     notes += [f"{k} not drawn: {v}" for k, v in (metrics.get("figures_skipped") or {}).items()]
     if notes:

@@ -27,14 +27,13 @@ import numpy as np
 import pandas as pd
 
 from .._core.filters import lowpass_stretches, sampling_rate
-from .._core.libc import trim_heap
 from ..compensation.apply import missing_total_field
 from ..compensation.config import CompensationConfig
 from ..compensation.metrics import residual_metrics, run_blocks, stretch_runs
 from ..compensation.result import CompensationResult
 from ..errors import InputError
 from ..qc import kept_mask, segment_labels
-from ..qc.quality import _config_of
+from ..qc.quality import config_of
 from ..qc.total_field import prepared_total_field
 
 __all__ = ["MAG_COMP_TOL_NT", "MAG_COMP_TOL_FLUXGATE_NT", "REL_TOL", "REL_TOL_FLUXGATE",
@@ -369,7 +368,7 @@ def headline_from_data(result: CompensationResult,
         raise InputError(f"{src}: no mag_tl column: the headline metrics are of mag - mag_tl,"
                          " so this log must be the output of `aeromag compensate` as written;"
                          f" run `aeromag compensate LOG -o {src}` first")
-    cfg = config or result.config or _config_of(report)
+    cfg = config or result.config or config_of(report)
     rj = str(data.attrs.get("report_json") or "OUT.json")
     t = data["time"].to_numpy(dtype=np.float64)
     fs_error: InputError | None = None
@@ -394,7 +393,6 @@ def headline_from_data(result: CompensationResult,
         del mag
     comp_check = check.result() if check is not None else None
     del t, tl, kept, starts, stops, check
-    trim_heap()  # the blocks' freed temporaries back to the system
     recorded = report.get("metrics") or None
     fluxgate = bool(report.get("mag_from_fluxgate")) or "mag" not in data.columns
     check_ = compare_headline(computed, recorded, online=bool(report.get("online")),

@@ -10,7 +10,7 @@ from ..errors import InputError
 from ..io import write_csv, write_json
 from ..synthetic.calibration import simulate_calibration
 from ..synthetic.currents import add_current_interference
-from ..synthetic.faults import _check_positive
+from ..synthetic.faults import check_positive
 from ..synthetic.survey import round_log, simulate_survey, survey_plan
 
 log = logging.getLogger(__name__)
@@ -56,7 +56,7 @@ def write_simulation(
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a folder; give -o a folder")
-    _check_positive(rate_hz=rate_hz)
+    check_positive(rate_hz=rate_hz)
     cal_kw: dict[str, Any] = {"n_boxes": 1, "maneuver_s": 20.0} if small else {}
     sur_kw: dict[str, Any] = {"n_lines": 10, "line_length_m": 160.0} if small else {}
     cal, cal_truth = simulate_calibration(seed=seed, rate_hz=rate_hz, faults=faults, **cal_kw)

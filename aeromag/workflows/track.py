@@ -40,7 +40,6 @@ def track_file(
     units: dict[str, str] | None = None,
     plot_dir: str | os.PathLike[str] | None = None,
     fmt: str | None = None,
-    waypoint_radius_m: float | None = None,
     navigated: bool = False,
 ) -> TrackResult:
     """Read a log and a plan, check the track, write OUT.csv and OUT.json as a set.
@@ -71,8 +70,6 @@ def track_file(
         Folder for the track plots (PNG); none when omitted.  Their paths are in OUT.json.
     fmt : str, optional
         Log format (default from the extension).
-    waypoint_radius_m : float, optional
-        Ignored (the old waypoint-sphere rule).
     navigated : bool
         Run the navigation filter (:func:`aeromag.nav.pipeline.track_inputs`) and check the
         navigated position where the log has no GNSS fix, and the heading detector on its
@@ -84,7 +81,6 @@ def track_file(
     -------
     TrackResult
     """
-    del waypoint_radius_m
     out = Path(out_path)
     out_json = json_path_for(out)
     check_outputs(log_path, out, out_json)  # not OUT.json, never over the log or the plan

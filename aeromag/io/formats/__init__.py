@@ -36,9 +36,10 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 
@@ -134,7 +135,8 @@ def _read_hdf5(path: Path) -> pd.DataFrame:
 
 
 _TEXT = ("allow_truncated",)
-register(Format("csv", (".csv", ".txt"), read=read_csv, write=write_csv, options=_TEXT))
+register(Format("csv", (".csv", ".txt"), read=read_csv, write=write_csv,
+                options=(*_TEXT, "usecols", "dtypes")))
 register(Format("parquet", (".parquet", ".pq"), read=read_parquet, write=write_parquet))
 register(Format("xyz", (".xyz",), read=_read_xyz, write=write_xyz, options=_TEXT))
 register(Format("hdf5", (".h5", ".hdf5"), read=_read_hdf5))
@@ -226,10 +228,10 @@ def check_delimiter(path: Path) -> None:
     InputError
         When the header looks separated by another delimiter.
     """
-    from ..csv import _csv_header_fields
+    from ..csv import csv_header_fields
     from ..messages import clean
 
-    head = _csv_header_fields(path)
+    head = csv_header_fields(path)
     if head is None or len(head[0]) != 1:
         return
     names, line = head
@@ -270,11 +272,15 @@ def read_table(path: str | os.PathLike[str], fmt: str | None = None) -> pd.DataF
 
 
 def read_table_rows(path: str | os.PathLike[str], fmt: str | None = None, *,
-                    allow_truncated: bool = False) -> pd.DataFrame:
+                    allow_truncated: bool = False,
+                    usecols: Sequence[str] | None = None,
+                    dtypes: dict[str, Any] | None = None) -> pd.DataFrame:
     """:func:`read_table`, with ``df.attrs[ROWS_ATTR]`` telling where each row is in the file.
 
     Used by :func:`aeromag.io.read_log` to name the file line (or the sample) of a bad value.
-    ``allow_truncated`` is passed to the text formats (see :func:`aeromag.io.read_log`).
+    ``allow_truncated`` is passed to the text formats (see :func:`aeromag.io.read_log`);
+    ``usecols`` keeps only these columns (source names; parsed alone where the format's
+    reader can, the CSV reader).
     """
     from ..messages import check_input_file
 
@@ -286,8 +292,17 @@ def read_table_rows(path: str | os.PathLike[str], fmt: str | None = None, *,
         check_delimiter(p)
     if reader is None:
         raise InputError(f"{p}: aeromag cannot read the {f} format")
-    opts = {"allow_truncated": allow_truncated} if allow_truncated else {}
+    opts: dict[str, Any] = {"allow_truncated": allow_truncated} if allow_truncated else {}
+    if usecols is not None:
+        opts["usecols"] = list(usecols)
+    if dtypes:
+        opts["dtypes"] = dict(dtypes)
     df = reader(p, **{k: v for k, v in opts.items() if k in REGISTRY[f].options})
+    if usecols is not None and "usecols" not in REGISTRY[f].options:
+        want = set(usecols)
+        attrs = dict(df.attrs)
+        df = df[[c for c in df.columns if c in want]]
+        df.attrs.update(attrs)
     df.attrs["format"] = f
     return df
 

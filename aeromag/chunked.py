@@ -1,7 +1,0 @@
-"""Deprecated: moved to :mod:`aeromag.workflows.chunked` (kept for one release)."""
-
-from ._deprecated import forward
-
-__getattr__, __dir__ = forward(__name__, (
-    "aeromag.workflows.chunked",
-))

@@ -1,8 +1,0 @@
-"""Deprecated: moved to :mod:`aeromag.compensation.segments` (kept for one release)."""
-
-from ._deprecated import forward
-
-__getattr__, __dir__ = forward(__name__, (
-    "aeromag.compensation.segments",
-    "aeromag._core.stretches",
-))
