@@ -184,8 +184,13 @@ def find_crossings(geom: SurveyGeometry, value: np.ndarray, height_m: np.ndarray
     with np.errstate(divide="ignore", invalid="ignore"):
         t = ((qx - px) * sy - (qy - py) * sx) / den
         u = ((qx - px) * ry - (qy - py) * rx) / den
-    hit = (den != 0) & (t >= 0) & (t < 1) & (u >= 0) & (u < 1)
-    a, b, t, u = a[hit], b[hit], t[hit], u[hit]
+    # Closed intervals with a rounding margin: a crossing on a shared vertex must not fall
+    # between two segments (t = 1 - eps on one, -eps on the next); duplicates of one
+    # crossing are reduced to one per (line piece, tie piece) below.
+    eps = 1e-9
+    hit = (den != 0) & (t >= -eps) & (t <= 1 + eps) & (u >= -eps) & (u <= 1 + eps)
+    a, b = a[hit], b[hit]
+    t, u = np.clip(t[hit], 0.0, 1.0), np.clip(u[hit], 0.0, 1.0)
     # One crossing per (line piece, tie piece).
     lp, tp = geom.piece[a], geom.piece[b]
     key = lp * (geom.n_pieces + 1) + tp
