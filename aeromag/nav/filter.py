@@ -37,21 +37,23 @@ sample at or before it (at most one IMU interval early: 4 ms at 250 Hz).
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from .._core.sequential import InnovationStats, SequentialResult, Step
 from .config import NavConfig
 from .fusion import _RANGE_RECENT_S, FusionMixin
 from .inputs import (
     Epoch,
     NavInputs,
     decimate_rows,
+    imu_noise_from_data,
     magnetic_reference_from_log,
 )
 from .mechanization import GRAVITY, propagate, rotation_matrices
 from .startup import StartupMixin
-from .ukf import DivergenceError, FilterResult, InnovationStats, UnscentedKalmanFilter
+from .ukf import DivergenceError, UnscentedKalmanFilter
 
 log = logging.getLogger(__name__)
 
@@ -81,8 +83,11 @@ class NavFilter(StartupMixin, FusionMixin):
 
     Notes
     -----
-    ``run`` processes a whole log (fast path); ``step`` processes one row online and gives
-    the same estimates to within rounding of the process-noise timing (tested).
+    The package's sequential convention (:mod:`aeromag._core.sequential`): ``run``
+    processes a whole log (fast path) -> ``SequentialResult``; ``step(y, u)`` processes one
+    row online -> ``Step`` and gives the same estimates to within rounding of the
+    process-noise timing (tested; the IMU noise is then the configured one, not sized from
+    the log).
     """
 
     def __init__(self, config: NavConfig | None = None,
@@ -107,15 +112,17 @@ class NavFilter(StartupMixin, FusionMixin):
         self._last_range_t = -np.inf
         self._last_grav: tuple[float, np.ndarray] | None = None
         self._online: dict = {}
-        self._gates: dict[int, float] = {}
+        self._gates: dict[tuple[str, int], float] = {}
+        self.gyro_noise_dps = self.config.gyro_noise_dps
+        self.accel_noise_g = self.config.accel_noise_g
 
     # ------------------------------------------------------------------ set-up
     def _noise_rates(self) -> np.ndarray:
         """Diagonal process noise per second of flight."""
         c = self.config
         q = np.zeros(self.n)
-        q[3:6] = (c.accel_noise_g * GRAVITY) ** 2 * self._dt_imu
-        q[6:9] = np.deg2rad(c.gyro_noise_dps) ** 2 * self._dt_imu
+        q[3:6] = (self.accel_noise_g * GRAVITY) ** 2 * self._dt_imu
+        q[6:9] = np.deg2rad(self.gyro_noise_dps) ** 2 * self._dt_imu
         q[9:12] = np.deg2rad(c.gyro_bias_walk_dps_rt_s) ** 2
         if c.accel_bias:
             q[12:15] = c.accel_bias_walk_ms2_rt_s ** 2
@@ -168,16 +175,34 @@ class NavFilter(StartupMixin, FusionMixin):
                 "noise settings, or give GNSS")
 
     # ------------------------------------------------------------------ online
-    def step(self, t: float, gyro: np.ndarray | None = None, acc: np.ndarray | None = None,
-             flow: np.ndarray | None = None, flow_quality: float | None = None,
-             range_m: float | None = None, baro_alt: float | None = None,
-             flux: np.ndarray | None = None, gps_ned: np.ndarray | None = None,
-             gps_vel: np.ndarray | None = None) -> np.ndarray:
-        """Process one row of the log (any sensor may be None).
+    def step(self, y: Mapping[str, object], u: Sequence[np.ndarray] | None = None) -> Step:
+        """Process one row of the log: the sequential convention's ``step(y, u)``.
 
+        Parameters
+        ----------
+        y : mapping
+            The row's time and measurements: ``time`` (s, required) and any of ``flow``
+            (rad/s, 2), ``flow_quality``, ``range_m`` (m), ``baro_alt`` (m), ``flux`` (nT, 3),
+            ``gps_ned`` (m, 3), ``gps_vel`` (m/s, 3); missing or None: no sample.
+        u : (gyro, acc), optional
+            The row's IMU sample: body rate (rad/s) and specific force (m/s²).
+
+        Returns
+        -------
+        Step
+            State and one-sigma after the row (``used``: a measurement was fused).
+
+        Notes
+        -----
         The filter must have been started (:meth:`start`), or it starts itself on the first
-        IMU sample (level from that one sample).  Returns the state estimate after the row.
+        IMU sample (level from that one sample).
         """
+        t = float(y["time"])
+        gyro, acc = (None, None) if u is None else u
+        flow, flow_quality = y.get("flow"), y.get("flow_quality")
+        range_m, baro_alt, flux = y.get("range_m"), y.get("baro_alt"), y.get("flux")
+        gps_ned, gps_vel = y.get("gps_ned"), y.get("gps_vel")
+        fused_before = sum(s.n_fused for s in getattr(self, "innovations", {}).values())
         on = self._online
         imu = (gyro is not None and acc is not None and np.all(np.isfinite(gyro))
                and np.all(np.isfinite(acc)))
@@ -191,7 +216,7 @@ class NavFilter(StartupMixin, FusionMixin):
                       ang_flow=np.zeros(3), t_grav=t, acc_grav=np.zeros(3),
                       ang_grav=np.zeros(3), t_mag=-np.inf, t_baro=-np.inf, cum_v=np.zeros(3),
                       v_flow=np.zeros(3))
-            return self.ukf.x.copy()
+            return self._step_out(False)
         if not on:
             t0 = self.ukf.time_s
             on.update(t_imu=t0, cum_ang=np.zeros(3), cum_acc=np.zeros(3), t_flow=None,
@@ -246,7 +271,11 @@ class NavFilter(StartupMixin, FusionMixin):
                 on["t_imu"], on["cum_acc"].copy(), on["cum_ang"].copy())
         self._fuse(t, e)
         self._check(t)
-        return self.ukf.x.copy()
+        return self._step_out(sum(s.n_fused for s in self.innovations.values()) > fused_before)
+
+    def _step_out(self, used: bool) -> Step:
+        return Step(state=self.ukf.x.copy(), std=np.sqrt(np.clip(np.diag(self.ukf.P), 0, None)),
+                    innovation=np.zeros(0), used=used)
 
     def _mag_epochs(self, t: np.ndarray, flux: np.ndarray | None, r_mag: np.ndarray,
                     hosts: np.ndarray, imu_rows: np.ndarray, last_imu: np.ndarray,
@@ -292,7 +321,7 @@ class NavFilter(StartupMixin, FusionMixin):
         return r_mag, fused
 
     # ------------------------------------------------------------------ batch
-    def run(self, inputs: NavInputs, keep_cov: bool = False) -> FilterResult:
+    def run(self, inputs: NavInputs, keep_cov: bool = False) -> SequentialResult:
         """Run the filter over a whole multi-rate log.
 
         Parameters
@@ -300,14 +329,15 @@ class NavFilter(StartupMixin, FusionMixin):
         inputs : NavInputs
             The sensor arrays on the log's rows.
         keep_cov : bool
-            Keep the full covariance after every measurement epoch (``result.cov``).
+            Keep the full covariance after every measurement epoch (``info["cov"]``, at the
+            rows ``info["cov_index"]``).
 
         Returns
         -------
-        FilterResult
+        SequentialResult
             Estimate and one-sigma at every row (rows before the first IMU sample carry the
             initial state), per-sensor innovation statistics, and ``info`` (ground level,
-            barometer offset, reference field, warnings).
+            barometer offset, reference field, noise used, warnings).
 
         Raises
         ------
@@ -328,6 +358,10 @@ class NavFilter(StartupMixin, FusionMixin):
         dt = np.zeros(N)
         dt[imu_rows[1:]] = np.diff(t[imu_rows])
         dt_med = float(np.median(np.diff(t[imu_rows])))
+        if c.imu_noise_from_data:
+            g_dps, a_g = imu_noise_from_data(gyro[imu_rows], acc[imu_rows])
+            self.gyro_noise_dps = max(c.gyro_noise_dps, g_dps)
+            self.accel_noise_g = max(c.accel_noise_g, a_g)
         i0 = int(imu_rows[0])
         dt[i0] = dt_med
         # Cumulative delta angle and delta velocity at the IMU rows (for interval means).
@@ -542,8 +576,32 @@ class NavFilter(StartupMixin, FusionMixin):
                 "imu_interval_s": dt_med, "warnings": list(self.warnings),
                 "start_time_s": float(t[i0]), "sensors": list(self.sensors),
                 "gps_rows": per["gps_pos"]}
-        return FilterResult(time_s=t, x=xs, std=sds, state_names=self.names,
-                            innovations=dict(self.innovations),
-                            cov=np.array(covs) if keep_cov else None,
-                            cov_index=np.array(cov_rows, dtype=np.intp) if keep_cov else None,
-                            info=info)
+        info["noise"] = self.noise_used()
+        if keep_cov:
+            info["cov"] = np.array(covs)
+            info["cov_index"] = np.array(cov_rows, dtype=np.intp)
+        return SequentialResult(time_s=t, state=xs, std=sds, state_names=self.names,
+                                loglik=np.full(N, np.nan),
+                                innovations=dict(self.innovations), info=info)
+
+    def noise_used(self) -> dict[str, float]:
+        """The noise levels the filter ended with (after sizing from the data), SI units.
+
+        ``gyro_noise_dps``, ``accel_noise_g`` (per IMU sample) and, per measurement, its
+        one-sigma noise and the adaptive variance scale applied to the configured one.
+        """
+        c = self.config
+        base = {"flow": ("flow_noise_ms", c.flow_noise_ms), "range": ("range_noise_m",
+                c.range_noise_m), "baro": ("baro_noise_m", c.baro_noise_m),
+                "mag": ("mag_heading_noise_deg", c.mag_heading_noise_deg),
+                "gps_pos": ("gps_cep_m", c.gps_cep_m),
+                "gps_vel": ("gps_vel_noise_ms", c.gps_vel_noise_ms),
+                "gravity": ("gravity_noise_ms2", c.gravity_noise_ms2)}
+        out: dict[str, float] = {"gyro_noise_dps": float(self.gyro_noise_dps),
+                                 "accel_noise_g": float(self.accel_noise_g)}
+        for name in self.sensors:
+            key, v = base[name]
+            sc = float(self.noise_scale.get(name, 1.0))
+            out[key] = float(v * np.sqrt(sc))
+            out[f"{name}_variance_scale"] = sc
+        return out

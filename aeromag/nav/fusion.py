@@ -21,8 +21,11 @@ _RANGE_RECENT_S = 1.0
 class FusionMixin:
     """Measurement update of :class:`aeromag.nav.NavFilter`.
 
-    ``_fuse`` gates every measurement of an epoch; ``_update_blocks`` makes one joint
-    unscented update with block-diagonal noise, each block gated on its own NIS.
+    ``_fuse`` checks the validity of every measurement of an epoch; ``_update_blocks`` makes
+    one joint unscented update with block-diagonal noise.  Each block is weighted on its own
+    normalised innovation squared (NIS): Huber (``NavConfig.robust``) beyond the
+    ``huber_p`` chi-square quantile, refused only beyond the gross-fault gate; its noise
+    level adapts to its innovations within bounds (``adaptive_noise``).
     """
 
     def _fuse(self, t: float, e: Epoch) -> None:
@@ -63,7 +66,7 @@ class FusionMixin:
                 dg, wm = self.ig, e.flow_gyro
                 lag = np.zeros(3) if e.flow_vel_lag is None else e.flow_vel_lag
                 var = ((c.flow_noise_ms / dist) ** 2
-                       + np.deg2rad(c.gyro_noise_dps) ** 2 * self._dt_imu
+                       + np.deg2rad(self.gyro_noise_dps) ** 2 * self._dt_imu
                        / max(e.flow_interval_s, self._dt_imu))
                 blocks.append(("flow", e.flow,
                                lambda X, dg=dg, wm=wm, lag=lag: h_flow(X, wm, dg, lag),
@@ -87,7 +90,7 @@ class FusionMixin:
                     or acc_est > c.gravity_max_accel_ms2):
                 st["gravity"].n_gated += 1
             else:
-                var = ((c.accel_noise_g * GRAVITY) ** 2 * self._dt_imu
+                var = ((self.accel_noise_g * GRAVITY) ** 2 * self._dt_imu
                        / max(e.grav_interval_s, self._dt_imu) + c.gravity_noise_ms2**2)
                 ab = c.accel_bias
                 blocks.append(("gravity", e.grav_acc, lambda X, ab=ab: h_gravity(X, ab),
@@ -126,24 +129,41 @@ class FusionMixin:
                 zp[ia] = np.arctan2(Wm @ np.sin(Z[:, ia]), Wm @ np.cos(Z[:, ia]))
                 dZ = np.mod(Z - zp + np.pi, 2 * np.pi) - np.pi
                 nu = np.mod(z - zp + np.pi, 2 * np.pi) - np.pi
-            S = (Wc[:, None] * dZ).T @ dZ + R
+            Pzz = (Wc[:, None] * dZ).T @ dZ
+            scale = self.noise_scale.get(name, 1.0)
+            S = Pzz + scale * R
             nis = float(nu @ np.linalg.solve(S, nu))
             if not np.isfinite(nis):
                 raise DivergenceError(f"filter diverged at t = {ukf.time_s:.3f} s: non-finite"
                                       f" innovation of {name}")
             stats = self.innovations[name]
             n_rej = self._rejections.get(name, 0)
-            if nis > self._gate(z.size) and n_rej < self.config.max_rejections:
-                stats.n_rejected += 1
+            dof = z.size
+            if nis > self._gross_gate(dof) and n_rej < self.config.max_rejections:
+                stats.n_rejected += 1        # a gross fault: not fused
                 self._rejections[name] = n_rej + 1
                 continue
             if n_rej >= self.config.max_rejections:
-                self._warn(f"{name}: {n_rej} measurements in a row failed the innovation gate;"
-                           " accepted the next one (the filter re-locks on it)")
+                self._warn(f"{name}: {n_rej} measurements in a row were gross outliers;"
+                           " fused the next one (down-weighted) so the filter re-locks")
             self._rejections[name] = 0
             stats.n_fused += 1
             stats.nis_sum += nis
-            keep.append((z, Z, R, aidx))
+            R_eff = scale * R
+            k2 = self._huber_bound(dof)
+            if self.config.robust == "huber" and nis > k2:
+                # Huber weight w = k / d on the Mahalanobis distance d: the innovation
+                # covariance is inflated to S / w (R absorbs the inflation).
+                stats.n_downweighted += 1
+                R_eff = S * np.sqrt(nis / k2) - Pzz
+            if self.config.adaptive_noise:
+                # Innovation-based adaptive estimation of the noise level, bounded: the
+                # variance scale follows the mean of the (Huber-clipped) NIS per dof.
+                r = min(nis, k2) / dof
+                a = self.config.adaptive_rate
+                self.noise_scale[name] = float(np.clip(scale * (1.0 + a * (r - 1.0)), 1.0,
+                                                       self.config.adaptive_max_scale))
+            keep.append((z, Z, R_eff, aidx))
         if not keep:
             return
         z = np.concatenate([k[0] for k in keep])

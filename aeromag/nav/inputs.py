@@ -11,7 +11,8 @@ import numpy as np
 
 from .mechanization import GRAVITY
 
-__all__ = ["NavInputs", "magnetic_reference_from_log", "tilt_from_accel", "decimate_rows"]
+__all__ = ["NavInputs", "decimate_rows", "imu_noise_from_data", "magnetic_reference_from_log",
+           "tilt_from_accel"]
 
 
 @dataclass
@@ -58,6 +59,31 @@ class NavInputs:
     gps_vel: np.ndarray | None = None
     gps_use: np.ndarray | None = None
     heading_deg: np.ndarray | None = None
+
+
+def imu_noise_from_data(gyro: np.ndarray, acc: np.ndarray) -> tuple[float, float]:
+    """White noise of one IMU sample from the log: gyro in °/s, accelerometer in g.
+
+    The robust scale (1.4826 MAD) of the first differences of consecutive samples over
+    sqrt(2), per axis, the largest axis counted: the body's own motion is slow at the IMU
+    rate, so the differences hold the sensor noise and the vibration the filter must treat
+    as noise.
+
+    Parameters
+    ----------
+    gyro : ndarray, shape (N, 3)
+        Body rate, rad/s, at consecutive IMU samples.
+    acc : ndarray, shape (N, 3)
+        Specific force, m/s², at the same samples.
+    """
+    def scale(x: np.ndarray) -> float:
+        d = np.diff(x, axis=0)
+        if d.shape[0] < 10:
+            return 0.0
+        mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
+        return float(np.max(1.4826 * mad / np.sqrt(2.0)))
+
+    return float(np.rad2deg(scale(gyro))), scale(acc) / GRAVITY
 
 
 def tilt_from_accel(f: np.ndarray) -> tuple[float, float]:

@@ -18,10 +18,11 @@ import pandas as pd
 
 from .._core.angles import wrap360_deg
 from .._core.geodesy import geodetic_to_ned, ned_to_geodetic
+from .._core.sequential import SequentialResult
 from ..errors import InputError
 from .config import NavConfig
 from .filter import ALL_SENSORS, NavFilter, NavInputs
-from .ukf import DivergenceError, FilterResult
+from .ukf import DivergenceError
 
 log = logging.getLogger(__name__)
 
@@ -56,15 +57,15 @@ class NavigationResult:
     ----------
     data : DataFrame
         The input log plus :data:`NAV_COLUMNS`.
-    result : FilterResult
-        The filter's estimate at every row.
+    result : SequentialResult
+        The filter's estimate at every row (the package's sequential result).
     report : dict
         ``gps`` (mode, origin, intervals used), ``settings``, ``innovations`` (per sensor),
         ``mean_nis`` (per sensor), ``reference_field``, ``warnings``.
     """
 
     data: pd.DataFrame
-    result: FilterResult
+    result: SequentialResult
     report: dict = field(default_factory=dict)
 
 
@@ -328,7 +329,7 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
     except DivergenceError as exc:
         raise DivergenceError(f"{src}: {exc}") from None
     warnings += [w for w in res.info["warnings"] if w not in warnings]
-    x, sd = res.x, res.std
+    x, sd = res.state, res.std
     out = df.copy()
     if org is not None:
         geo = ned_to_geodetic(x[:, 0:3], org)
