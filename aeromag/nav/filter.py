@@ -583,25 +583,3 @@ class NavFilter(StartupMixin, FusionMixin):
         return SequentialResult(time_s=t, state=xs, std=sds, state_names=self.names,
                                 loglik=np.full(N, np.nan),
                                 innovations=dict(self.innovations), info=info)
-
-    def noise_used(self) -> dict[str, float]:
-        """The noise levels the filter ended with (after sizing from the data), SI units.
-
-        ``gyro_noise_dps``, ``accel_noise_g`` (per IMU sample) and, per measurement, its
-        one-sigma noise and the adaptive variance scale applied to the configured one.
-        """
-        c = self.config
-        base = {"flow": ("flow_noise_ms", c.flow_noise_ms), "range": ("range_noise_m",
-                c.range_noise_m), "baro": ("baro_noise_m", c.baro_noise_m),
-                "mag": ("mag_heading_noise_deg", c.mag_heading_noise_deg),
-                "gps_pos": ("gps_cep_m", c.gps_cep_m),
-                "gps_vel": ("gps_vel_noise_ms", c.gps_vel_noise_ms),
-                "gravity": ("gravity_noise_ms2", c.gravity_noise_ms2)}
-        out: dict[str, float] = {"gyro_noise_dps": float(self.gyro_noise_dps),
-                                 "accel_noise_g": float(self.accel_noise_g)}
-        for name in self.sensors:
-            key, v = base[name]
-            sc = float(self.noise_scale.get(name, 1.0))
-            out[key] = float(v * np.sqrt(sc))
-            out[f"{name}_variance_scale"] = sc
-        return out

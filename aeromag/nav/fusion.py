@@ -28,6 +28,28 @@ class FusionMixin:
     level adapts to its innovations within bounds (``adaptive_noise``).
     """
 
+    def noise_used(self) -> dict[str, float]:
+        """The noise levels the filter ended with (after sizing from the data), SI units.
+
+        ``gyro_noise_dps``, ``accel_noise_g`` (per IMU sample) and, per measurement, its
+        one-sigma noise and the adaptive variance scale applied to the configured one.
+        """
+        c = self.config
+        base = {"flow": ("flow_noise_ms", c.flow_noise_ms), "range": ("range_noise_m",
+                c.range_noise_m), "baro": ("baro_noise_m", c.baro_noise_m),
+                "mag": ("mag_heading_noise_deg", c.mag_heading_noise_deg),
+                "gps_pos": ("gps_cep_m", c.gps_cep_m),
+                "gps_vel": ("gps_vel_noise_ms", c.gps_vel_noise_ms),
+                "gravity": ("gravity_noise_ms2", c.gravity_noise_ms2)}
+        out: dict[str, float] = {"gyro_noise_dps": float(self.gyro_noise_dps),
+                                 "accel_noise_g": float(self.accel_noise_g)}
+        for name in self.sensors:
+            key, v = base[name]
+            sc = float(self.noise_scale.get(name, 1.0))
+            out[key] = float(v * np.sqrt(sc))
+            out[f"{name}_variance_scale"] = sc
+        return out
+
     def _fuse(self, t: float, e: Epoch) -> None:
         """Gate and fuse every measurement of one epoch in one joint update."""
         c = self.config
