@@ -80,6 +80,10 @@ class NavFilter(StartupMixin, FusionMixin):
         from the log (declination 0: yaw magnetic).
     sensors : sequence of str, optional
         Measurement models to use (default :data:`ALL_SENSORS`); ``()`` runs the IMU alone.
+    declination_deg : float, optional
+        Magnetic declination, ° east, used with the strength and inclination found in the
+        log when ``mag_reference_ned_nT`` is absent (an uncalibrated magnetometer's field
+        strength differs from IGRF's; its heading does not).
 
     Notes
     -----
@@ -92,8 +96,10 @@ class NavFilter(StartupMixin, FusionMixin):
 
     def __init__(self, config: NavConfig | None = None,
                  mag_reference_ned_nT: np.ndarray | None = None,
-                 sensors: Sequence[str] | None = None) -> None:
+                 sensors: Sequence[str] | None = None,
+                 declination_deg: float | None = None) -> None:
         self.config = config or NavConfig()
+        self.declination_deg = None if declination_deg is None else float(declination_deg)
         self.sensors = tuple(ALL_SENSORS if sensors is None else sensors)
         unknown = set(self.sensors) - set(ALL_SENSORS)
         if unknown:
@@ -114,6 +120,7 @@ class NavFilter(StartupMixin, FusionMixin):
         self._online: dict = {}
         self._gates: dict[tuple[str, int], float] = {}
         self.gyro_noise_dps = self.config.gyro_noise_dps
+        self._pos_walk = 0.0
         self.accel_noise_g = self.config.accel_noise_g
 
     # ------------------------------------------------------------------ set-up
@@ -126,6 +133,7 @@ class NavFilter(StartupMixin, FusionMixin):
         q[9:12] = np.deg2rad(c.gyro_bias_walk_dps_rt_s) ** 2
         if c.accel_bias:
             q[12:15] = c.accel_bias_walk_ms2_rt_s ** 2
+        q[0:2] = self._pos_walk ** 2
         q[self.ig] = c.ground_walk_m_rt_s ** 2
         q[self.ib] = c.baro_walk_m_rt_s ** 2
         return q
@@ -372,7 +380,13 @@ class NavFilter(StartupMixin, FusionMixin):
         flux = None if inputs.flux is None else np.asarray(inputs.flux, dtype=np.float64)
         if flux is not None and self.mag_ref is None:   # also to align the yaw at the start
             ref, n_used = magnetic_reference_from_log(t, acc, gyro, flux)
-            if n_used:
+            if n_used and self.declination_deg is not None:
+                d = np.deg2rad(self.declination_deg)
+                self.mag_ref = np.array([ref[0] * np.cos(d), ref[0] * np.sin(d), ref[2]])
+                log.info("reference field: strength and inclination from the log's first"
+                         " minute (%d calm samples), declination %.2f° given", n_used,
+                         self.declination_deg)
+            elif n_used:
                 self.mag_ref = ref
                 self._warn("no reference field given: strength and inclination from the log's"
                            f" first minute ({n_used} calm samples), declination unknown (yaw"
@@ -404,6 +418,12 @@ class NavFilter(StartupMixin, FusionMixin):
         has_fix = inputs.gps_ned is not None and bool(
             np.isfinite(np.asarray(inputs.gps_ned, float)).all(axis=1).any())
         pos_std = (c.gps_cep_m / 1.1774, c.gps_vert_noise_m) if has_fix else None
+        n_fix_used = 0
+        if has_fix and "gps_pos" in self.sensors:
+            gu = np.ones(N, bool) if inputs.gps_use is None else np.asarray(inputs.gps_use, bool)
+            n_fix_used = int((np.isfinite(np.asarray(inputs.gps_ned, float)).all(axis=1)
+                              & gu).sum())
+        self._pos_walk = c.gps_walk_m_rt_s if n_fix_used > 1 else 0.0
         self.start(t[i0], acc0, flux0, head0, vel0, imu_dt_s=dt_med, pos_std_m=pos_std)
 
         # Measurement rows, per sensor.

@@ -221,7 +221,8 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
              origin: tuple[float, float, float] | None = None,
              mag_reference_ned_nT: np.ndarray | None = None,
              config: NavConfig | None = None, sensors: Sequence[str] | None = None,
-             source: str | None = None) -> NavigationResult:
+             source: str | None = None,
+             declination_deg: float | None = None) -> NavigationResult:
     """Run the navigation filter on a canonical multi-rate log.
 
     Parameters
@@ -243,6 +244,9 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
         Measurement models to use (default all, see :data:`aeromag.nav.ALL_SENSORS`).
     source : str, optional
         Name of the log for messages (default ``df.attrs["source"]``).
+    declination_deg : float, optional
+        Declination, ° east, with the strength and inclination from the log (when
+        ``mag_reference_ned_nT`` is absent).
 
     Returns
     -------
@@ -323,7 +327,8 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
         time_s=t, gyro=gyro, acc=acc, flow=flow, flow_quality=_col(df, "flow_quality", src),
         range_m=rng, baro_alt=_col(df, "baro_alt", src), flux=flux, gps_ned=gps_ned,
         gps_vel=vel, gps_use=gps_use, heading_deg=_col(df, "heading", src))
-    filt = NavFilter(cfg, mag_reference_ned_nT=mag_reference_ned_nT, sensors=use)
+    filt = NavFilter(cfg, mag_reference_ned_nT=mag_reference_ned_nT, sensors=use,
+                     declination_deg=declination_deg)
     try:
         res = filt.run(inputs)
     except DivergenceError as exc:
@@ -369,7 +374,9 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
         "reference_field": {
             "ned_nT": res.info["mag_reference_ned_nT"],
             "declination_deg": res.info["declination_deg"],
-            "from_log": mag_reference_ned_nT is None},
+            "from_log": mag_reference_ned_nT is None,
+            "declination_from": (None if mag_reference_ned_nT is not None else
+                                 "given" if declination_deg is not None else "none (0)")},
         "ground_d_m": res.info["d_ground_m"],
         "imu_interval_s": res.info["imu_interval_s"],
         "warnings": warnings,

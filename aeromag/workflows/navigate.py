@@ -115,7 +115,7 @@ def navigate_frame(
     if date is not None and earth_field is not None:
         raise InputError("date='YYYY-MM-DD' and earth_field=(F, I, D) are both given: give one "
                          "magnetic reference, not both")
-    ref, note = None, None
+    ref, note, auto = None, None, False
     if earth_field is not None:
         ref = explicit_field(*earth_field)
     else:
@@ -134,6 +134,7 @@ def navigate_frame(
                     how = "the log's UTC time"
                 else:
                     date, how = NOMINAL_DATE, "nominal date"
+                auto = True
             ref = igrf_field(where[0], where[1], where[2], date)
             if how == "nominal date":
                 d = float(np.atleast_1d(ref.declination_deg)[0])
@@ -143,8 +144,13 @@ def navigate_frame(
                         " YYYY-MM-DD for the flight's own)")
                 log.warning("%s", note)
     ref_ned = None if ref is None else np.atleast_2d(ref.ned_nT)[0]
+    decl = None
+    if auto:
+        # No date given: the declination from IGRF, the strength and inclination from the log
+        # (an uncalibrated magnetometer's strength differs from IGRF's; its heading does not).
+        decl, ref_ned = float(np.atleast_1d(ref.declination_deg)[0]), None
     res = navigate(df, gps=gps, origin=origin, mag_reference_ned_nT=ref_ned, config=config,
-                   sensors=sensors, source=src)
+                   sensors=sensors, source=src, declination_deg=decl)
     if note is not None:
         res.report["warnings"].insert(0, note)
     if ref is not None:
