@@ -168,7 +168,7 @@ def test_online_step_equals_the_batched_run():
     inp = NavInputs(time_s=t, gyro=cols["gyro"], acc=cols["acc"], flow=cols["flow"],
                     flow_quality=L.flow_quality.to_numpy(), range_m=L.range_m.to_numpy(),
                     flux=cols["flux"])
-    cfg = NavConfig(init_seconds=0.0, imu_noise_from_data=False)
+    cfg = NavConfig(init_seconds=0.0, imu_noise_from_data=False, flow_stamp="end")
     batch = NavFilter(cfg, mag_reference_ned_nT=REF).run(inp)
     online = NavFilter(cfg, mag_reference_ned_nT=REF)
     imu_rows = np.flatnonzero(np.isfinite(cols["gyro"]).all(axis=1))

@@ -39,6 +39,10 @@ class NavConfig:
         Accelerometer bias random walk, m/s²/sqrt(s).
     flow_noise_ms : float
         Optical-flow noise as a ground velocity, m/s (PX4Flow: 0.01).
+    flow_stamp : str
+        Where a flow sample is stamped in its integration interval: ``"middle"`` (the
+        interface's convention; ``run`` moves it to the interval's end) or ``"end"``.
+        ``step`` (online) takes flow as stamped at the end.
     flow_min_quality : int
         Flow samples with a lower ``flow_quality`` are not used (0 is invalid).
     flow_min_distance_m : float
@@ -139,6 +143,7 @@ class NavConfig:
     accel_bias_init_ms2: float = 0.1
     accel_bias_walk_ms2_rt_s: float = 1e-4
     flow_noise_ms: float = 0.01
+    flow_stamp: str = "middle"
     flow_min_quality: int = 1
     flow_min_distance_m: float = 0.3
     range_noise_m: float = 0.01
@@ -184,6 +189,8 @@ class NavConfig:
     max_position_std_m: float = 1e5
 
     def __post_init__(self) -> None:
+        if self.flow_stamp not in ("middle", "end"):
+            raise ValueError(f"flow_stamp must be 'middle' or 'end', got {self.flow_stamp!r}")
         if self.robust not in ("huber", "none"):
             raise ValueError(f"robust must be 'huber' or 'none', got {self.robust!r}")
         for name, value in asdict(self).items():

@@ -48,6 +48,7 @@ from .inputs import (
     Epoch,
     NavInputs,
     decimate_rows,
+    flow_to_interval_end,
     imu_noise_from_data,
     magnetic_reference_from_log,
 )
@@ -447,9 +448,13 @@ class NavFilter(StartupMixin, FusionMixin):
         r_gpsv = rows_of(inputs.gps_vel, 3)
         r_gpsv = r_gpsv[gps_use[r_gpsv]]
         r_range = rows_of(inputs.range_m, 1)
-        r_flow_all = rows_of(inputs.flow, 2)
-        if inputs.flow_quality is not None and r_flow_all.size:
-            q = np.asarray(inputs.flow_quality, float)[r_flow_all]
+        flow_in, fq_in = inputs.flow, inputs.flow_quality
+        if flow_in is not None and c.flow_stamp == "middle":
+            flow_in, fq_in = flow_to_interval_end(t, np.asarray(flow_in, float).reshape(N, 2),
+                                                  fq_in)
+        r_flow_all = rows_of(flow_in, 2)
+        if fq_in is not None and r_flow_all.size:
+            q = np.asarray(fq_in, float)[r_flow_all]
             qok = np.isfinite(q) & (q >= max(c.flow_min_quality, 1))
         else:
             qok = np.ones(r_flow_all.size, bool)
@@ -509,7 +514,7 @@ class NavFilter(StartupMixin, FusionMixin):
         }
         epochs = np.unique(np.concatenate(list(per.values()) + [np.zeros(0, np.intp)]))
         lookup = {k: {int(r): j for j, r in enumerate(v)} for k, v in per.items()}
-        flow_arr = None if inputs.flow is None else np.asarray(inputs.flow, float)
+        flow_arr = None if flow_in is None else np.asarray(flow_in, float)
         gps_ned = None if inputs.gps_ned is None else np.asarray(inputs.gps_ned, float)
         gps_vel = None if inputs.gps_vel is None else np.asarray(inputs.gps_vel, float)
         rng = None if inputs.range_m is None else np.asarray(inputs.range_m, float)
