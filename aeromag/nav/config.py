@@ -50,7 +50,8 @@ class NavConfig:
     range_noise_m : float
         Rangefinder noise, m (HRLV-EZ4: 0.01).
     range_min_m, range_max_m : float
-        Valid rangefinder readings (HRLV-EZ4: 0.3 to 5 m).
+        Valid rangefinder readings, m: at least MIN and below MAX (a reading at MAX is a
+        saturated sensor; HRLV-EZ4: 0.3 to 5 m).
     gps_walk_m_rt_s : float
         Random walk of the horizontal position beyond what the velocity explains, m/sqrt(s),
         applied when a run fuses GNSS positions: a real receiver's position error is

@@ -462,7 +462,7 @@ class NavFilter(StartupMixin, FusionMixin):
         if not c.baro_with_range and r_range.size and r_baro.size and "range" in self.sensors:
             # Barometer samples while the rangefinder is valid are not fused: no epoch for them.
             rv = np.asarray(inputs.range_m, float)[r_range]
-            t_ok = t[r_range[(rv >= c.range_min_m) & (rv <= c.range_max_m)]]
+            t_ok = t[r_range[(rv >= c.range_min_m) & (rv < c.range_max_m)]]
             k = np.searchsorted(t_ok, t[r_baro], side="right") - 1
             recent = (k >= 0) & (t[r_baro] - t_ok[np.maximum(k, 0)] < _RANGE_RECENT_S)
             if "baro" in self.innovations:

@@ -70,7 +70,7 @@ class FusionMixin:
                            np.eye(3) * c.gps_vel_noise_ms**2, ()))
         if e.range_m is not None and "range" in use:
             r = e.range_m
-            if not (c.range_min_m <= r <= c.range_max_m) or not tilt_ok:
+            if not (c.range_min_m <= r < c.range_max_m) or not tilt_ok:
                 st["range"].n_gated += 1
             elif not self._ground_set:
                 self._init_ground(r * cz)

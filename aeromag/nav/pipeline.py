@@ -26,7 +26,8 @@ from .ukf import DivergenceError
 
 log = logging.getLogger(__name__)
 
-__all__ = ["GYRO", "ACC", "NAV_COLUMNS", "NavigationResult", "TrackInputs", "navigate",
+__all__ = ["GYRO", "ACC", "NAV_COLUMNS", "NavigationResult", "TrackInputs",
+           "check_flow_against_gyro", "navigate",
            "parse_gps_mode", "track_inputs"]
 
 GYRO = ("gyro_x", "gyro_y", "gyro_z")
@@ -45,6 +46,10 @@ NAV_COLUMNS = ("nav_lat", "nav_lon", "nav_alt", "nav_n_m", "nav_e_m", "nav_d_m",
 #: Largest plausible body rate, rad/s (the MPU-6000's full scale, 2000 °/s).
 MAX_RATE_RADS = 34.9
 _FIX_GAP_S = 2.0
+#: Band of the mean NIS per degree of freedom outside which a sensor's noise model is said
+#: not to fit (a WARNING), and the fraction of refused samples that warns.
+NIS_BAND = (0.3, 3.0)
+LOSS_WARN_FRACTION = 0.05
 
 GpsMode = str | tuple[float, float]
 
@@ -217,6 +222,67 @@ def _check_gyro_against_mag(t: np.ndarray, gyro: np.ndarray, flux: np.ndarray | 
         log.warning("%s", msg)
 
 
+def check_flow_against_gyro(t: np.ndarray, gyro: np.ndarray, flow: np.ndarray | None,
+                            source: str) -> float | None:
+    """Check the unit and sign of the optical flow against the IMU's gyro.
+
+    The flow holds the body rotation (``flow_x = gyro_x - v_y / h``...): regressed on the
+    gyro's mean over each flow interval (centred on the stamp), its slope is about 1 in the
+    interface's convention, about -1 with the opposite sign, about 57 in deg/s.  Needs some
+    rotation (rms body rate about x, y above 0.03 rad/s) to say anything.
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+        Row times, s.
+    gyro : ndarray, shape (N, 3)
+        Body rate, rad/s.
+    flow : ndarray, shape (N, 2) or None
+        Optical flow, expected in rad/s.
+    source : str
+        Log name for the message.
+
+    Returns
+    -------
+    float or None
+        The slope (None when the log rotates too little to tell).
+
+    Raises
+    ------
+    InputError
+        The flow has the opposite sign or is in deg/s (the message names the remedy).
+    """
+    if flow is None:
+        return None
+    imu = np.flatnonzero(np.isfinite(gyro).all(axis=1))
+    fr = np.flatnonzero(np.isfinite(flow).all(axis=1))
+    if imu.size < 10 or fr.size < 20:
+        return None
+    ti = t[imu]
+    dt = np.diff(ti, prepend=ti[0])
+    cum = np.cumsum(gyro[imu, :2] * dt[:, None], axis=0)
+    tf = t[fr]
+    half = 0.5 * np.r_[np.diff(tf)[0], np.diff(tf)]
+    a, b = np.clip(tf - half, ti[0], ti[-1]), np.clip(tf + half, ti[0], ti[-1])
+    ok = b - a > 0
+    g = np.column_stack([(np.interp(b, ti, cum[:, k]) - np.interp(a, ti, cum[:, k]))
+                         for k in range(2)])[ok] / (b - a)[ok, None]
+    f = flow[fr][ok]
+    if g.shape[0] < 20 or np.sqrt(np.mean(g**2)) < 0.03:
+        return None
+    slope = float(np.sum(f * g) / np.sum(g * g))
+    if slope < -0.3:
+        raise InputError(f"{source}: columns flow_x, flow_y: the flow turns against the gyro"
+                         f" (slope {slope:.2f} on gyro_x, gyro_y, expected about +1): it has the"
+                         " opposite sign to the interface's OPTICAL_FLOW_RAD convention; negate"
+                         " both columns, or leave flow out with --without flow")
+    if slope > 15.0:
+        raise InputError(f"{source}: columns flow_x, flow_y: the flow's rotation is {slope:.0f}"
+                         " times the gyro's: it is probably in deg/s; convert it with --units"
+                         " flow=deg/s (units={'flow': 'deg/s'})")
+    return slope
+
+
 def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
              origin: tuple[float, float, float] | None = None,
              mag_reference_ned_nT: np.ndarray | None = None,
@@ -288,6 +354,8 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
         warnings.append(msg)
         log.warning("%s", msg)
         use.remove("flow")
+    if has_flow and "flow" in use and not any("deg/s" in w for w in warnings):
+        check_flow_against_gyro(t, gyro, flow, src)
     flux = _group(df, FLUX, src)
     if not any("deg/s" in w for w in warnings):
         _check_gyro_against_mag(t, gyro, flux, src, warnings)
@@ -359,6 +427,21 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
             intervals = [[float(t[rows[a]]), float(t[rows[b]])]
                          for a, b in zip(cut, ends, strict=True)]
     stats = {k: v.as_dict() for k, v in res.innovations.items()}
+    lo, hi = NIS_BAND
+    for k, v in stats.items():
+        v["nis_band"] = [lo, hi]
+        offered = v["n_fused"] + v["n_rejected"]
+        if offered and v["n_rejected"] > LOSS_WARN_FRACTION * offered:
+            msg = (f"{src}: {k}: {v['n_rejected']} of {offered} samples refused as gross"
+                   f" faults ({100 * v['n_rejected'] / offered:.0f} %)")
+            warnings.append(msg)
+            log.warning("%s", msg)
+        m = v["mean_nis_per_dof"]
+        if m is not None and v["n_fused"] >= 20 and not lo <= m <= hi:
+            msg = (f"{src}: {k}: mean NIS per degree of freedom {m:.2f} outside [{lo}, {hi}]:"
+                   f" the filter's {k} noise model does not fit the data")
+            warnings.append(msg)
+            log.warning("%s", msg)
     report = {
         "gps": {"mode": mode if isinstance(mode, str) else {"outage_s": list(mode)},
                 "origin": None if org is None else list(org),
@@ -368,7 +451,8 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
                 "n_fixes_in_log": int(fix.sum()),
                 "n_fixes_used": int((gps_use & fix).sum()) if gps_use is not None else 0,
                 "n_fixes_fused": int(stats.get("gps_pos", {}).get("n_fused", 0))},
-        "settings": {**cfg.as_dict(), "sensors": use, "states": list(res.state_names)},
+        "settings": {**cfg.as_dict(), "sensors": use, "states": list(res.state_names),
+                     "noise_used": res.info["noise"]},
         "innovations": stats,
         "mean_nis": {k: v["mean_nis"] for k, v in stats.items()},
         "reference_field": {
