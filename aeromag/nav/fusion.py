@@ -183,8 +183,8 @@ class FusionMixin:
                 # variance scale follows the mean of the (Huber-clipped) NIS per dof.
                 r = min(nis, k2) / dof
                 a = self.config.adaptive_rate
-                self.noise_scale[name] = float(np.clip(scale * (1.0 + a * (r - 1.0)), 1.0,
-                                                       self.config.adaptive_max_scale))
+                self.noise_scale[name] = min(max(scale * (1.0 + a * (r - 1.0)), 1.0),
+                                             self.config.adaptive_max_scale)
             keep.append((z, Z, R_eff, aidx))
         if not keep:
             return
