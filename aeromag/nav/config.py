@@ -76,6 +76,12 @@ class NavConfig:
         range, GNSS), rotated by the gyro to that epoch's time: one update instead of two.
     mag_heading_noise_deg : float
         Magnetometer heading noise, ° (HMC5983: 1).
+    mag_bias_init_deg : float
+        Initial one-sigma of the magnetometer heading bias, ° (a state when GNSS velocity
+        is fused: against it, with the flow's body velocity, the yaw is observable while the
+        vehicle moves); 0: no such state.
+    mag_bias_walk_deg_rt_s : float
+        Random walk of that bias, °/sqrt(s).
     mag_field_tolerance : float
         Relative tolerance of the field strength against the reference (gate).
     mag_inclination_tolerance_deg : float
@@ -161,6 +167,8 @@ class NavConfig:
     gravity_interval_s: float = 0.1
     mag_on_epochs: bool = True
     mag_heading_noise_deg: float = 1.0
+    mag_bias_init_deg: float = 10.0
+    mag_bias_walk_deg_rt_s: float = 0.01
     mag_field_tolerance: float = 0.15
     mag_inclination_tolerance_deg: float = 5.0
     gravity_noise_ms2: float = 0.1

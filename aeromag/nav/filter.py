@@ -107,11 +107,7 @@ class NavFilter(StartupMixin, FusionMixin):
             raise ValueError(f"unknown sensors {sorted(unknown)}; known: {ALL_SENSORS}")
         self.mag_ref = (None if mag_reference_ned_nT is None
                         else np.asarray(mag_reference_ned_nT, dtype=np.float64))
-        self.n = (15 if self.config.accel_bias else 12) + 2
-        self.ig = self.n - 2  # ground level (down coordinate of the flat ground), m
-        self.ib = self.n - 1  # barometer datum: baro_alt + p_d, m (a random walk: drift)
-        self.names = (STATE_NAMES + (ACCEL_BIAS_NAMES if self.config.accel_bias else ())
-                      + ("ground_d_m", "baro_offset_m"))
+        self._layout(mag_bias=False)
         self.ukf: UnscentedKalmanFilter | None = None
         self.baro_offset: float | None = None
         self.warnings: list[str] = []
@@ -125,6 +121,17 @@ class NavFilter(StartupMixin, FusionMixin):
         self.accel_noise_g = self.config.accel_noise_g
 
     # ------------------------------------------------------------------ set-up
+    def _layout(self, mag_bias: bool) -> None:
+        """State layout: the study's 12 (15), the magnetometer heading bias, ground, datum."""
+        base = 15 if self.config.accel_bias else 12
+        self.imb = base if mag_bias else None   # magnetometer heading bias, rad
+        self.n = base + (1 if mag_bias else 0) + 2
+        self.ig = self.n - 2  # ground level (down coordinate of the flat ground), m
+        self.ib = self.n - 1  # barometer datum: baro_alt + p_d, m (a random walk: drift)
+        self.names = (STATE_NAMES + (ACCEL_BIAS_NAMES if self.config.accel_bias else ())
+                      + (("mag_bias_rad",) if mag_bias else ())
+                      + ("ground_d_m", "baro_offset_m"))
+
     def _noise_rates(self) -> np.ndarray:
         """Diagonal process noise per second of flight."""
         c = self.config
@@ -135,6 +142,8 @@ class NavFilter(StartupMixin, FusionMixin):
         if c.accel_bias:
             q[12:15] = c.accel_bias_walk_ms2_rt_s ** 2
         q[0:2] = self._pos_walk ** 2
+        if self.imb is not None:
+            q[self.imb] = np.deg2rad(c.mag_bias_walk_deg_rt_s) ** 2
         q[self.ig] = c.ground_walk_m_rt_s ** 2
         q[self.ib] = c.baro_walk_m_rt_s ** 2
         return q
@@ -425,6 +434,12 @@ class NavFilter(StartupMixin, FusionMixin):
             n_fix_used = int((np.isfinite(np.asarray(inputs.gps_ned, float)).all(axis=1)
                               & gu).sum())
         self._pos_walk = c.gps_walk_m_rt_s if n_fix_used > 1 else 0.0
+        n_vel_used = 0
+        if inputs.gps_vel is not None and "gps_vel" in self.sensors and "mag" in self.sensors:
+            gu = np.ones(N, bool) if inputs.gps_use is None else np.asarray(inputs.gps_use, bool)
+            n_vel_used = int((np.isfinite(np.asarray(inputs.gps_vel, float)).all(axis=1)
+                              & gu).sum())
+        self._layout(mag_bias=c.mag_bias_init_deg > 0 and n_vel_used > 10)
         self.start(t[i0], acc0, flux0, head0, vel0, imu_dt_s=dt_med, pos_std_m=pos_std)
 
         # Measurement rows, per sensor.
@@ -594,6 +609,10 @@ class NavFilter(StartupMixin, FusionMixin):
         src = np.where(src < 0, i0, src)
         xs, sds = xs[src], sds[src]
         info = {"d_ground_m": float(self.ukf.x[self.ig]) if self._ground_set else None,
+                "mag_bias_deg": (None if self.imb is None else
+                                 [float(np.rad2deg(self.ukf.x[self.imb])),
+                                  float(np.rad2deg(np.sqrt(self.ukf.P[self.imb,
+                                                                      self.imb])))]),
                 "baro_offset_m": (float(self.ukf.x[self.ib]) if self.baro_offset is not None
                                   else None),
                 "mag_reference_ned_nT": None if self.mag_ref is None else self.mag_ref.tolist(),

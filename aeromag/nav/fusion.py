@@ -131,7 +131,8 @@ class FusionMixin:
             else:
                 fl, decl = e.flux, self._declination()
                 blocks.append(("mag", np.zeros(1),
-                               lambda X, fl=fl, decl=decl: h_mag_heading(X, fl, decl),
+                               lambda X, fl=fl, decl=decl, mb=self.imb:
+                               h_mag_heading(X, fl, decl, mb),
                                np.array([[np.deg2rad(c.mag_heading_noise_deg) ** 2]]), (0,)))
         if blocks:
             self._update_blocks(blocks)

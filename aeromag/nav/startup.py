@@ -18,7 +18,7 @@ from .ukf import UnscentedKalmanFilter
 log = logging.getLogger(__name__)
 
 #: Indices of the attitude angles in the state (roll, pitch, yaw; wrapped by the filter).
-ANGLES = (6, 7, 8)
+ANGLES = (6, 7, 8)  # the magnetometer heading bias is small: not wrapped
 
 
 class StartupMixin:
@@ -75,6 +75,8 @@ class StartupMixin:
         sd[9:12] = np.deg2rad(c.gyro_bias_init_dps)
         if c.accel_bias:
             sd[12:15] = c.accel_bias_init_ms2
+        if self.imb is not None:
+            sd[self.imb] = np.deg2rad(c.mag_bias_init_deg)
         sd[self.ig] = 1.0  # set from the first valid range (see _init_ground)
         sd[self.ib] = 1.0  # set from the first barometer sample (see _init_baro)
         self._ground_set = False
