@@ -174,3 +174,132 @@ def test_magnetometer_near_a_motor_does_not_turn_the_heading():
     assert yaw_err[t > 5].max() < 5.0, yaw_err[t > 5].max()
     s = res.report["innovations"]["mag"]
     assert s["n_gated"] + s["n_rejected"] + s["n_downweighted"] >= 0.8 * (near.sum() / 5)
+
+
+# ------------------------------------------------------------------ an independent simulator
+def _independent_flight(scenario: str, seed: int = 11, duration_s: float = 60.0):
+    """A quadrotor written here, not with aeromag.synthetic: other noise (Student-t flow,
+    constant biases of other sizes), other rates (flow 9 Hz stamped at the middle of its
+    interval, range 20 Hz), other geometry (a 24 m x 12 m rectangle at 1.5 m/s, 1.6 m up,
+    the yaw swung by 90° at each corner while stopped, and a 45° site)."""
+    from scipy.spatial.transform import Rotation
+
+    from aeromag._core.geodesy import ned_to_geodetic
+
+    rng = np.random.default_rng(seed)
+    g = np.array([0.0, 0.0, 9.80665])
+    field = np.array([19000.0, 800.0, 45000.0])
+    fs = 1000.0
+    tf = np.arange(0.0, duration_s + 1.0, 1.0 / fs)
+    pos = np.zeros((tf.size, 3))
+    yaw = np.zeros(tf.size)
+    pos[:, 2] = -1.6
+    if scenario == "rectangle":
+        legs = [(24.0, 0.0), (0.0, 12.0), (-24.0, 0.0), (0.0, -12.0)] * 3
+        t0, p0, y0 = 2.0, np.zeros(2), 0.0
+        for dn, de in legs:
+            L = np.hypot(dn, de)
+            T = L / 1.5 + 1.5                      # 1.5 s of ramps
+            s = np.clip((tf - t0) / T, 0, 1)
+            u = s * s * s * (10 - 15 * s + 6 * s * s)   # smooth 0 -> 1
+            m = tf >= t0
+            pos[m, 0] = p0[0] + dn * u[m]
+            pos[m, 1] = p0[1] + de * u[m]
+            p0 = p0 + (dn, de)
+            t0 += T
+            # yaw swing of 90° at the corner, 3 s, stopped
+            s = np.clip((tf - t0) / 3.0, 0, 1)
+            w = s * s * (3 - 2 * s)
+            yaw[tf >= t0] = y0 + np.pi / 2 * w[tf >= t0]
+            y0 += np.pi / 2
+            t0 += 3.5
+    else:  # hover with a slow sway
+        pos[:, 0] = 0.3 * np.sin(2 * np.pi * tf / 17.0)
+        pos[:, 1] = 0.2 * np.sin(2 * np.pi * tf / 23.0)
+    vel = np.gradient(pos, tf, axis=0)
+    acc = np.gradient(vel, tf, axis=0)
+    f_n = acc - g
+    zb = -f_n / np.linalg.norm(f_n, axis=1)[:, None]
+    xc = np.column_stack([np.cos(yaw), np.sin(yaw), np.zeros(tf.size)])
+    yb = np.cross(zb, xc)
+    yb /= np.linalg.norm(yb, axis=1)[:, None]
+    xb = np.cross(yb, zb)
+    C = np.stack([xb, yb, zb], axis=2)                      # body -> NED
+    rot = Rotation.from_matrix(C)
+    # body rate: rotation between consecutive fine samples
+    dphi = (rot[:-1].inv() * rot[1:]).as_rotvec() * fs
+    w_b = np.vstack([dphi, dphi[-1]])
+    f_b = np.einsum("kji,kj->ki", C, f_n)
+    v_b = np.einsum("kji,kj->ki", C, vel)
+    h = -pos[:, 2] / C[:, 2, 2]
+    flow_fine = np.column_stack([w_b[:, 0] - v_b[:, 1] / h, w_b[:, 1] + v_b[:, 0] / h])
+
+    def cum(x):
+        return np.vstack([np.zeros(x.shape[1]), np.cumsum(x[:-1], axis=0) / fs])
+
+    W, F, FL = cum(w_b), cum(f_b), cum(flow_fine)
+
+    def mean_over(c, a, b):
+        return np.column_stack([np.interp(b, tf, c[:, k]) - np.interp(a, tf, c[:, k])
+                                for k in range(c.shape[1])]) / (b - a)[:, None]
+
+    t_imu = np.arange(0.004, duration_s, 0.004)
+    bg = np.deg2rad([0.2, -0.15, 0.1])
+    ba = np.array([0.03, -0.02, 0.04])
+    gyro = mean_over(W, t_imu - 0.004, t_imu) + bg + rng.normal(0, np.deg2rad(0.1), (t_imu.size, 3))
+    accm = mean_over(F, t_imu - 0.004, t_imu) + ba + rng.normal(0, 0.08, (t_imu.size, 3))
+    T = 1.0 / 9.0
+    t_fl = np.arange(0.2, duration_s - 0.2, T)               # middle of each interval
+    flow = mean_over(FL, t_fl - T / 2, t_fl + T / 2)
+    hf = np.interp(t_fl, tf, h)
+    flow += rng.standard_t(4, flow.shape) * (0.012 / hf)[:, None]
+    t_rg = np.arange(0.013, duration_s, 0.05)
+    rg = np.interp(t_rg, tf, h) + rng.normal(0, 0.02, t_rg.size)
+    t_mg = np.arange(0.007, duration_s, 0.02)
+    Cm = C[np.searchsorted(tf, t_mg)]
+    mag = np.einsum("kji,j->ki", Cm, field) + rng.normal(0, 200.0, (t_mg.size, 3))
+    t_gp = np.arange(0.0, duration_s, 0.2)
+    site = (45.0, 7.0, 300.0)
+    llh = ned_to_geodetic(pos[np.searchsorted(tf, t_gp)], site)
+    times = np.unique(np.concatenate([t_imu, t_fl, t_rg, t_mg, t_gp]))
+    log = pd.DataFrame({"time": times})
+
+    def put(cols, t, v):
+        idx = np.searchsorted(times, t)
+        for j, c in enumerate(cols):
+            a = np.full(times.size, np.nan)
+            a[idx] = v[:, j] if v.ndim == 2 else v
+            log[c] = a
+
+    put(["gyro_x", "gyro_y", "gyro_z"], t_imu, gyro)
+    put(["acc_x", "acc_y", "acc_z"], t_imu, accm)
+    put(["flow_x", "flow_y"], t_fl, flow)
+    put(["flow_quality"], t_fl, np.full(t_fl.size, 200.0))
+    put(["range_m"], t_rg, rg)
+    put(["flux_x", "flux_y", "flux_z"], t_mg, mag)
+    put(["lat", "lon", "alt"], t_gp, llh)
+    k = np.searchsorted(tf, times)
+    truth = pd.DataFrame({"n_m": pos[k, 0], "e_m": pos[k, 1], "vn_ms": vel[k, 0],
+                          "ve_ms": vel[k, 1]})
+    return log, truth, field
+
+
+@pytest.mark.parametrize("scenario,pos_max,vel_max", [("hover", 0.5, 0.15),
+                                                      ("rectangle", 2.5, 0.2)])
+def test_independent_simulator_meets_the_bars_without_reject_storms(scenario, pos_max, vel_max):
+    log, tru, field = _independent_flight(scenario)
+    res = navigate(log, gps="none", mag_reference_ned_nT=field, source="indep")
+    d = res.data
+    est = d[["nav_n_m", "nav_e_m"]].to_numpy()
+    tr = tru[["n_m", "e_m"]].to_numpy()
+    k0 = np.flatnonzero(np.isfinite(log["gyro_x"].to_numpy()))[0]
+    e_pos = np.hypot(*((est - est[k0]) - (tr - tr[k0])).T)[k0:]
+    e_vel = np.hypot(*(d[["nav_vn", "nav_ve"]].to_numpy()
+                       - tru[["vn_ms", "ve_ms"]].to_numpy()).T)[k0:]
+    print(scenario, e_pos.mean(), e_vel.mean(), res.report["innovations"]["flow"])
+    assert e_pos.mean() < 0.8 * pos_max and e_vel.mean() < 0.8 * vel_max, (
+        e_pos.mean(), e_vel.mean())
+    assert not any("in a row" in w for w in res.report["warnings"])
+    for name in ("flow", "range", "mag"):
+        s = res.report["innovations"][name]
+        assert s["n_rejected"] <= 0.02 * s["n_fused"], (name, s)

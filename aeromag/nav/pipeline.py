@@ -462,6 +462,7 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
             "declination_from": (None if mag_reference_ned_nT is not None else
                                  "given" if declination_deg is not None else "none (0)")},
         "ground_d_m": res.info["d_ground_m"],
+        "mag_bias_deg": res.info["mag_bias_deg"],
         "imu_interval_s": res.info["imu_interval_s"],
         "warnings": warnings,
     }
