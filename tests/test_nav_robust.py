@@ -303,3 +303,23 @@ def test_independent_simulator_meets_the_bars_without_reject_storms(scenario, po
     for name in ("flow", "range", "mag"):
         s = res.report["innovations"][name]
         assert s["n_rejected"] <= 0.02 * s["n_fused"], (name, s)
+
+
+def test_cli_robust_options_are_checked_in_one_line(tmp_path):
+    from typer.testing import CliRunner
+
+    from aeromag.cli import app
+
+    log_csv = tmp_path / "log.csv"
+    _flight("hover", duration_s=5.0).log.to_csv(log_csv, index=False)
+    r = CliRunner().invoke(app, ["navigate", str(log_csv), "-o", str(tmp_path / "o.csv"),
+                                 "--flow-stamp", "start"])
+    assert r.exit_code == 1 and "--flow-stamp must be 'middle' or 'end'" in r.output
+    r = CliRunner().invoke(app, ["navigate", str(log_csv), "-o", str(tmp_path / "o.csv"),
+                                 "--gps", "none", "--fixed-noise", "--robust", "none"])
+    assert r.exit_code == 0, r.output
+    import json
+
+    rep = json.loads((tmp_path / "o.json").read_text())
+    assert rep["settings"]["robust"] == "none" and rep["settings"]["adaptive_noise"] is False
+    assert rep["settings"]["noise_used"]["flow_variance_scale"] == 1.0
