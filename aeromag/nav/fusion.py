@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from .._core.rotations import dcm_body_to_ned
-from .inputs import Epoch
-from .mechanization import GRAVITY
+from .inputs import Epoch, decimate_rows
+from .mechanization import GRAVITY, rotation_matrices
 from .models import h_baro, h_flow, h_gnss_pos, h_gnss_vel, h_gravity, h_mag_heading, h_range
 from .ukf import DivergenceError
 
@@ -49,6 +49,62 @@ class FusionMixin:
             out[key] = float(v * np.sqrt(sc))
             out[f"{name}_variance_scale"] = sc
         return out
+
+    def _check(self, t: float, row: int | None = None) -> None:
+        x, P = self.ukf.x, self.ukf.P
+        where = f"t = {t:.3f} s" + ("" if row is None else f" (row {row})")
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
+            raise DivergenceError(f"navigation filter diverged at {where}: the state is no "
+                                  "longer finite; check the IMU units and noise settings")
+        ps = float(np.sqrt(max(P[0, 0], P[1, 1], P[2, 2], 0.0)))
+        if ps > self.config.max_position_std_m or np.linalg.norm(x[3:6]) > 500.0:
+            raise DivergenceError(
+                f"navigation filter diverged at {where}: position sigma {ps:.3g} m, speed "
+                f"{np.linalg.norm(x[3:6]):.3g} m/s; check the IMU units (units=...) and the "
+                "noise settings, or give GNSS")
+
+    def _mag_epochs(self, t: np.ndarray, flux: np.ndarray | None, r_mag: np.ndarray,
+                    hosts: np.ndarray, imu_rows: np.ndarray, last_imu: np.ndarray,
+                    gyro: np.ndarray, cum_ang: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rows at which to fuse the magnetometer, and the field vector to fuse there.
+
+        With ``mag_on_epochs``, each magnetometer update rides on an epoch the filter makes
+        anyway (flow, range, GNSS; decimated to ``mag_interval_s``) with the magnetometer
+        sample nearest to it, within half a magnetometer interval: one update instead of two.
+        Either way the vector is rotated by the body rotation (gyro) from its own time to the
+        time of the state it is fused with (the last IMU sample), so neither the shift nor the
+        IMU interval biases the heading in a turn.
+        """
+        if flux is None:
+            return r_mag, np.zeros((0, 3))
+        c = self.config
+        src = r_mag
+        if c.mag_on_epochs and hosts.size:
+            all_mag = np.flatnonzero(np.isfinite(flux).all(axis=1) & (last_imu >= 0))
+            all_mag = all_mag[all_mag > imu_rows[0]]
+            if all_mag.size > 1:
+                half = 0.5 * float(np.median(np.diff(t[all_mag])))
+                dec = decimate_rows(t, hosts, c.mag_interval_s)
+                k = np.clip(np.searchsorted(t[all_mag], t[dec]), 1, all_mag.size - 1)
+                left, right = all_mag[k - 1], all_mag[k]
+                pick = np.where(np.abs(t[left] - t[dec]) <= np.abs(t[right] - t[dec]), left,
+                                right)
+                ok = np.abs(t[pick] - t[dec]) <= half + 1e-9
+                r_mag, src = dec[ok], pick[ok]
+        if r_mag.size == 0:
+            return r_mag, np.zeros((0, 3))
+        # Body angle at a time: the cumulative angle at the last IMU sample before it plus the
+        # next sample's rate over the remainder.
+        def angle_at(rows: np.ndarray) -> np.ndarray:
+            li = last_imu[rows]
+            nxt = imu_rows[np.minimum(np.searchsorted(imu_rows, li, side="right"),
+                                      imu_rows.size - 1)]
+            return cum_ang[li] + gyro[nxt] * (t[rows] - t[li])[:, None]
+
+        dtheta = cum_ang[last_imu[r_mag]] - angle_at(src)       # from the sample to the state
+        R = rotation_matrices(dtheta)
+        fused = np.einsum("kji,kj->ki", R, flux[src])          # R^T m: the field at the state
+        return r_mag, fused
 
     def _fuse(self, t: float, e: Epoch) -> None:
         """Gate and fuse every measurement of one epoch in one joint update."""
