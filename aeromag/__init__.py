@@ -97,7 +97,6 @@ _API: dict[str, str] = {
     "sigma_points": "aeromag._core.unscented",
     "unscented_transform": "aeromag._core.unscented",
     "UnscentedKalmanFilter": "aeromag.nav",
-    "FilterResult": "aeromag.nav",
     "NavConfig": "aeromag.nav",
     "NavFilter": "aeromag.nav",
     "NavInputs": "aeromag.nav",

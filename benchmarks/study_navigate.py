@@ -52,15 +52,15 @@ def _nees(fl, accel_bias: bool) -> dict[str, np.ndarray]:
     tru = np.c_[geodetic_to_ned(T.lat.to_numpy(), T.lon.to_numpy(), T.alt.to_numpy(), origin),
                 T[["vn_ms", "ve_ms", "vd_ms"]].to_numpy(),
                 np.deg2rad(T[["roll_deg", "pitch_deg", "yaw_deg"]].to_numpy())]
-    idx = res.cov_index
+    idx = res.info["cov_index"]
     te = res.time_s[idx]
     keep = np.r_[True, np.diff(np.floor(te)) > 0] & (te > 2.0)
-    e = res.x[idx[keep], :9] - tru[idx[keep]]
+    e = res.state[idx[keep], :9] - tru[idx[keep]]
     e[:, 6:9] = np.mod(e[:, 6:9] + np.pi, 2 * np.pi) - np.pi
     out = {}
     for name, sel in (("position", [0, 1, 2]), ("velocity", [3, 4, 5]),
                       ("attitude", [6, 7, 8]), ("all 9", list(range(9)))):
-        P = res.cov[keep][:, sel][:, :, sel]
+        P = res.info["cov"][keep][:, sel][:, :, sel]
         ee = e[:, sel]
         out[name] = np.einsum("ki,ki->k", ee, np.linalg.solve(P, ee[..., None])[..., 0])
     return out

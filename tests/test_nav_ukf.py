@@ -37,8 +37,8 @@ def test_ukf_run_equals_the_kalman_filter_on_a_linear_gaussian_model():
     res = ukf.run(zs, keep_cov=True)
     ref = _kalman(x0, P0, F, Q, H, R, zs)
     for k, (x, P) in enumerate(ref):
-        np.testing.assert_allclose(res.x[k], x, rtol=1e-9, atol=1e-10)
-        np.testing.assert_allclose(res.cov[k], P, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(res.state[k], x, rtol=1e-9, atol=1e-10)
+        np.testing.assert_allclose(res.info["cov"][k], P, rtol=1e-9, atol=1e-12)
     st = ukf.innovations["z"]
     assert st.n_fused == 55 and st.dof == 2 and st.mean_nis > 0
 

@@ -23,7 +23,8 @@ _OPTION_OF_FIELD = {
     "range_max_m": "--range-limits MAX", "baro_noise_m": "--baro-noise",
     "mag_heading_noise_deg": "--mag-noise", "gps_cep_m": "--gps-cep",
     "gps_vel_noise_ms": "--gps-vel-noise", "max_tilt_deg": "--max-tilt",
-    "max_imu_step_s": "--imu-step"}
+    "max_imu_step_s": "--imu-step", "robust must": "--robust must",
+    "flow_stamp must": "--flow-stamp must"}
 
 @app.command()
 def navigate(
@@ -75,6 +76,15 @@ def navigate(
     imu_step: Annotated[float, typer.Option("--imu-step", metavar="S",
                         help="Combine IMU samples into steps of at most S seconds (faster; 0: "
                         "every sample).")] = 0.0,
+    robust: Annotated[str, typer.Option(
+        "--robust", metavar="huber|none", help="Huber down-weighting of outlying innovations "
+        "(default) or plain updates; only gross faults (8 sigma) are refused.")] = "huber",
+    adaptive: Annotated[bool, typer.Option(
+        "--adaptive-noise/--fixed-noise", help="Size each sensor's noise from its innovations "
+        "(bounded; default) or keep the given noise figures.")] = True,
+    flow_stamp: Annotated[str, typer.Option(
+        "--flow-stamp", metavar="middle|end", help="Where the log stamps each flow sample in "
+        "its integration interval (the interface: middle).")] = "middle",
     without: Annotated[list[str] | None, typer.Option(
         "--without", metavar="SENSOR", help="Leave a measurement out, repeatable: "
         + ", ".join(SENSORS) + ".")] = None,
@@ -117,7 +127,9 @@ def navigate(
                             range_min_m=range_limits[0], range_max_m=range_limits[1],
                             baro_noise_m=baro_noise, mag_heading_noise_deg=mag_noise,
                             gps_cep_m=gps_cep, gps_vel_noise_ms=gps_vel_noise,
-                            max_tilt_deg=max_tilt, max_imu_step_s=imu_step)
+                            max_tilt_deg=max_tilt, max_imu_step_s=imu_step, robust=robust,
+                            adaptive_noise=adaptive, imu_noise_from_data=adaptive,
+                            flow_stamp=flow_stamp)
         except ValueError as exc:
             msg = str(exc)
             for field, opt in _OPTION_OF_FIELD.items():

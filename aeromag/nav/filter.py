@@ -37,21 +37,24 @@ sample at or before it (at most one IMU interval early: 4 ms at 250 Hz).
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from .._core.sequential import InnovationStats, SequentialResult, Step
 from .config import NavConfig
 from .fusion import _RANGE_RECENT_S, FusionMixin
 from .inputs import (
     Epoch,
     NavInputs,
     decimate_rows,
+    flow_to_interval_end,
+    imu_noise_from_data,
     magnetic_reference_from_log,
 )
-from .mechanization import GRAVITY, propagate, rotation_matrices
+from .mechanization import GRAVITY, propagate
 from .startup import StartupMixin
-from .ukf import DivergenceError, FilterResult, InnovationStats, UnscentedKalmanFilter
+from .ukf import UnscentedKalmanFilter
 
 log = logging.getLogger(__name__)
 
@@ -78,28 +81,33 @@ class NavFilter(StartupMixin, FusionMixin):
         from the log (declination 0: yaw magnetic).
     sensors : sequence of str, optional
         Measurement models to use (default :data:`ALL_SENSORS`); ``()`` runs the IMU alone.
+    declination_deg : float, optional
+        Magnetic declination, ° east, used with the strength and inclination found in the
+        log when ``mag_reference_ned_nT`` is absent (an uncalibrated magnetometer's field
+        strength differs from IGRF's; its heading does not).
 
     Notes
     -----
-    ``run`` processes a whole log (fast path); ``step`` processes one row online and gives
-    the same estimates to within rounding of the process-noise timing (tested).
+    The package's sequential convention (:mod:`aeromag._core.sequential`): ``run``
+    processes a whole log (fast path) -> ``SequentialResult``; ``step(y, u)`` processes one
+    row online -> ``Step`` and gives the same estimates to within rounding of the
+    process-noise timing (tested; the IMU noise is then the configured one, not sized from
+    the log).
     """
 
     def __init__(self, config: NavConfig | None = None,
                  mag_reference_ned_nT: np.ndarray | None = None,
-                 sensors: Sequence[str] | None = None) -> None:
+                 sensors: Sequence[str] | None = None,
+                 declination_deg: float | None = None) -> None:
         self.config = config or NavConfig()
+        self.declination_deg = None if declination_deg is None else float(declination_deg)
         self.sensors = tuple(ALL_SENSORS if sensors is None else sensors)
         unknown = set(self.sensors) - set(ALL_SENSORS)
         if unknown:
             raise ValueError(f"unknown sensors {sorted(unknown)}; known: {ALL_SENSORS}")
         self.mag_ref = (None if mag_reference_ned_nT is None
                         else np.asarray(mag_reference_ned_nT, dtype=np.float64))
-        self.n = (15 if self.config.accel_bias else 12) + 2
-        self.ig = self.n - 2  # ground level (down coordinate of the flat ground), m
-        self.ib = self.n - 1  # barometer datum: baro_alt + p_d, m (a random walk: drift)
-        self.names = (STATE_NAMES + (ACCEL_BIAS_NAMES if self.config.accel_bias else ())
-                      + ("ground_d_m", "baro_offset_m"))
+        self._layout(mag_bias=False)
         self.ukf: UnscentedKalmanFilter | None = None
         self.baro_offset: float | None = None
         self.warnings: list[str] = []
@@ -107,18 +115,35 @@ class NavFilter(StartupMixin, FusionMixin):
         self._last_range_t = -np.inf
         self._last_grav: tuple[float, np.ndarray] | None = None
         self._online: dict = {}
-        self._gates: dict[int, float] = {}
+        self._gates: dict[tuple[str, int], float] = {}
+        self.gyro_noise_dps = self.config.gyro_noise_dps
+        self._pos_walk = 0.0
+        self.accel_noise_g = self.config.accel_noise_g
 
     # ------------------------------------------------------------------ set-up
+    def _layout(self, mag_bias: bool) -> None:
+        """State layout: the study's 12 (15), the magnetometer heading bias, ground, datum."""
+        base = 15 if self.config.accel_bias else 12
+        self.imb = base if mag_bias else None   # magnetometer heading bias, rad
+        self.n = base + (1 if mag_bias else 0) + 2
+        self.ig = self.n - 2  # ground level (down coordinate of the flat ground), m
+        self.ib = self.n - 1  # barometer datum: baro_alt + p_d, m (a random walk: drift)
+        self.names = (STATE_NAMES + (ACCEL_BIAS_NAMES if self.config.accel_bias else ())
+                      + (("mag_bias_rad",) if mag_bias else ())
+                      + ("ground_d_m", "baro_offset_m"))
+
     def _noise_rates(self) -> np.ndarray:
         """Diagonal process noise per second of flight."""
         c = self.config
         q = np.zeros(self.n)
-        q[3:6] = (c.accel_noise_g * GRAVITY) ** 2 * self._dt_imu
-        q[6:9] = np.deg2rad(c.gyro_noise_dps) ** 2 * self._dt_imu
+        q[3:6] = (self.accel_noise_g * GRAVITY) ** 2 * self._dt_imu
+        q[6:9] = np.deg2rad(self.gyro_noise_dps) ** 2 * self._dt_imu
         q[9:12] = np.deg2rad(c.gyro_bias_walk_dps_rt_s) ** 2
         if c.accel_bias:
             q[12:15] = c.accel_bias_walk_ms2_rt_s ** 2
+        q[0:2] = self._pos_walk ** 2
+        if self.imb is not None:
+            q[self.imb] = np.deg2rad(c.mag_bias_walk_deg_rt_s) ** 2
         q[self.ig] = c.ground_walk_m_rt_s ** 2
         q[self.ib] = c.baro_walk_m_rt_s ** 2
         return q
@@ -153,31 +178,35 @@ class NavFilter(StartupMixin, FusionMixin):
         ukf.time_s += T
         return out
 
-    # ------------------------------------------------------------------ update
-    def _check(self, t: float, row: int | None = None) -> None:
-        x, P = self.ukf.x, self.ukf.P
-        where = f"t = {t:.3f} s" + ("" if row is None else f" (row {row})")
-        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
-            raise DivergenceError(f"navigation filter diverged at {where}: the state is no "
-                                  "longer finite; check the IMU units and noise settings")
-        ps = float(np.sqrt(max(P[0, 0], P[1, 1], P[2, 2], 0.0)))
-        if ps > self.config.max_position_std_m or np.linalg.norm(x[3:6]) > 500.0:
-            raise DivergenceError(
-                f"navigation filter diverged at {where}: position sigma {ps:.3g} m, speed "
-                f"{np.linalg.norm(x[3:6]):.3g} m/s; check the IMU units (units=...) and the "
-                "noise settings, or give GNSS")
-
     # ------------------------------------------------------------------ online
-    def step(self, t: float, gyro: np.ndarray | None = None, acc: np.ndarray | None = None,
-             flow: np.ndarray | None = None, flow_quality: float | None = None,
-             range_m: float | None = None, baro_alt: float | None = None,
-             flux: np.ndarray | None = None, gps_ned: np.ndarray | None = None,
-             gps_vel: np.ndarray | None = None) -> np.ndarray:
-        """Process one row of the log (any sensor may be None).
+    def step(self, y: Mapping[str, object], u: Sequence[np.ndarray] | None = None) -> Step:
+        """Process one row of the log: the sequential convention's ``step(y, u)``.
 
+        Parameters
+        ----------
+        y : mapping
+            The row's time and measurements: ``time`` (s, required) and any of ``flow``
+            (rad/s, 2), ``flow_quality``, ``range_m`` (m), ``baro_alt`` (m), ``flux`` (nT, 3),
+            ``gps_ned`` (m, 3), ``gps_vel`` (m/s, 3); missing or None: no sample.
+        u : (gyro, acc), optional
+            The row's IMU sample: body rate (rad/s) and specific force (m/s²).
+
+        Returns
+        -------
+        Step
+            State and one-sigma after the row (``used``: a measurement was fused).
+
+        Notes
+        -----
         The filter must have been started (:meth:`start`), or it starts itself on the first
-        IMU sample (level from that one sample).  Returns the state estimate after the row.
+        IMU sample (level from that one sample).
         """
+        t = float(y["time"])
+        gyro, acc = (None, None) if u is None else u
+        flow, flow_quality = y.get("flow"), y.get("flow_quality")
+        range_m, baro_alt, flux = y.get("range_m"), y.get("baro_alt"), y.get("flux")
+        gps_ned, gps_vel = y.get("gps_ned"), y.get("gps_vel")
+        fused_before = sum(s.n_fused for s in getattr(self, "innovations", {}).values())
         on = self._online
         imu = (gyro is not None and acc is not None and np.all(np.isfinite(gyro))
                and np.all(np.isfinite(acc)))
@@ -191,7 +220,7 @@ class NavFilter(StartupMixin, FusionMixin):
                       ang_flow=np.zeros(3), t_grav=t, acc_grav=np.zeros(3),
                       ang_grav=np.zeros(3), t_mag=-np.inf, t_baro=-np.inf, cum_v=np.zeros(3),
                       v_flow=np.zeros(3))
-            return self.ukf.x.copy()
+            return self._step_out(False)
         if not on:
             t0 = self.ukf.time_s
             on.update(t_imu=t0, cum_ang=np.zeros(3), cum_acc=np.zeros(3), t_flow=None,
@@ -246,53 +275,14 @@ class NavFilter(StartupMixin, FusionMixin):
                 on["t_imu"], on["cum_acc"].copy(), on["cum_ang"].copy())
         self._fuse(t, e)
         self._check(t)
-        return self.ukf.x.copy()
+        return self._step_out(sum(s.n_fused for s in self.innovations.values()) > fused_before)
 
-    def _mag_epochs(self, t: np.ndarray, flux: np.ndarray | None, r_mag: np.ndarray,
-                    hosts: np.ndarray, imu_rows: np.ndarray, last_imu: np.ndarray,
-                    gyro: np.ndarray, cum_ang: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Rows at which to fuse the magnetometer, and the field vector to fuse there.
-
-        With ``mag_on_epochs``, each magnetometer update rides on an epoch the filter makes
-        anyway (flow, range, GNSS; decimated to ``mag_interval_s``) with the magnetometer
-        sample nearest to it, within half a magnetometer interval: one update instead of two.
-        Either way the vector is rotated by the body rotation (gyro) from its own time to the
-        time of the state it is fused with (the last IMU sample), so neither the shift nor the
-        IMU interval biases the heading in a turn.
-        """
-        if flux is None:
-            return r_mag, np.zeros((0, 3))
-        c = self.config
-        src = r_mag
-        if c.mag_on_epochs and hosts.size:
-            all_mag = np.flatnonzero(np.isfinite(flux).all(axis=1) & (last_imu >= 0))
-            all_mag = all_mag[all_mag > imu_rows[0]]
-            if all_mag.size > 1:
-                half = 0.5 * float(np.median(np.diff(t[all_mag])))
-                dec = decimate_rows(t, hosts, c.mag_interval_s)
-                k = np.clip(np.searchsorted(t[all_mag], t[dec]), 1, all_mag.size - 1)
-                left, right = all_mag[k - 1], all_mag[k]
-                pick = np.where(np.abs(t[left] - t[dec]) <= np.abs(t[right] - t[dec]), left,
-                                right)
-                ok = np.abs(t[pick] - t[dec]) <= half + 1e-9
-                r_mag, src = dec[ok], pick[ok]
-        if r_mag.size == 0:
-            return r_mag, np.zeros((0, 3))
-        # Body angle at a time: the cumulative angle at the last IMU sample before it plus the
-        # next sample's rate over the remainder.
-        def angle_at(rows: np.ndarray) -> np.ndarray:
-            li = last_imu[rows]
-            nxt = imu_rows[np.minimum(np.searchsorted(imu_rows, li, side="right"),
-                                      imu_rows.size - 1)]
-            return cum_ang[li] + gyro[nxt] * (t[rows] - t[li])[:, None]
-
-        dtheta = cum_ang[last_imu[r_mag]] - angle_at(src)       # from the sample to the state
-        R = rotation_matrices(dtheta)
-        fused = np.einsum("kji,kj->ki", R, flux[src])          # R^T m: the field at the state
-        return r_mag, fused
+    def _step_out(self, used: bool) -> Step:
+        return Step(state=self.ukf.x.copy(), std=np.sqrt(np.clip(np.diag(self.ukf.P), 0, None)),
+                    innovation=np.zeros(0), used=used)
 
     # ------------------------------------------------------------------ batch
-    def run(self, inputs: NavInputs, keep_cov: bool = False) -> FilterResult:
+    def run(self, inputs: NavInputs, keep_cov: bool = False) -> SequentialResult:
         """Run the filter over a whole multi-rate log.
 
         Parameters
@@ -300,14 +290,15 @@ class NavFilter(StartupMixin, FusionMixin):
         inputs : NavInputs
             The sensor arrays on the log's rows.
         keep_cov : bool
-            Keep the full covariance after every measurement epoch (``result.cov``).
+            Keep the full covariance after every measurement epoch (``info["cov"]``, at the
+            rows ``info["cov_index"]``).
 
         Returns
         -------
-        FilterResult
+        SequentialResult
             Estimate and one-sigma at every row (rows before the first IMU sample carry the
             initial state), per-sensor innovation statistics, and ``info`` (ground level,
-            barometer offset, reference field, warnings).
+            barometer offset, reference field, noise used, warnings).
 
         Raises
         ------
@@ -328,6 +319,10 @@ class NavFilter(StartupMixin, FusionMixin):
         dt = np.zeros(N)
         dt[imu_rows[1:]] = np.diff(t[imu_rows])
         dt_med = float(np.median(np.diff(t[imu_rows])))
+        if c.imu_noise_from_data:
+            g_dps, a_g = imu_noise_from_data(gyro[imu_rows], acc[imu_rows])
+            self.gyro_noise_dps = max(c.gyro_noise_dps, g_dps)
+            self.accel_noise_g = max(c.accel_noise_g, a_g)
         i0 = int(imu_rows[0])
         dt[i0] = dt_med
         # Cumulative delta angle and delta velocity at the IMU rows (for interval means).
@@ -338,7 +333,13 @@ class NavFilter(StartupMixin, FusionMixin):
         flux = None if inputs.flux is None else np.asarray(inputs.flux, dtype=np.float64)
         if flux is not None and self.mag_ref is None:   # also to align the yaw at the start
             ref, n_used = magnetic_reference_from_log(t, acc, gyro, flux)
-            if n_used:
+            if n_used and self.declination_deg is not None:
+                d = np.deg2rad(self.declination_deg)
+                self.mag_ref = np.array([ref[0] * np.cos(d), ref[0] * np.sin(d), ref[2]])
+                log.info("reference field: strength and inclination from the log's first"
+                         " minute (%d calm samples), declination %.2f° given", n_used,
+                         self.declination_deg)
+            elif n_used:
                 self.mag_ref = ref
                 self._warn("no reference field given: strength and inclination from the log's"
                            f" first minute ({n_used} calm samples), declination unknown (yaw"
@@ -370,6 +371,18 @@ class NavFilter(StartupMixin, FusionMixin):
         has_fix = inputs.gps_ned is not None and bool(
             np.isfinite(np.asarray(inputs.gps_ned, float)).all(axis=1).any())
         pos_std = (c.gps_cep_m / 1.1774, c.gps_vert_noise_m) if has_fix else None
+        n_fix_used = 0
+        if has_fix and "gps_pos" in self.sensors:
+            gu = np.ones(N, bool) if inputs.gps_use is None else np.asarray(inputs.gps_use, bool)
+            n_fix_used = int((np.isfinite(np.asarray(inputs.gps_ned, float)).all(axis=1)
+                              & gu).sum())
+        self._pos_walk = c.gps_walk_m_rt_s if n_fix_used > 1 else 0.0
+        n_vel_used = 0
+        if inputs.gps_vel is not None and "gps_vel" in self.sensors and "mag" in self.sensors:
+            gu = np.ones(N, bool) if inputs.gps_use is None else np.asarray(inputs.gps_use, bool)
+            n_vel_used = int((np.isfinite(np.asarray(inputs.gps_vel, float)).all(axis=1)
+                              & gu).sum())
+        self._layout(mag_bias=c.mag_bias_init_deg > 0 and n_vel_used > 10)
         self.start(t[i0], acc0, flux0, head0, vel0, imu_dt_s=dt_med, pos_std_m=pos_std)
 
         # Measurement rows, per sensor.
@@ -393,9 +406,13 @@ class NavFilter(StartupMixin, FusionMixin):
         r_gpsv = rows_of(inputs.gps_vel, 3)
         r_gpsv = r_gpsv[gps_use[r_gpsv]]
         r_range = rows_of(inputs.range_m, 1)
-        r_flow_all = rows_of(inputs.flow, 2)
-        if inputs.flow_quality is not None and r_flow_all.size:
-            q = np.asarray(inputs.flow_quality, float)[r_flow_all]
+        flow_in, fq_in = inputs.flow, inputs.flow_quality
+        if flow_in is not None and c.flow_stamp == "middle":
+            flow_in, fq_in = flow_to_interval_end(t, np.asarray(flow_in, float).reshape(N, 2),
+                                                  fq_in)
+        r_flow_all = rows_of(flow_in, 2)
+        if fq_in is not None and r_flow_all.size:
+            q = np.asarray(fq_in, float)[r_flow_all]
             qok = np.isfinite(q) & (q >= max(c.flow_min_quality, 1))
         else:
             qok = np.ones(r_flow_all.size, bool)
@@ -403,7 +420,7 @@ class NavFilter(StartupMixin, FusionMixin):
         if not c.baro_with_range and r_range.size and r_baro.size and "range" in self.sensors:
             # Barometer samples while the rangefinder is valid are not fused: no epoch for them.
             rv = np.asarray(inputs.range_m, float)[r_range]
-            t_ok = t[r_range[(rv >= c.range_min_m) & (rv <= c.range_max_m)]]
+            t_ok = t[r_range[(rv >= c.range_min_m) & (rv < c.range_max_m)]]
             k = np.searchsorted(t_ok, t[r_baro], side="right") - 1
             recent = (k >= 0) & (t[r_baro] - t_ok[np.maximum(k, 0)] < _RANGE_RECENT_S)
             if "baro" in self.innovations:
@@ -455,7 +472,7 @@ class NavFilter(StartupMixin, FusionMixin):
         }
         epochs = np.unique(np.concatenate(list(per.values()) + [np.zeros(0, np.intp)]))
         lookup = {k: {int(r): j for j, r in enumerate(v)} for k, v in per.items()}
-        flow_arr = None if inputs.flow is None else np.asarray(inputs.flow, float)
+        flow_arr = None if flow_in is None else np.asarray(flow_in, float)
         gps_ned = None if inputs.gps_ned is None else np.asarray(inputs.gps_ned, float)
         gps_vel = None if inputs.gps_vel is None else np.asarray(inputs.gps_vel, float)
         rng = None if inputs.range_m is None else np.asarray(inputs.range_m, float)
@@ -535,6 +552,10 @@ class NavFilter(StartupMixin, FusionMixin):
         src = np.where(src < 0, i0, src)
         xs, sds = xs[src], sds[src]
         info = {"d_ground_m": float(self.ukf.x[self.ig]) if self._ground_set else None,
+                "mag_bias_deg": (None if self.imb is None else
+                                 [float(np.rad2deg(self.ukf.x[self.imb])),
+                                  float(np.rad2deg(np.sqrt(self.ukf.P[self.imb,
+                                                                      self.imb])))]),
                 "baro_offset_m": (float(self.ukf.x[self.ib]) if self.baro_offset is not None
                                   else None),
                 "mag_reference_ned_nT": None if self.mag_ref is None else self.mag_ref.tolist(),
@@ -542,8 +563,10 @@ class NavFilter(StartupMixin, FusionMixin):
                 "imu_interval_s": dt_med, "warnings": list(self.warnings),
                 "start_time_s": float(t[i0]), "sensors": list(self.sensors),
                 "gps_rows": per["gps_pos"]}
-        return FilterResult(time_s=t, x=xs, std=sds, state_names=self.names,
-                            innovations=dict(self.innovations),
-                            cov=np.array(covs) if keep_cov else None,
-                            cov_index=np.array(cov_rows, dtype=np.intp) if keep_cov else None,
-                            info=info)
+        info["noise"] = self.noise_used()
+        if keep_cov:
+            info["cov"] = np.array(covs)
+            info["cov_index"] = np.array(cov_rows, dtype=np.intp)
+        return SequentialResult(time_s=t, state=xs, std=sds, state_names=self.names,
+                                loglik=np.full(N, np.nan),
+                                innovations=dict(self.innovations), info=info)

@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from .._core.rotations import dcm_body_to_ned
-from .inputs import Epoch
-from .mechanization import GRAVITY
+from .inputs import Epoch, decimate_rows
+from .mechanization import GRAVITY, rotation_matrices
 from .models import h_baro, h_flow, h_gnss_pos, h_gnss_vel, h_gravity, h_mag_heading, h_range
 from .ukf import DivergenceError
 
@@ -21,9 +21,90 @@ _RANGE_RECENT_S = 1.0
 class FusionMixin:
     """Measurement update of :class:`aeromag.nav.NavFilter`.
 
-    ``_fuse`` gates every measurement of an epoch; ``_update_blocks`` makes one joint
-    unscented update with block-diagonal noise, each block gated on its own NIS.
+    ``_fuse`` checks the validity of every measurement of an epoch; ``_update_blocks`` makes
+    one joint unscented update with block-diagonal noise.  Each block is weighted on its own
+    normalised innovation squared (NIS): Huber (``NavConfig.robust``) beyond the
+    ``huber_p`` chi-square quantile, refused only beyond the gross-fault gate; its noise
+    level adapts to its innovations within bounds (``adaptive_noise``).
     """
+
+    def noise_used(self) -> dict[str, float]:
+        """The noise levels the filter ended with (after sizing from the data), SI units.
+
+        ``gyro_noise_dps``, ``accel_noise_g`` (per IMU sample) and, per measurement, its
+        one-sigma noise and the adaptive variance scale applied to the configured one.
+        """
+        c = self.config
+        base = {"flow": ("flow_noise_ms", c.flow_noise_ms), "range": ("range_noise_m",
+                c.range_noise_m), "baro": ("baro_noise_m", c.baro_noise_m),
+                "mag": ("mag_heading_noise_deg", c.mag_heading_noise_deg),
+                "gps_pos": ("gps_cep_m", c.gps_cep_m),
+                "gps_vel": ("gps_vel_noise_ms", c.gps_vel_noise_ms),
+                "gravity": ("gravity_noise_ms2", c.gravity_noise_ms2)}
+        out: dict[str, float] = {"gyro_noise_dps": float(self.gyro_noise_dps),
+                                 "accel_noise_g": float(self.accel_noise_g)}
+        for name in self.sensors:
+            key, v = base[name]
+            sc = float(self.noise_scale.get(name, 1.0))
+            out[key] = float(v * np.sqrt(sc))
+            out[f"{name}_variance_scale"] = sc
+        return out
+
+    def _check(self, t: float, row: int | None = None) -> None:
+        x, P = self.ukf.x, self.ukf.P
+        where = f"t = {t:.3f} s" + ("" if row is None else f" (row {row})")
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
+            raise DivergenceError(f"navigation filter diverged at {where}: the state is no "
+                                  "longer finite; check the IMU units and noise settings")
+        ps = float(np.sqrt(max(P[0, 0], P[1, 1], P[2, 2], 0.0)))
+        if ps > self.config.max_position_std_m or np.linalg.norm(x[3:6]) > 500.0:
+            raise DivergenceError(
+                f"navigation filter diverged at {where}: position sigma {ps:.3g} m, speed "
+                f"{np.linalg.norm(x[3:6]):.3g} m/s; check the IMU units (units=...) and the "
+                "noise settings, or give GNSS")
+
+    def _mag_epochs(self, t: np.ndarray, flux: np.ndarray | None, r_mag: np.ndarray,
+                    hosts: np.ndarray, imu_rows: np.ndarray, last_imu: np.ndarray,
+                    gyro: np.ndarray, cum_ang: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rows at which to fuse the magnetometer, and the field vector to fuse there.
+
+        With ``mag_on_epochs``, each magnetometer update rides on an epoch the filter makes
+        anyway (flow, range, GNSS; decimated to ``mag_interval_s``) with the magnetometer
+        sample nearest to it, within half a magnetometer interval: one update instead of two.
+        Either way the vector is rotated by the body rotation (gyro) from its own time to the
+        time of the state it is fused with (the last IMU sample), so neither the shift nor the
+        IMU interval biases the heading in a turn.
+        """
+        if flux is None:
+            return r_mag, np.zeros((0, 3))
+        c = self.config
+        src = r_mag
+        if c.mag_on_epochs and hosts.size:
+            all_mag = np.flatnonzero(np.isfinite(flux).all(axis=1) & (last_imu >= 0))
+            all_mag = all_mag[all_mag > imu_rows[0]]
+            if all_mag.size > 1:
+                half = 0.5 * float(np.median(np.diff(t[all_mag])))
+                dec = decimate_rows(t, hosts, c.mag_interval_s)
+                k = np.clip(np.searchsorted(t[all_mag], t[dec]), 1, all_mag.size - 1)
+                left, right = all_mag[k - 1], all_mag[k]
+                pick = np.where(np.abs(t[left] - t[dec]) <= np.abs(t[right] - t[dec]), left,
+                                right)
+                ok = np.abs(t[pick] - t[dec]) <= half + 1e-9
+                r_mag, src = dec[ok], pick[ok]
+        if r_mag.size == 0:
+            return r_mag, np.zeros((0, 3))
+        # Body angle at a time: the cumulative angle at the last IMU sample before it plus the
+        # next sample's rate over the remainder.
+        def angle_at(rows: np.ndarray) -> np.ndarray:
+            li = last_imu[rows]
+            nxt = imu_rows[np.minimum(np.searchsorted(imu_rows, li, side="right"),
+                                      imu_rows.size - 1)]
+            return cum_ang[li] + gyro[nxt] * (t[rows] - t[li])[:, None]
+
+        dtheta = cum_ang[last_imu[r_mag]] - angle_at(src)       # from the sample to the state
+        R = rotation_matrices(dtheta)
+        fused = np.einsum("kji,kj->ki", R, flux[src])          # R^T m: the field at the state
+        return r_mag, fused
 
     def _fuse(self, t: float, e: Epoch) -> None:
         """Gate and fuse every measurement of one epoch in one joint update."""
@@ -45,7 +126,7 @@ class FusionMixin:
                            np.eye(3) * c.gps_vel_noise_ms**2, ()))
         if e.range_m is not None and "range" in use:
             r = e.range_m
-            if not (c.range_min_m <= r <= c.range_max_m) or not tilt_ok:
+            if not (c.range_min_m <= r < c.range_max_m) or not tilt_ok:
                 st["range"].n_gated += 1
             elif not self._ground_set:
                 self._init_ground(r * cz)
@@ -63,7 +144,7 @@ class FusionMixin:
                 dg, wm = self.ig, e.flow_gyro
                 lag = np.zeros(3) if e.flow_vel_lag is None else e.flow_vel_lag
                 var = ((c.flow_noise_ms / dist) ** 2
-                       + np.deg2rad(c.gyro_noise_dps) ** 2 * self._dt_imu
+                       + np.deg2rad(self.gyro_noise_dps) ** 2 * self._dt_imu
                        / max(e.flow_interval_s, self._dt_imu))
                 blocks.append(("flow", e.flow,
                                lambda X, dg=dg, wm=wm, lag=lag: h_flow(X, wm, dg, lag),
@@ -87,7 +168,7 @@ class FusionMixin:
                     or acc_est > c.gravity_max_accel_ms2):
                 st["gravity"].n_gated += 1
             else:
-                var = ((c.accel_noise_g * GRAVITY) ** 2 * self._dt_imu
+                var = ((self.accel_noise_g * GRAVITY) ** 2 * self._dt_imu
                        / max(e.grav_interval_s, self._dt_imu) + c.gravity_noise_ms2**2)
                 ab = c.accel_bias
                 blocks.append(("gravity", e.grav_acc, lambda X, ab=ab: h_gravity(X, ab),
@@ -106,7 +187,8 @@ class FusionMixin:
             else:
                 fl, decl = e.flux, self._declination()
                 blocks.append(("mag", np.zeros(1),
-                               lambda X, fl=fl, decl=decl: h_mag_heading(X, fl, decl),
+                               lambda X, fl=fl, decl=decl, mb=self.imb:
+                               h_mag_heading(X, fl, decl, mb),
                                np.array([[np.deg2rad(c.mag_heading_noise_deg) ** 2]]), (0,)))
         if blocks:
             self._update_blocks(blocks)
@@ -126,24 +208,41 @@ class FusionMixin:
                 zp[ia] = np.arctan2(Wm @ np.sin(Z[:, ia]), Wm @ np.cos(Z[:, ia]))
                 dZ = np.mod(Z - zp + np.pi, 2 * np.pi) - np.pi
                 nu = np.mod(z - zp + np.pi, 2 * np.pi) - np.pi
-            S = (Wc[:, None] * dZ).T @ dZ + R
+            Pzz = (Wc[:, None] * dZ).T @ dZ
+            scale = self.noise_scale.get(name, 1.0)
+            S = Pzz + scale * R
             nis = float(nu @ np.linalg.solve(S, nu))
             if not np.isfinite(nis):
                 raise DivergenceError(f"filter diverged at t = {ukf.time_s:.3f} s: non-finite"
                                       f" innovation of {name}")
             stats = self.innovations[name]
             n_rej = self._rejections.get(name, 0)
-            if nis > self._gate(z.size) and n_rej < self.config.max_rejections:
-                stats.n_rejected += 1
+            dof = z.size
+            if nis > self._gross_gate(dof) and n_rej < self.config.max_rejections:
+                stats.n_rejected += 1        # a gross fault: not fused
                 self._rejections[name] = n_rej + 1
                 continue
             if n_rej >= self.config.max_rejections:
-                self._warn(f"{name}: {n_rej} measurements in a row failed the innovation gate;"
-                           " accepted the next one (the filter re-locks on it)")
+                self._warn(f"{name}: {n_rej} measurements in a row were gross outliers;"
+                           " fused the next one (down-weighted) so the filter re-locks")
             self._rejections[name] = 0
             stats.n_fused += 1
             stats.nis_sum += nis
-            keep.append((z, Z, R, aidx))
+            R_eff = scale * R
+            k2 = self._huber_bound(dof)
+            if self.config.robust == "huber" and nis > k2:
+                # Huber weight w = k / d on the Mahalanobis distance d: the innovation
+                # covariance is inflated to S / w (R absorbs the inflation).
+                stats.n_downweighted += 1
+                R_eff = S * np.sqrt(nis / k2) - Pzz
+            if self.config.adaptive_noise:
+                # Innovation-based adaptive estimation of the noise level, bounded: the
+                # variance scale follows the mean of the (Huber-clipped) NIS per dof.
+                r = min(nis, k2) / dof
+                a = self.config.adaptive_rate
+                self.noise_scale[name] = min(max(scale * (1.0 + a * (r - 1.0)), 1.0),
+                                             self.config.adaptive_max_scale)
+            keep.append((z, Z, R_eff, aidx))
         if not keep:
             return
         z = np.concatenate([k[0] for k in keep])

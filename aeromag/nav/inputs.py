@@ -11,7 +11,8 @@ import numpy as np
 
 from .mechanization import GRAVITY
 
-__all__ = ["NavInputs", "magnetic_reference_from_log", "tilt_from_accel", "decimate_rows"]
+__all__ = ["NavInputs", "decimate_rows", "flow_to_interval_end", "imu_noise_from_data",
+           "magnetic_reference_from_log", "tilt_from_accel"]
 
 
 @dataclass
@@ -58,6 +59,70 @@ class NavInputs:
     gps_vel: np.ndarray | None = None
     gps_use: np.ndarray | None = None
     heading_deg: np.ndarray | None = None
+
+
+def imu_noise_from_data(gyro: np.ndarray, acc: np.ndarray) -> tuple[float, float]:
+    """White noise of one IMU sample from the log: gyro in °/s, accelerometer in g.
+
+    The robust scale (1.4826 MAD) of the first differences of consecutive samples over
+    sqrt(2), per axis, the largest axis counted: the body's own motion is slow at the IMU
+    rate, so the differences hold the sensor noise and the vibration the filter must treat
+    as noise.
+
+    Parameters
+    ----------
+    gyro : ndarray, shape (N, 3)
+        Body rate, rad/s, at consecutive IMU samples.
+    acc : ndarray, shape (N, 3)
+        Specific force, m/s², at the same samples.
+    """
+    def scale(x: np.ndarray) -> float:
+        d = np.diff(x, axis=0)
+        if d.shape[0] < 10:
+            return 0.0
+        mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
+        return float(np.max(1.4826 * mad / np.sqrt(2.0)))
+
+    return float(np.rad2deg(scale(gyro))), scale(acc) / GRAVITY
+
+
+def flow_to_interval_end(time_s: np.ndarray, flow: np.ndarray,
+                         quality: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+    """Move mid-interval flow samples to the row at the end of their interval.
+
+    A flow value is the mean over its integration interval, stamped at the middle of it
+    (``shared/interface.md``); the interval is taken as the spacing to the previous sample.
+    The filter models flow at the end of its interval (the body rate and velocity averaged
+    over the interval that ends where it is fused), so each sample moves to the log row
+    nearest ``t + T / 2``.  A sample that would land on a later sample's row, or past the
+    log, stays on the row it would otherwise reach.
+
+    Parameters
+    ----------
+    time_s : ndarray, shape (N,)
+        Row times, s.
+    flow : ndarray, shape (N, 2)
+        Flow, rad/s (NaN on rows without a sample).
+    quality : ndarray, shape (N,), optional
+        ``flow_quality``, moved with the flow.
+    """
+    rows = np.flatnonzero(np.isfinite(flow).all(axis=1))
+    if rows.size < 2:
+        return flow, quality
+    T = np.diff(time_s[rows])
+    T = np.r_[T[0], T]
+    k = np.clip(np.searchsorted(time_s, time_s[rows] + 0.5 * T), 1, time_s.size - 1)
+    near = np.where(np.abs(time_s[k - 1] - (time_s[rows] + 0.5 * T))
+                    <= np.abs(time_s[k] - (time_s[rows] + 0.5 * T)), k - 1, k)
+    nxt = np.r_[rows[1:], time_s.size]
+    dest = np.clip(near, rows, nxt - 1)          # never onto or past the next sample's row
+    out = np.full_like(flow, np.nan)
+    out[dest] = flow[rows]
+    q_out = None
+    if quality is not None:
+        q_out = np.full(time_s.size, np.nan)
+        q_out[dest] = np.asarray(quality, float)[rows]
+    return out, q_out
 
 
 def tilt_from_accel(f: np.ndarray) -> tuple[float, float]:

@@ -100,9 +100,16 @@ def level_heading(roll: np.ndarray, pitch: np.ndarray, flux_b: np.ndarray,
     return declination_rad - np.arctan2(ml[:, 1], ml[:, 0])
 
 
-def h_mag_heading(X: np.ndarray, flux_b: np.ndarray, declination_rad: float) -> np.ndarray:
-    """``yaw - heading from the magnetometer`` (rad, wrapped), shape (S, 1); measured as 0."""
+def h_mag_heading(X: np.ndarray, flux_b: np.ndarray, declination_rad: float,
+                  bias_idx: int | None = None) -> np.ndarray:
+    """``yaw - heading from the magnetometer`` (rad, wrapped), shape (S, 1); measured as 0.
+
+    ``X[:, bias_idx]`` (when given) is the magnetometer's heading bias, rad: the magnetic
+    heading plus it is the true heading (a declination error, an uncalibrated sensor).
+    """
     d = X[:, 8] - level_heading(X[:, 6], X[:, 7], flux_b, declination_rad)
+    if bias_idx is not None:
+        d = d - X[:, bias_idx]
     return (np.mod(d + np.pi, 2.0 * np.pi) - np.pi)[:, None]
 
 

@@ -18,14 +18,16 @@ import pandas as pd
 
 from .._core.angles import wrap360_deg
 from .._core.geodesy import geodetic_to_ned, ned_to_geodetic
+from .._core.sequential import SequentialResult
 from ..errors import InputError
 from .config import NavConfig
 from .filter import ALL_SENSORS, NavFilter, NavInputs
-from .ukf import DivergenceError, FilterResult
+from .ukf import DivergenceError
 
 log = logging.getLogger(__name__)
 
-__all__ = ["GYRO", "ACC", "NAV_COLUMNS", "NavigationResult", "TrackInputs", "navigate",
+__all__ = ["GYRO", "ACC", "NAV_COLUMNS", "NavigationResult", "TrackInputs",
+           "check_flow_against_gyro", "navigate",
            "parse_gps_mode", "track_inputs"]
 
 GYRO = ("gyro_x", "gyro_y", "gyro_z")
@@ -44,6 +46,10 @@ NAV_COLUMNS = ("nav_lat", "nav_lon", "nav_alt", "nav_n_m", "nav_e_m", "nav_d_m",
 #: Largest plausible body rate, rad/s (the MPU-6000's full scale, 2000 °/s).
 MAX_RATE_RADS = 34.9
 _FIX_GAP_S = 2.0
+#: Band of the mean NIS per degree of freedom outside which a sensor's noise model is said
+#: not to fit (a WARNING), and the fraction of refused samples that warns.
+NIS_BAND = (0.3, 3.0)
+LOSS_WARN_FRACTION = 0.05
 
 GpsMode = str | tuple[float, float]
 
@@ -56,15 +62,15 @@ class NavigationResult:
     ----------
     data : DataFrame
         The input log plus :data:`NAV_COLUMNS`.
-    result : FilterResult
-        The filter's estimate at every row.
+    result : SequentialResult
+        The filter's estimate at every row (the package's sequential result).
     report : dict
         ``gps`` (mode, origin, intervals used), ``settings``, ``innovations`` (per sensor),
         ``mean_nis`` (per sensor), ``reference_field``, ``warnings``.
     """
 
     data: pd.DataFrame
-    result: FilterResult
+    result: SequentialResult
     report: dict = field(default_factory=dict)
 
 
@@ -216,11 +222,73 @@ def _check_gyro_against_mag(t: np.ndarray, gyro: np.ndarray, flux: np.ndarray | 
         log.warning("%s", msg)
 
 
+def check_flow_against_gyro(t: np.ndarray, gyro: np.ndarray, flow: np.ndarray | None,
+                            source: str) -> float | None:
+    """Check the unit and sign of the optical flow against the IMU's gyro.
+
+    The flow holds the body rotation (``flow_x = gyro_x - v_y / h``...): regressed on the
+    gyro's mean over each flow interval (centred on the stamp), its slope is about 1 in the
+    interface's convention, about -1 with the opposite sign, about 57 in deg/s.  Needs some
+    rotation (rms body rate about x, y above 0.03 rad/s) to say anything.
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+        Row times, s.
+    gyro : ndarray, shape (N, 3)
+        Body rate, rad/s.
+    flow : ndarray, shape (N, 2) or None
+        Optical flow, expected in rad/s.
+    source : str
+        Log name for the message.
+
+    Returns
+    -------
+    float or None
+        The slope (None when the log rotates too little to tell).
+
+    Raises
+    ------
+    InputError
+        The flow has the opposite sign or is in deg/s (the message names the remedy).
+    """
+    if flow is None:
+        return None
+    imu = np.flatnonzero(np.isfinite(gyro).all(axis=1))
+    fr = np.flatnonzero(np.isfinite(flow).all(axis=1))
+    if imu.size < 10 or fr.size < 20:
+        return None
+    ti = t[imu]
+    dt = np.diff(ti, prepend=ti[0])
+    cum = np.cumsum(gyro[imu, :2] * dt[:, None], axis=0)
+    tf = t[fr]
+    half = 0.5 * np.r_[np.diff(tf)[0], np.diff(tf)]
+    a, b = np.clip(tf - half, ti[0], ti[-1]), np.clip(tf + half, ti[0], ti[-1])
+    ok = b - a > 0
+    g = np.column_stack([(np.interp(b, ti, cum[:, k]) - np.interp(a, ti, cum[:, k]))
+                         for k in range(2)])[ok] / (b - a)[ok, None]
+    f = flow[fr][ok]
+    if g.shape[0] < 20 or np.sqrt(np.mean(g**2)) < 0.03:
+        return None
+    slope = float(np.sum(f * g) / np.sum(g * g))
+    if slope < -0.3:
+        raise InputError(f"{source}: columns flow_x, flow_y: the flow turns against the gyro"
+                         f" (slope {slope:.2f} on gyro_x, gyro_y, expected about +1): it has the"
+                         " opposite sign to the interface's OPTICAL_FLOW_RAD convention; negate"
+                         " both columns, or leave flow out with --without flow")
+    if slope > 15.0:
+        raise InputError(f"{source}: columns flow_x, flow_y: the flow's rotation is {slope:.0f}"
+                         " times the gyro's: it is probably in deg/s; convert it with --units"
+                         " flow=deg/s (units={'flow': 'deg/s'})")
+    return slope
+
+
 def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
              origin: tuple[float, float, float] | None = None,
              mag_reference_ned_nT: np.ndarray | None = None,
              config: NavConfig | None = None, sensors: Sequence[str] | None = None,
-             source: str | None = None) -> NavigationResult:
+             source: str | None = None,
+             declination_deg: float | None = None) -> NavigationResult:
     """Run the navigation filter on a canonical multi-rate log.
 
     Parameters
@@ -242,6 +310,9 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
         Measurement models to use (default all, see :data:`aeromag.nav.ALL_SENSORS`).
     source : str, optional
         Name of the log for messages (default ``df.attrs["source"]``).
+    declination_deg : float, optional
+        Declination, ° east, with the strength and inclination from the log (when
+        ``mag_reference_ned_nT`` is absent).
 
     Returns
     -------
@@ -283,6 +354,8 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
         warnings.append(msg)
         log.warning("%s", msg)
         use.remove("flow")
+    if has_flow and "flow" in use and not any("deg/s" in w for w in warnings):
+        check_flow_against_gyro(t, gyro, flow, src)
     flux = _group(df, FLUX, src)
     if not any("deg/s" in w for w in warnings):
         _check_gyro_against_mag(t, gyro, flux, src, warnings)
@@ -322,13 +395,14 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
         time_s=t, gyro=gyro, acc=acc, flow=flow, flow_quality=_col(df, "flow_quality", src),
         range_m=rng, baro_alt=_col(df, "baro_alt", src), flux=flux, gps_ned=gps_ned,
         gps_vel=vel, gps_use=gps_use, heading_deg=_col(df, "heading", src))
-    filt = NavFilter(cfg, mag_reference_ned_nT=mag_reference_ned_nT, sensors=use)
+    filt = NavFilter(cfg, mag_reference_ned_nT=mag_reference_ned_nT, sensors=use,
+                     declination_deg=declination_deg)
     try:
         res = filt.run(inputs)
     except DivergenceError as exc:
         raise DivergenceError(f"{src}: {exc}") from None
     warnings += [w for w in res.info["warnings"] if w not in warnings]
-    x, sd = res.x, res.std
+    x, sd = res.state, res.std
     out = df.copy()
     if org is not None:
         geo = ned_to_geodetic(x[:, 0:3], org)
@@ -353,6 +427,21 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
             intervals = [[float(t[rows[a]]), float(t[rows[b]])]
                          for a, b in zip(cut, ends, strict=True)]
     stats = {k: v.as_dict() for k, v in res.innovations.items()}
+    lo, hi = NIS_BAND
+    for k, v in stats.items():
+        v["nis_band"] = [lo, hi]
+        offered = v["n_fused"] + v["n_rejected"]
+        if offered and v["n_rejected"] > LOSS_WARN_FRACTION * offered:
+            msg = (f"{src}: {k}: {v['n_rejected']} of {offered} samples refused as gross"
+                   f" faults ({100 * v['n_rejected'] / offered:.0f} %)")
+            warnings.append(msg)
+            log.warning("%s", msg)
+        m = v["mean_nis_per_dof"]
+        if m is not None and v["n_fused"] >= 20 and not lo <= m <= hi:
+            msg = (f"{src}: {k}: mean NIS per degree of freedom {m:.2f} outside [{lo}, {hi}]:"
+                   f" the filter's {k} noise model does not fit the data")
+            warnings.append(msg)
+            log.warning("%s", msg)
     report = {
         "gps": {"mode": mode if isinstance(mode, str) else {"outage_s": list(mode)},
                 "origin": None if org is None else list(org),
@@ -362,14 +451,18 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
                 "n_fixes_in_log": int(fix.sum()),
                 "n_fixes_used": int((gps_use & fix).sum()) if gps_use is not None else 0,
                 "n_fixes_fused": int(stats.get("gps_pos", {}).get("n_fused", 0))},
-        "settings": {**cfg.as_dict(), "sensors": use, "states": list(res.state_names)},
+        "settings": {**cfg.as_dict(), "sensors": use, "states": list(res.state_names),
+                     "noise_used": res.info["noise"]},
         "innovations": stats,
         "mean_nis": {k: v["mean_nis"] for k, v in stats.items()},
         "reference_field": {
             "ned_nT": res.info["mag_reference_ned_nT"],
             "declination_deg": res.info["declination_deg"],
-            "from_log": mag_reference_ned_nT is None},
+            "from_log": mag_reference_ned_nT is None,
+            "declination_from": (None if mag_reference_ned_nT is not None else
+                                 "given" if declination_deg is not None else "none (0)")},
         "ground_d_m": res.info["d_ground_m"],
+        "mag_bias_deg": res.info["mag_bias_deg"],
         "imu_interval_s": res.info["imu_interval_s"],
         "warnings": warnings,
     }

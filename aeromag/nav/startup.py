@@ -10,14 +10,15 @@ import logging
 import numpy as np
 from scipy.stats import chi2
 
+from .._core.sequential import InnovationStats
 from .inputs import tilt_from_accel
 from .models import level_heading
-from .ukf import InnovationStats, UnscentedKalmanFilter
+from .ukf import UnscentedKalmanFilter
 
 log = logging.getLogger(__name__)
 
 #: Indices of the attitude angles in the state (roll, pitch, yaw; wrapped by the filter).
-ANGLES = (6, 7, 8)
+ANGLES = (6, 7, 8)  # the magnetometer heading bias is small: not wrapped
 
 
 class StartupMixin:
@@ -74,6 +75,8 @@ class StartupMixin:
         sd[9:12] = np.deg2rad(c.gyro_bias_init_dps)
         if c.accel_bias:
             sd[12:15] = c.accel_bias_init_ms2
+        if self.imb is not None:
+            sd[self.imb] = np.deg2rad(c.mag_bias_init_deg)
         sd[self.ig] = 1.0  # set from the first valid range (see _init_ground)
         sd[self.ib] = 1.0  # set from the first barometer sample (see _init_baro)
         self._ground_set = False
@@ -85,16 +88,29 @@ class StartupMixin:
         self._qrate = self._noise_rates()
         self._last_grav = None
         self._rejections: dict[str, int] = {}
+        self.noise_scale: dict[str, float] = dict.fromkeys(self.sensors, 1.0)
         self.innovations: dict[str, InnovationStats] = {
             s: InnovationStats(dof={"gps_pos": 3, "gps_vel": 3, "range": 1, "flow": 2,
                                     "baro": 1, "gravity": 3, "mag": 1}[s])
             for s in self.sensors}
 
-    def _gate(self, dof: int) -> float:
-        """Chi-square quantile of the innovation gate (cached per dimension)."""
-        g = self._gates.get(dof)
+    def _gross_gate(self, dof: int) -> float:
+        """NIS beyond which a measurement is a gross fault (cached per dimension).
+
+        The chi-square quantile of the probability of ``gross_gate_sigma`` for one degree
+        of freedom (8 sigma: a consistent filter refuses about one sample in 1e15).
+        """
+        g = self._gates.get(("gross", dof))
         if g is None:
-            g = self._gates[dof] = float(chi2.ppf(self.config.innovation_gate_p, dof))
+            p = float(chi2.cdf(self.config.gross_gate_sigma ** 2, 1))
+            g = self._gates[("gross", dof)] = float(chi2.isf(1.0 - p, dof))
+        return g
+
+    def _huber_bound(self, dof: int) -> float:
+        """NIS beyond which a measurement is down-weighted (chi-square ``huber_p`` quantile)."""
+        g = self._gates.get(("huber", dof))
+        if g is None:
+            g = self._gates[("huber", dof)] = float(chi2.ppf(self.config.huber_p, dof))
         return g
 
     def _init_ground(self, height_m: float) -> None:

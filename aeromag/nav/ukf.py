@@ -1,10 +1,12 @@
-"""A generic unscented Kalman filter and the one result type of the navigation filters.
+"""A generic unscented Kalman filter.
 
-The filter follows the package's sequential convention: construct it with its parameters,
-``step(...)`` one sample (predict, then update), ``run(...)`` over arrays returning one
-:class:`FilterResult`.  Process and measurement functions are vectorised over sigma points:
-they receive all ``2n + 1`` points as one ``(2n + 1, n)`` array.  Angles (radians) are
-handled by index: their means are circular and their residuals wrapped to [-pi, pi).
+The filter follows the package's sequential convention (:mod:`aeromag._core.sequential`):
+construct it with its parameters, ``step(y, u=None)`` one sample (predict, then update) ->
+:class:`~aeromag._core.sequential.Step`, ``run(ys, us=None)`` over arrays ->
+:class:`~aeromag._core.sequential.SequentialResult`.  Process and measurement functions
+are vectorised over sigma points: they receive all ``2n + 1`` points as one
+``(2n + 1, n)`` array.  Angles (radians) are handled by index: their means are
+circular and their residuals wrapped to [-pi, pi).
 
 The square root of the covariance never fails on a finite matrix (symmetrised, jittered
 Cholesky, eigen fallback; :func:`aeromag._core.unscented.robust_sqrt`); a covariance that is
@@ -15,10 +17,10 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._core.sequential import InnovationStats, SequentialResult, Step
 from .._core.unscented import (
     CovarianceError,
     angle_mean_fn,
@@ -30,92 +32,13 @@ from ..errors import AeromagError
 
 log = logging.getLogger(__name__)
 
-__all__ = ["DivergenceError", "FilterResult", "InnovationStats", "UnscentedKalmanFilter"]
+__all__ = ["DivergenceError", "UnscentedKalmanFilter"]
 
 SigmaFn = Callable[..., np.ndarray]
 
 
 class DivergenceError(AeromagError, ArithmeticError):
     """The filter's state or covariance is no longer finite or plausible."""
-
-
-@dataclass
-class InnovationStats:
-    """Innovation statistics of one sensor (or measurement model).
-
-    Attributes
-    ----------
-    dof : int
-        Dimension of one measurement.
-    n_fused : int
-        Measurements fused.
-    n_rejected : int
-        Measurements rejected by the innovation gate.
-    n_gated : int
-        Measurements not used because a validity gate failed (quality, tilt, range limits,
-        field strength, acceleration...).
-    nis_sum : float
-        Sum of the normalised innovation squared over the fused measurements.
-    """
-
-    dof: int
-    n_fused: int = 0
-    n_rejected: int = 0
-    n_gated: int = 0
-    nis_sum: float = 0.0
-
-    @property
-    def mean_nis(self) -> float | None:
-        """Mean normalised innovation squared of the fused measurements.
-
-        About ``dof`` when the filter is consistent; None when nothing was fused.
-        """
-        return self.nis_sum / self.n_fused if self.n_fused else None
-
-    def as_dict(self) -> dict[str, float | int | None]:
-        """Plain dictionary for reports."""
-        m = self.mean_nis
-        return {"dof": self.dof, "n_fused": self.n_fused, "n_rejected": self.n_rejected,
-                "n_gated": self.n_gated, "mean_nis": m,
-                "mean_nis_per_dof": None if m is None else m / self.dof}
-
-
-@dataclass
-class FilterResult:
-    """What every filter run returns.
-
-    Attributes
-    ----------
-    time_s : ndarray, shape (N,)
-        Time of each output sample, s.
-    x : ndarray, shape (N, n)
-        State estimate after processing each sample (angles in rad).
-    std : ndarray, shape (N, n)
-        One-sigma uncertainty of each state component, same units.
-    state_names : tuple of str
-        Name of each state component.
-    innovations : dict of str to InnovationStats
-        Per-sensor innovation statistics.
-    cov : ndarray, shape (M, n, n) or None
-        Full covariance at the samples ``cov_index`` (kept on request).
-    cov_index : ndarray of int, shape (M,) or None
-        Output samples at which ``cov`` was kept.
-    info : dict
-        Anything else the filter reports (settings, references, warnings).
-    """
-
-    time_s: np.ndarray
-    x: np.ndarray
-    std: np.ndarray
-    state_names: tuple[str, ...]
-    innovations: dict[str, InnovationStats] = field(default_factory=dict)
-    cov: np.ndarray | None = None
-    cov_index: np.ndarray | None = None
-    info: dict = field(default_factory=dict)
-
-    def column(self, name: str) -> np.ndarray:
-        """The estimate of one named state component over time."""
-        return self.x[:, self.state_names.index(name)]
 
 
 class UnscentedKalmanFilter:
@@ -167,6 +90,7 @@ class UnscentedKalmanFilter:
         self.state_names = tuple(state_names) if state_names else tuple(
             f"x{i}" for i in range(n))
         self.innovations: dict[str, InnovationStats] = {}
+        self.last_innovation = np.zeros(0)
         self.time_s = 0.0
 
     # -- sigma points ----------------------------------------------------------------------
@@ -270,6 +194,7 @@ class UnscentedKalmanFilter:
             raise DivergenceError(f"filter diverged at t = {self.time_s:.3f} s: singular"
                                   f" innovation covariance of {name}") from None
         nis = float(nu @ Sinv_nu)
+        self.last_innovation = nu
         if not np.isfinite(nis):
             raise DivergenceError(f"filter diverged at t = {self.time_s:.3f} s: non-finite"
                                   f" innovation of {name}")
@@ -283,52 +208,59 @@ class UnscentedKalmanFilter:
         return nis
 
     # -- sequential convention -------------------------------------------------------------
-    def step(self, z: np.ndarray | None, u: object = None) -> np.ndarray:
-        """Process one sample: predict, then fuse ``z``; return the state estimate.
+    def step(self, y: np.ndarray | None, u: object = None) -> Step:
+        """Process one sample: predict (``fx(X, u)`` when ``u`` is not None), then fuse ``y``.
 
-        ``u`` is passed to ``fx`` when not None; ``z`` is skipped when None or not finite.
+        ``y`` is skipped when None or not finite.  Returns the estimate after the sample.
         """
         if u is None:
             self.predict()
         else:
             self.predict(u)
-        if z is not None and np.all(np.isfinite(z)):
-            self.update(z)
-        return self.x.copy()
+        used, nu = False, np.zeros(0)
+        if y is not None and np.all(np.isfinite(y)):
+            nis = self.update(y)
+            used = bool(np.isfinite(nis))
+            nu = np.atleast_1d(np.asarray(self.last_innovation, dtype=np.float64))
+        return Step(state=self.x.copy(), std=np.sqrt(np.clip(np.diag(self.P), 0.0, None)),
+                    innovation=nu, used=used)
 
-    def run(self, zs: np.ndarray, us: np.ndarray | None = None,
-            time_s: np.ndarray | None = None, keep_cov: bool = False) -> FilterResult:
+    def run(self, ys: np.ndarray, us: np.ndarray | None = None,
+            time_s: np.ndarray | None = None, keep_cov: bool = False) -> SequentialResult:
         """Run over a sequence of measurements (rows of NaN are predict-only).
 
         Parameters
         ----------
-        zs : ndarray, shape (N, m)
+        ys : ndarray, shape (N, m)
             Measurements.
         us : ndarray, shape (N, ...), optional
             Inputs passed to the process model.
         time_s : ndarray, shape (N,), optional
             Sample times for the result (default 0..N-1).
         keep_cov : bool
-            Keep the full covariance at every sample.
+            Keep the full covariance at every sample (``info["cov"]``, shape (N, n, n)).
 
         Returns
         -------
-        FilterResult
+        SequentialResult
         """
-        zs = np.asarray(zs, dtype=np.float64)
+        zs = np.asarray(ys, dtype=np.float64)
         if zs.ndim == 1:
             zs = zs[:, None]
         N, n = zs.shape[0], self.x.size
         xs, stds = np.empty((N, n)), np.empty((N, n))
+        nus = np.full(zs.shape, np.nan)
         covs = np.empty((N, n, n)) if keep_cov else None
         for k in range(N):
             self.time_s = float(time_s[k]) if time_s is not None else float(k)
-            self.step(zs[k], None if us is None else us[k])
-            xs[k] = self.x
-            stds[k] = np.sqrt(np.clip(np.diag(self.P), 0.0, None))
+            st = self.step(zs[k], None if us is None else us[k])
+            xs[k], stds[k] = st.state, st.std
+            if st.innovation.size == zs.shape[1]:
+                nus[k] = st.innovation
             if covs is not None:
                 covs[k] = self.P
         t = np.arange(N, dtype=np.float64) if time_s is None else np.asarray(time_s, float)
-        return FilterResult(time_s=t, x=xs, std=stds, state_names=self.state_names,
-                            innovations=dict(self.innovations), cov=covs,
-                            cov_index=np.arange(N) if keep_cov else None)
+        info = {"cov": covs, "cov_index": np.arange(N)} if keep_cov else {}
+        return SequentialResult(time_s=t, state=xs, std=stds, state_names=self.state_names,
+                                loglik=np.full(N, np.nan), innovation=nus,
+                                innovations=dict(self.innovations), info=info)

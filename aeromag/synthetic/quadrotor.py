@@ -16,8 +16,9 @@ IMU            250 Hz    MPU-6000 class: gyro white 0.05 °/s rms, bias N(0, 0.3
                          bias ±0.05 m/s² per axis (random sign)
 magnetometer   50 Hz     HMC5983 class: white 150 nT per axis (about 0.5° of heading)
 flow           10 Hz     PX4Flow class: mean over its interval of the OPTICAL_FLOW_RAD
-                         rates, white 1 cm/s over the distance; quality 150..255, 2 % of
-                         samples invalid (quality 0, garbage rates)
+                         rates (stamped at the interval's middle), white 1 cm/s over
+                         the distance; quality 150..255, 2 % of samples invalid
+                         (quality 0, garbage rates)
 rangefinder    10 Hz     HRLV-EZ4 class: distance along body z to flat ground, 0.01 m
 barometer      10 Hz     0.3 m white plus a 0.02 m/sqrt(s) random walk, offset datum
 GNSS           5 Hz      u-blox LEA-6H class: 2.5 m CEP horizontal, 4 m vertical, 0.1 m/s
@@ -272,7 +273,9 @@ def simulate_quadrotor(scenario: str = "hover", duration_s: float = 60.0, seed: 
     gps_vel = interp(t_gps, vel) + rng.normal(0.0, s.gps_vel_noise_ms, (t_gps.size, 3))
 
     # One multi-rate table.
-    times = np.unique(np.concatenate([t_imu, t_mag, t_flow, t_rng, t_baro, t_gps]))
+    # Flow is stamped at the middle of its integration interval (shared/interface.md).
+    t_flow_stamp = 0.5 * (tfp + t_flow)
+    times = np.unique(np.concatenate([t_imu, t_mag, t_flow_stamp, t_rng, t_baro, t_gps]))
     n = times.size
     log = pd.DataFrame({"time": times})
 
@@ -287,8 +290,8 @@ def simulate_quadrotor(scenario: str = "hover", duration_s: float = 60.0, seed: 
     put(["gyro_x", "gyro_y", "gyro_z"], t_imu, gyro)
     put(["acc_x", "acc_y", "acc_z"], t_imu, acc)
     put(["flux_x", "flux_y", "flux_z"], t_mag, flux)
-    put(["flow_x", "flow_y"], t_flow, flow)
-    put(["flow_quality"], t_flow, quality)
+    put(["flow_x", "flow_y"], t_flow_stamp, flow)
+    put(["flow_quality"], t_flow_stamp, quality)
     put(["range_m"], t_rng, rng_m)
     put(["baro_alt"], t_baro, baro)
     put(["lat", "lon", "alt"], t_gps, gps_llh)
