@@ -419,8 +419,20 @@ def check_field_scale(src: str, flux_mag: np.ndarray, mag: np.ndarray | None) ->
         if not n_fin or 2 * n_out <= n_fin:
             continue
         med = float(np.median(v[fin]))
-        if any(lo <= abs(med) * f <= hi for f in _UNIT_FACTORS.values()):
-            continue  # a field in another unit: the units warning says which
+        unit = next((u for u, f in _UNIT_FACTORS.items() if lo <= abs(med) * f <= hi), None)
+        if unit is not None and (group == "mag" or mag is None):
+            # The total field itself in another unit: every level and the residual would be
+            # off by that factor ("residual std 0.0001 nT"): never go on silently.
+            key = "mag" if group == "mag" else "flux"
+            i = int(np.flatnonzero(out)[0])
+            raise InputError(
+                f"{src}: {what}, data row {i + 1}: {v[i]:.6g}, median {med:.4g}: no Earth"
+                f" field in nT (22,000-67,000 nT), but {med * _UNIT_FACTORS[unit]:,.0f} nT if"
+                f" it is in {unit}: pass units={{'{key}': '{unit}'}}"
+                + (" (and units={'flux': ...} if the fluxgate is not in nT either)"
+                   if key == "mag" else "") + ", or check the column map (columns=...)")
+        if unit is not None:
+            continue  # the fluxgate beside a scalar in nT: the units warning says which
         i = int(np.flatnonzero(out)[0])
         raise InputError(
             f"{src}: {what}, data row {i + 1}: {v[i]:.6g} nT, and {n_out} of {n_fin} samples"
