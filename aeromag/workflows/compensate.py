@@ -23,6 +23,7 @@ import pandas as pd
 from ..compensation import pipeline as _pipeline
 from ..compensation.config import CompensationConfig
 from ..compensation.model import TLModel
+from ..compensation.report import flag_residual_outliers
 from ..compensation.result import CompensationResult
 from ..conventions import FLUX_COLUMNS
 from ..errors import InputError
@@ -290,6 +291,7 @@ def _add_qc(res: CompensationResult, maneuvers: Any = None) -> None:
         by_seg = res.report["qc"].get("residual_std_by_segment_nT") or {}
         for e in res.report["segments"]:
             e["residual_std"] = by_seg.get(str(e["id"]))
+        flag_residual_outliers(res.report)
 
 
 # --------------------------------------------------------------------------- files
