@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from ._progress import progress_bar
 from .app import app, column_options, setup_logging, user_errors
 
 # Same as aeromag.detection.heading.DEFAULT_SIGMA_FLOOR_DEG (a test checks it); literal here
@@ -91,7 +92,7 @@ def track(
         logging.getLogger(__name__).warning(
             "--waypoint-radius is ignored: legs are assigned from what the vehicle does"
             " (see docs/track.md)")
-    with user_errors():
+    with user_errors(), progress_bar("aeromag track"):  # a bar on a terminal only
         columns, unit_map = column_options(col, map_file, units)
         res = track_file(
             survey, plan, output, threshold_m=threshold, min_duration_s=min_duration,

@@ -133,7 +133,10 @@ def navigate_file(
         if where is None:
             raise InputError(f"{source}: date={date!r} needs a position for IGRF: the log has no"
                              " GNSS fix; give origin=(LAT, LON, ALT) (or earth_field=(F, I, D))")
-        ref = igrf_field(where[0], where[1], where[2], date)
+        try:
+            ref = igrf_field(where[0], where[1], where[2], date)
+        except InputError as exc:  # the date, the package: the message names the log
+            raise InputError(f"{source}: {exc}") from None
     ref_ned = None if ref is None else np.atleast_2d(ref.ned_nT)[0]
     res = navigate(df, gps=mode, origin=origin, mag_reference_ned_nT=ref_ned, config=config,
                    sensors=sensors, source=source)
