@@ -125,8 +125,11 @@ class TollesLawson(RegressorMixin, BaseEstimator):
     _split_X = staticmethod(split_X)
 
     def __sklearn_tags__(self) -> Any:
-        """scikit-learn (>= 1.6) tags: a regressor that is also a transformer (``transform``
-        gives ``y - predict(X)``, so it needs ``y``), on float64 ``X`` of four columns."""
+        """scikit-learn (>= 1.6) tags: a regressor that is also a transformer.
+
+        ``transform`` gives ``y - predict(X)``, so it needs ``y``; ``X`` is float64, four
+        columns.
+        """
         from sklearn.utils import TransformerTags
 
         tags = super().__sklearn_tags__()
