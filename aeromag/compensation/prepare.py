@@ -380,6 +380,12 @@ def _finish(df: pd.DataFrame, cfg: CompensationConfig, src: str, t: np.ndarray,
 #: margins leave room for a strong local anomaly.
 EARTH_FIELD_RANGE_NT: tuple[float, float] = (1_000.0, 120_000.0)
 
+#: The Earth's field at the surface [nT]: a total field whose median is this in uT or G is
+#: refused with the units remedy (a level off by 1000 or 1e5 would be silent otherwise).
+EARTH_FIELD_NT: tuple[float, float] = (20_000.0, 70_000.0)
+#: Units a total-field log is found in instead of nT (issue 30: uT, and gauss).
+TOTAL_FIELD_UNITS = ("uT", "G")
+
 #: Field units and their factors to nT (as io.units has them), for the message only.
 _UNIT_FACTORS = {"uT": 1e3, "mT": 1e6, "G": 1e5, "mG": 1e2, "pT": 1e-3, "T": 1e9}
 
@@ -420,7 +426,10 @@ def check_field_scale(src: str, flux_mag: np.ndarray, mag: np.ndarray | None) ->
             continue
         med = float(np.median(v[fin]))
         unit = next((u for u, f in _UNIT_FACTORS.items() if lo <= abs(med) * f <= hi), None)
-        if unit is not None and (group == "mag" or mag is None):
+        total = next((u for u in TOTAL_FIELD_UNITS if EARTH_FIELD_NT[0] <= med
+                      * _UNIT_FACTORS[u] <= EARTH_FIELD_NT[1]), None)
+        if total is not None and (group == "mag" or mag is None):
+            unit = total
             # The total field itself in another unit: every level and the residual would be
             # off by that factor ("residual std 0.0001 nT"): never go on silently.
             key = "mag" if group == "mag" else "flux"
