@@ -18,7 +18,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: Optional features (module: extra, requirement in it), imported only inside the functions
 #: that need them, with a message naming the extra to install.
 OPTIONAL = {"h5py": ("hdf5", "h5py"), "distributed": ("dask", "dask"), "dask": ("dask", "dask"),
-            "ppigrf": ("igrf", "ppigrf"), "pyulog": ("ulog", "pyulog"),
+            "pyulog": ("ulog", "pyulog"),
             "pymavlink": ("dataflash", "pymavlink")}
 
 

@@ -19,11 +19,8 @@ runner = CliRunner()
 
 
 @pytest.fixture(scope="module")
-def model(tmp_path_factory):
-    m = tmp_path_factory.mktemp("shape") / "model.json"
-    assert runner.invoke(app, ["calibrate", str(DATA / "calibration.csv"), "-o",
-                               str(m)]).exit_code == 0
-    return m
+def model(sample_model):
+    return sample_model
 
 
 def test_the_report_name_rule():
