@@ -58,3 +58,19 @@ def hand_flight(seed: int = 0, n: int = 12000, fs: float = 10.0, noise: float = 
 @pytest.fixture(scope="session")
 def flight() -> tuple[pd.DataFrame, np.ndarray]:
     return hand_flight()
+
+
+@pytest.fixture(scope="session")
+def sample_model(tmp_path_factory):
+    """The model of data_samples/calibration.csv, written by 'aeromag calibrate'."""
+    from pathlib import Path
+
+    from typer.testing import CliRunner
+
+    from aeromag.cli import app
+
+    m = tmp_path_factory.mktemp("sample_model") / "model.json"
+    cal = Path(__file__).resolve().parents[1] / "data_samples" / "calibration.csv"
+    r = CliRunner().invoke(app, ["calibrate", str(cal), "-o", str(m)])
+    assert r.exit_code == 0, r.output
+    return m

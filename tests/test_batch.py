@@ -285,8 +285,11 @@ def _mixed_folder(root: Path) -> Path:
     d = root / "mix"
     d.mkdir()
     df = pd.read_csv(DATA / "survey.csv")
-    df.to_csv(d / "good.csv", index=False)
-    pd.read_csv(DATA / "calibration.csv").to_csv(d / "box.csv", index=False)
+    # Good: without their faulty line (survey line 2, box line 9), which the residual screen
+    # of an applied model flags with a warning (issue 30; tests/test_residual_screen.py).
+    df[df["line"] != 2].to_csv(d / "good.csv", index=False)
+    cal = pd.read_csv(DATA / "calibration.csv")
+    cal[cal["line"] != 9].to_csv(d / "box.csv", index=False)
     dup = pd.concat([df.iloc[:100], df.iloc[99:100], df.iloc[100:]], ignore_index=True)
     dup.to_csv(d / "dups.csv", index=False)
     micro = df.copy()

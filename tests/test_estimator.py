@@ -98,3 +98,49 @@ def test_library_errors_name_the_parameter_not_the_flag(cal):
         TollesLawson().fit(X[:150], cal["mag"].to_numpy()[:150])
     msg = str(exc.value)
     assert "--" not in msg and "segment_seconds=" in msg, msg
+
+
+# --------------------------------------------------------------------------- check_estimator
+_NOT_A_LOG = ("scikit-learn's generated data is no magnetometer log: X must be the four columns"
+              " time [s], flux_x, flux_y, flux_z [nT] (its X has 1 to 10 random features)")
+_NO_EARTH_FIELD = ("scikit-learn's generated y is no total field in nT (about +-1): refused"
+                   " with the --units remedy, as a log in uT is (issue 30)")
+#: The checks TollesLawson cannot meet, and why: every one needs X to be arbitrary features
+#: and y any number, which a Tolles-Lawson fit on (time, fluxgate) against a total field is
+#: not.  The others (tags, get/set_params, clone, NaN/inf/sparse/complex/empty/1-sample
+#: refusals, y required, fit_transform, not-fitted errors ...) pass.
+EXPECTED_FAILED_CHECKS = {name: _NOT_A_LOG for name in (
+    "check_fit_score_takes_y", "check_estimators_overwrite_params",
+    "check_dont_overwrite_parameters", "check_estimators_fit_returns_self",
+    "check_readonly_memmap_input", "check_positive_only_tag_during_fit",
+    "check_estimators_dtypes", "check_dtype_object", "check_pipeline_consistency",
+    "check_estimators_nan_inf", "check_estimators_pickle", "check_f_contiguous_array_estimator",
+    "check_regressors_train", "check_regressor_data_not_an_array", "check_supervised_y_2d",
+    "check_regressors_int", "check_transformer_data_not_an_array", "check_transformer_general",
+    "check_transformer_preserve_dtypes", "check_methods_sample_order_invariance",
+    "check_methods_subset_invariance", "check_dict_unchanged", "check_fit_idempotent",
+    "check_fit_check_is_fitted", "check_n_features_in", "check_fit2d_predict1d")}
+EXPECTED_FAILED_CHECKS.update({name: _NO_EARTH_FIELD for name in (
+    "check_n_features_in_after_fitting", "check_regressors_no_decision_function")})
+
+
+def test_check_estimator_fails_only_the_stated_checks():
+    """Issue 30: check_estimator raised at once (transformer tags missing, transform without
+    y); now it runs, and exactly the checks stated above (with their reason) fail."""
+    import warnings
+
+    from sklearn.utils.estimator_checks import check_estimator
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = check_estimator(TollesLawson(), on_fail=None,
+                              expected_failed_checks=EXPECTED_FAILED_CHECKS)
+    failed = {r["check_name"] for r in res if r["status"] == "failed"}
+    passed = {r["check_name"] for r in res if r["status"] == "passed"}
+    xfail = {r["check_name"] for r in res if r["status"] == "xfail"}
+    assert failed == set(), failed
+    assert xfail == set(EXPECTED_FAILED_CHECKS)
+    for must in ("check_estimator_tags_renamed", "check_estimators_empty_data_messages",
+                 "check_estimator_sparse_array", "check_complex_data", "check_requires_y_none",
+                 "check_fit2d_1sample", "check_fit2d_1feature", "check_get_params_invariance"):
+        assert must in passed, must

@@ -18,7 +18,7 @@ from aeromag.io import csv as aio
 from aeromag.io import read_log, unit_factor
 from aeromag.io.formats import read_table, read_xyz, write_table, write_xyz
 
-SAMPLES = Path(__file__).resolve().parents[2] / "shared" / "data" / "formats"  # ../shared
+SAMPLES = Path(__file__).resolve().parents[1] / "data_samples" / "formats"  # ../shared copies
 
 HYP = settings(max_examples=40, deadline=None,
                suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -366,8 +366,6 @@ def test_hdf5_and_parquet_errors_name_the_sample_or_row(tmp_path):
 
 # --------------------------------------------------------------------------- B8 native logs
 def _magdrone(tmp_path, old: str, new: str) -> Path:
-    if not SAMPLES.is_dir():
-        pytest.skip("../shared/data/formats (the vendor samples) is absent")
     src = (SAMPLES / "magdrone_r3_sample.csv").read_text()
     assert old in src
     return _write(tmp_path, "md.csv", src.replace(old, new, 1))
@@ -404,8 +402,6 @@ def test_magdrone_microtesla_both_spellings(tmp_path, unit):
 
 
 def test_magarrow_garbage_is_an_error(tmp_path):
-    if not SAMPLES.is_dir():
-        pytest.skip("../shared/data/formats (the vendor samples) is absent")
     src = (SAMPLES / "magarrow_sample.csv").read_text()
     p = _write(tmp_path, "ma.csv", src.replace("51384.04790", "5138X.04790"))
     with pytest.raises(InputError, match=r"ma\.csv: column 'Mag', line 4: value '5138X.04790'"):

@@ -45,7 +45,7 @@ from aeromag.cli import app
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data_samples"
-SAMPLES = ROOT.parent / "shared" / "data" / "formats"
+SAMPLES = DATA / "formats"  # copies of ../shared/data/formats
 
 settings.register_profile("aeromag-fuzz-ci", max_examples=int(os.environ.get(
     "AEROMAG_FUZZ_EXAMPLES", "30")), deadline=None,

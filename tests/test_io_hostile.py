@@ -19,10 +19,10 @@ from aeromag.io import read_log, read_map_file, write_csv
 from aeromag.io.formats import read_table, write_table
 from aeromag.io.model_file import read_model_document
 
-SAMPLES = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "formats"
+SAMPLES = Path(__file__).resolve().parents[1] / "data_samples" / "formats"  # ../shared copies
 MAGDRONE = SAMPLES / "magdrone_r3_sample.csv"
 MAGARROW = SAMPLES / "magarrow_sample.csv"
-need_samples = pytest.mark.skipif(not MAGDRONE.exists(), reason="../shared format samples absent")
+need_samples = pytest.mark.skipif(not MAGDRONE.exists(), reason="data_samples/formats absent")
 
 
 def _log(n: int = 50) -> pd.DataFrame:

@@ -48,3 +48,22 @@ def test_teaching_notebooks_show_figures_and_keep_their_outputs(name, folder, fi
     assert len(images) >= min_images
     for f in files:
         assert (tmp_path / folder / f).exists(), f
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
+def test_no_notebook_switches_the_matplotlib_backend(path):
+    """Issue 30: ``matplotlib.use("Agg")`` in compass.ipynb hid every figure; a notebook never
+    picks the backend (the plot style uses Agg only when it writes a file)."""
+    nb = nbformat.read(path, as_version=4)
+    src = "\n".join(c.source for c in nb.cells if c.cell_type == "code")
+    assert "matplotlib.use(" not in src and "switch_backend" not in src, path.name
+
+
+def test_compass_notebook_shows_its_figures(tmp_path):
+    path = Path(__file__).resolve().parents[1] / "notebooks" / "compass.ipynb"
+    nb = nbformat.read(path, as_version=4)
+    NotebookClient(nb, timeout=120, kernel_name="python3",
+                   resources={"metadata": {"path": str(tmp_path)}}).execute()
+    images = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs
+              if "image/png" in o.get("data", {})]
+    assert len(images) >= 2

@@ -23,6 +23,7 @@ import pytest
 from typer.testing import CliRunner
 
 from aeromag.cli import app
+from aeromag.io import json_path_for
 from aeromag.plot.compensation import plot_psd
 from aeromag.workflows.report import load_compensated
 from aeromag.workflows.report_check import (
@@ -73,7 +74,7 @@ def _copy(d: Path, name: str, new: str, edit) -> Path:
         edit(pd.read_parquet(src)).to_parquet(d / f"{stem}{suffix}", index=False)
     else:
         edit(pd.read_csv(src)).to_csv(d / f"{stem}{suffix}", index=False)
-    shutil.copy(d / f"{Path(name).stem}.json", d / f"{stem}.json")
+    shutil.copy(json_path_for(src), json_path_for(d / f"{stem}{suffix}"))
     return d / f"{stem}{suffix}"
 
 

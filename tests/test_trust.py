@@ -175,11 +175,18 @@ def test_warnings_are_recorded_and_strict_makes_them_errors(samples, tmp_path):
     r = runner.invoke(app, ["compensate", str(samples / "survey.csv"), "-o", str(strict),
                             "--strict"])
     assert r.exit_code == 1 and "calibration box" in r.output and not strict.exists()
-    # ... and passes with the model calibrated on the box.
+    # ... and with the model calibrated on the box its faulty line 2 is flagged (issue 30's
+    # residual screen), so --strict refuses it; without that line it passes.
     model = tmp_path / "box.json"
     assert runner.invoke(app, ["calibrate", str(samples / "calibration.csv"), "-o",
                                str(model), "--strict"]).exit_code == 0
     r = runner.invoke(app, ["compensate", str(samples / "survey.csv"), "--model", str(model),
+                            "-o", str(strict), "--strict"])
+    assert r.exit_code == 1 and "segment 2:" in r.output and not strict.exists(), r.output
+    clean = tmp_path / "clean.csv"
+    df = pd.read_csv(samples / "survey.csv")
+    df[df["line"] != 2].to_csv(clean, index=False)
+    r = runner.invoke(app, ["compensate", str(clean), "--model", str(model),
                             "-o", str(strict), "--strict"])
     assert r.exit_code == 0 and strict.exists(), r.output
 

@@ -121,7 +121,8 @@ OPTIONS: list[Option] = [
        f"{', '.join('*' + e for e in LOG_EXTENSIONS)} files).", {"batch"}, metavar="INPUTS"),
     # outputs and models
     _o("output", "-o", Path, _REQUIRED,
-       {"compensate": "Output CSV (the report goes to OUT.json).",
+       {"compensate": "Output log: CSV, or Parquet / Geosoft XYZ by the extension (.parquet,"
+                      " .xyz); the report goes to OUT.json (OUT.parquet.json, OUT.xyz.json).",
         "calibrate": "Output model file (JSON).",
         "batch": "Output folder (NAME_comp.csv/.json per log, batch_summary.csv/.json).",
         "level": "Output log: .csv, .parquet or .xyz (Geosoft XYZ with a Line/Tie header per "

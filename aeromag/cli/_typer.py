@@ -12,7 +12,8 @@ import typer
 app = typer.Typer(
     name="aeromag",
     help="Aeromagnetic survey post-processing: Tolles-Lawson compensation with PCA screening "
-    "of segments, DGPS track-deviation checks, batch processing.",
+    "of segments (offline or online), DGPS track-deviation checks, compass calibration, "
+    "UKF navigation, particle-filter fault detection, QC reports, batch processing.",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,

@@ -9,6 +9,7 @@ import typer
 from ..errors import InputError
 from ._app import column_options, setup_logging, strict_warnings, user_errors
 from ._options import Options, command, config_errors
+from ._progress import progress_bar
 from .online import dispatch as _online_dispatch  # registers --online and --forgetting
 
 
@@ -30,7 +31,8 @@ def compensate(opts: Options) -> None:
     from ..io import json_path_for
     from ..workflows.compensate import compensate_file
 
-    with user_errors(), strict_warnings(opts.strict), config_errors():
+    with (user_errors(), strict_warnings(opts.strict), config_errors(),
+          progress_bar("aeromag compensate")):  # a bar on a terminal only
         if json_path_for(output) == output:
             raise InputError(f"-o {output}: the report goes to OUT.json, so OUT must not end in"
                              " .json; give the output CSV another name, e.g. -o survey_comp.csv")
@@ -71,7 +73,8 @@ def calibrate(opts: Options) -> None:
     setup_logging(opts.verbose)
     from ..workflows.compensate import calibrate_file
 
-    with user_errors(), strict_warnings(opts.strict), config_errors():
+    with (user_errors(), strict_warnings(opts.strict), config_errors(),
+          progress_bar("aeromag calibrate")):  # a bar on a terminal only
         opts.refuse_unused_options()  # --no-screen with a screening threshold
         columns, unit_map = column_options(opts.col, opts.map_file, opts.units)
         cfg = opts.config()

@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from ._progress import progress_bar
 from .app import app, column_options, setup_logging, user_errors
 
 # Literal copies of aeromag.detection.particle's defaults (a test checks them), so that
@@ -60,7 +61,7 @@ def detect(
     from ..io import json_path_for
     from ..workflows.detect import detect_file
 
-    with user_errors():
+    with user_errors(), progress_bar("aeromag detect"):  # a bar on a terminal only
         columns, unit_map = column_options(col, map_file, units)
         rep = detect_file(log_file, output, n_particles=particles, window=window,
                           threshold=threshold, calm_window=calm_window,

@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from ._progress import progress_bar
 from .app import app, column_options, setup_logging, user_errors
 
 # The measurement models of aeromag.nav (literal so that 'aeromag --help' imports no numerics;
@@ -112,7 +113,7 @@ def navigate(
     from ..errors import InputError
     from ..io import json_path_for
 
-    with user_errors():
+    with user_errors(), progress_bar("aeromag navigate"):  # a bar on a terminal only
         bad = sorted(set(without or []) - set(SENSORS))
         if bad:
             raise InputError(f"--without {bad[0]}: unknown sensor; use one of "

@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from ._progress import progress_bar
 from .app import app, column_options, setup_logging, user_errors
 
 # Same as aeromag.detection.heading.DEFAULT_SIGMA_FLOOR_DEG (a test checks it); literal here
@@ -83,7 +84,7 @@ def track(
     from ..io import json_path_for
     from ..workflows.track import track_file
 
-    with user_errors():
+    with user_errors(), progress_bar("aeromag track"):  # a bar on a terminal only
         columns, unit_map = column_options(col, map_file, units)
         res = track_file(
             survey, plan, output, threshold_m=threshold, min_duration_s=min_duration,

@@ -1,6 +1,6 @@
 """The reference Earth field for the compass calibration: IGRF (via ``ppigrf``) or explicit.
 
-IGRF-14 ships with the ``ppigrf`` package (the optional extra ``aeromag[igrf]``); no download
+IGRF-14 ships with the ``ppigrf`` package (a base dependency of aeromag); no download
 is needed.  Its coefficients run from 1900.0 to 2030.0 (the last five years are the predicted
 secular variation); a date outside is refused, not extrapolated.
 """
@@ -139,9 +139,9 @@ def igrf_field(lat_deg: np.ndarray, lon_deg: np.ndarray, alt_m: np.ndarray | flo
     try:
         import ppigrf
     except ImportError:
-        raise InputError("the IGRF reference needs the ppigrf package: pip install "
-                         "'aeromag[igrf]', or give the field with earth_field=(F, I, D)"
-                         ) from None
+        raise InputError("the IGRF reference needs the ppigrf package, a dependency of"
+                         " aeromag that is missing here: pip install ppigrf (or reinstall"
+                         " aeromag), or give the field with earth_field=(F, I, D)") from None
     lat = np.atleast_1d(np.asarray(lat_deg, dtype=np.float64))
     lon = np.atleast_1d(np.asarray(lon_deg, dtype=np.float64))
     alt = np.broadcast_to(np.asarray(alt_m, dtype=np.float64), lat.shape)

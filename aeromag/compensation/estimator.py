@@ -45,13 +45,23 @@ def split_X(X: Any) -> tuple[np.ndarray, np.ndarray]:
     t : ndarray, shape (n,)
     flux : ndarray, shape (n, 3)
     """
-    if hasattr(X, "columns") and {"time", *FLUX_COLUMNS} <= set(X.columns):
-        X = X[["time", *FLUX_COLUMNS]]
-    arr = np.asarray(X, dtype=np.float64)
-    if arr.ndim != 2 or arr.shape[1] != 4:
-        raise InputError("X must have 4 columns: time [s], flux_x, flux_y, flux_z [nT]; got"
-                         f" shape {arr.shape}")
+    arr = np.asarray(_four_columns(X), dtype=np.float64)
+    _check_four(arr)
     return arr[:, 0], arr[:, 1:4]
+
+
+def _four_columns(X: Any) -> Any:
+    """``X`` itself, or a DataFrame's ``time, flux_x, flux_y, flux_z`` columns."""
+    if hasattr(X, "columns") and {"time", *FLUX_COLUMNS} <= set(X.columns):
+        return X[["time", *FLUX_COLUMNS]]
+    return X
+
+
+def _check_four(arr: np.ndarray) -> None:
+    if arr.ndim != 2 or arr.shape[1] != 4:
+        n = arr.shape[1] if arr.ndim == 2 else 0
+        raise InputError("X must have 4 columns: time [s], flux_x, flux_y, flux_z [nT]; got"
+                         f" {n} feature(s), shape {arr.shape}")
 
 
 class TollesLawson(RegressorMixin, BaseEstimator):
@@ -114,6 +124,20 @@ class TollesLawson(RegressorMixin, BaseEstimator):
 
     _split_X = staticmethod(split_X)
 
+    def __sklearn_tags__(self) -> Any:
+        """scikit-learn (>= 1.6) tags: a regressor that is also a transformer.
+
+        ``transform`` gives ``y - predict(X)``, so it needs ``y``; ``X`` is float64, four
+        columns.
+        """
+        from sklearn.utils import TransformerTags
+
+        tags = super().__sklearn_tags__()
+        tags.transformer_tags = TransformerTags(preserves_dtype=["float64"])
+        tags.target_tags.required = True
+        tags.input_tags.allow_nan = False
+        return tags
+
     def _config(self) -> CompensationConfig:
         terms = self.terms if isinstance(self.terms, str) else ",".join(self.terms)
         return CompensationConfig(band_hz=self.band, terms=terms, ridge=self.ridge,
@@ -142,10 +166,14 @@ class TollesLawson(RegressorMixin, BaseEstimator):
         FitError
             Ill-conditioned, or an interference no aircraft makes (as ``aeromag calibrate``).
         """
-        t, flux = self._split_X(X)
-        yv = np.asarray(y, dtype=np.float64).ravel()
-        if len(yv) != len(t):
-            raise InputError(f"X has {len(t)} rows but y has {len(yv)}")
+        from sklearn.utils.validation import validate_data
+
+        # scikit-learn's own checks first (finite numbers, no sparse or complex data, y given
+        # and 1-D, at least 2 samples; n_features_in_ and feature_names_in_ recorded).
+        arr, yv = validate_data(self, _four_columns(X), y, dtype=np.float64, y_numeric=True,
+                                ensure_min_samples=2)
+        _check_four(arr)
+        t, flux = arr[:, 0], arr[:, 1:4]
         df = pd.DataFrame({"time": t, "flux_x": flux[:, 0], "flux_y": flux[:, 1],
                            "flux_z": flux[:, 2], "mag": yv})
         cfg = resolve_gap(self._config(), df)
@@ -195,6 +223,10 @@ class TollesLawson(RegressorMixin, BaseEstimator):
                                  " column in X")
             y = X["mag"]
         return np.asarray(y, dtype=np.float64).ravel() - self.predict(X)
+
+    def fit_transform(self, X: Any, y: Any) -> np.ndarray:
+        """:meth:`fit`, then :meth:`transform` of the same data (``y - mag_tl``) [nT]."""
+        return self.fit(X, y).transform(X, y)
 
     def score(self, X: Any, y: Any, sample_weight: Any = None) -> float:
         """Improvement ratio, as the pipeline's metrics compute it.

@@ -380,6 +380,12 @@ def _finish(df: pd.DataFrame, cfg: CompensationConfig, src: str, t: np.ndarray,
 #: margins leave room for a strong local anomaly.
 EARTH_FIELD_RANGE_NT: tuple[float, float] = (1_000.0, 120_000.0)
 
+#: The Earth's field at the surface [nT]: a total field whose median is this in uT or G is
+#: refused with the units remedy (a level off by 1000 or 1e5 would be silent otherwise).
+EARTH_FIELD_NT: tuple[float, float] = (20_000.0, 70_000.0)
+#: Units a total-field log is found in instead of nT (issue 30: uT, and gauss).
+TOTAL_FIELD_UNITS = ("uT", "G")
+
 #: Field units and their factors to nT (as io.units has them), for the message only.
 _UNIT_FACTORS = {"uT": 1e3, "mT": 1e6, "G": 1e5, "mG": 1e2, "pT": 1e-3, "T": 1e9}
 
@@ -419,8 +425,23 @@ def check_field_scale(src: str, flux_mag: np.ndarray, mag: np.ndarray | None) ->
         if not n_fin or 2 * n_out <= n_fin:
             continue
         med = float(np.median(v[fin]))
-        if any(lo <= abs(med) * f <= hi for f in _UNIT_FACTORS.values()):
-            continue  # a field in another unit: the units warning says which
+        unit = next((u for u, f in _UNIT_FACTORS.items() if lo <= abs(med) * f <= hi), None)
+        total = next((u for u in TOTAL_FIELD_UNITS if EARTH_FIELD_NT[0] <= med
+                      * _UNIT_FACTORS[u] <= EARTH_FIELD_NT[1]), None)
+        if total is not None and (group == "mag" or mag is None):
+            unit = total
+            # The total field itself in another unit: every level and the residual would be
+            # off by that factor ("residual std 0.0001 nT"): never go on silently.
+            key = "mag" if group == "mag" else "flux"
+            i = int(np.flatnonzero(out)[0])
+            raise InputError(
+                f"{src}: {what}, data row {i + 1}: {v[i]:.6g}, median {med:.4g}: no Earth"
+                f" field in nT (22,000-67,000 nT), but {med * _UNIT_FACTORS[unit]:,.0f} nT if"
+                f" it is in {unit}: pass units={{'{key}': '{unit}'}}"
+                + (" (and units={'flux': ...} if the fluxgate is not in nT either)"
+                   if key == "mag" else "") + ", or check the column map (columns=...)")
+        if unit is not None:
+            continue  # the fluxgate beside a scalar in nT: the units warning says which
         i = int(np.flatnonzero(out)[0])
         raise InputError(
             f"{src}: {what}, data row {i + 1}: {v[i]:.6g} nT, and {n_out} of {n_fin} samples"

@@ -9,6 +9,7 @@ only this module turns them into the dictionary that becomes JSON.
 from __future__ import annotations
 
 import datetime as _dt
+import logging
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -25,8 +26,77 @@ from .segments import segment_counts
 if TYPE_CHECKING:
     from .result import FitOutcome
 
-__all__ = ["AppliedRun", "applied_report", "dropped_summary", "fit_report", "format_time",
+log = logging.getLogger(__name__)
+
+__all__ = ["AppliedRun", "applied_report", "dropped_summary", "fit_report",
+           "flag_residual_outliers", "format_time",
            "is_epoch", "name_segments", "segment_name", "time_span"]
+
+
+#: Residual screen of an applied model: a segment is flagged when its band-passed residual
+#: std is above median + RESIDUAL_FLAG_MADS * MAD (the MAD scaled by 1.4826 to a normal
+#: sigma) of the segments' residuals and above RESIDUAL_FLAG_RATIO times their median.
+RESIDUAL_FLAG_MADS = 5.0
+RESIDUAL_FLAG_RATIO = 3.0
+#: Fewest segments with a residual for the screen to run (a median of two means nothing).
+RESIDUAL_FLAG_MIN_SEGMENTS = 3
+
+
+def flag_residual_outliers(report: dict[str, Any]) -> list[int]:
+    """Flag the segments of an applied model whose residual is far above the others'.
+
+    A saved model is applied, never refitted, so every segment stays ``kept`` (interface.md:
+    ``segment_kept`` is all true when a saved model is applied); but a faulty line (a
+    drifting sensor, an interference the calibration did not see) leaves a residual far above
+    the rest.  Each segment gets ``residual_flagged`` (bool), the report a ``residual_screen``
+    block (rule, median, MAD, threshold [nT], flagged ids), and a warning names the segments.
+    The rule is robust (median and MAD, see :data:`RESIDUAL_FLAG_MADS`), so one bad line
+    cannot hide itself by raising the threshold.
+
+    Parameters
+    ----------
+    report : dict
+        An applied report whose ``segments`` hold ``residual_std`` [nT] (None when unknown).
+        Changed in place.
+
+    Returns
+    -------
+    list of int
+        Ids of the flagged segments.
+    """
+    segs = report.get("segments") or []
+    r = np.array([np.nan if e.get("residual_std") is None else float(e["residual_std"])
+                  for e in segs], dtype=np.float64)
+    ok = np.isfinite(r)
+    block: dict[str, Any] = {
+        "rule": f"residual_std > median + {RESIDUAL_FLAG_MADS:g} * 1.4826 * MAD and >"
+                f" {RESIDUAL_FLAG_RATIO:g} * median, over the segments",
+        "median_nT": None, "mad_nT": None, "threshold_nT": None, "flagged": []}
+    for e in segs:
+        e["residual_flagged"] = False
+    report["residual_screen"] = block
+    if ok.sum() < RESIDUAL_FLAG_MIN_SEGMENTS:
+        block["note"] = (f"fewer than {RESIDUAL_FLAG_MIN_SEGMENTS} segments with a residual:"
+                         " not screened")
+        return []
+    med = float(np.median(r[ok]))
+    mad = 1.4826 * float(np.median(np.abs(r[ok] - med)))
+    thr = max(med + RESIDUAL_FLAG_MADS * mad, RESIDUAL_FLAG_RATIO * med)
+    block.update(median_nT=med, mad_nT=mad, threshold_nT=thr)
+    flagged = [j for j in np.flatnonzero(ok & (r > thr)).tolist()]
+    for j in flagged:
+        segs[j]["residual_flagged"] = True
+    block["flagged"] = [int(segs[j]["id"]) for j in flagged]
+    if flagged:
+        what = ", ".join(f"{segment_name(segs[j])}: {r[j]:.3g} nT" for j in flagged)
+        log.warning(
+            "%s: %d of %d segments have a residual far above the others' (%s; median %.3g nT,"
+            " threshold %.3g nT = median + %g MAD): a faulty sensor or an interference the"
+            " model does not hold there; check those segments (flagged in the report's"
+            " segments and residual_screen; segment_kept stays true: a saved model is applied,"
+            " not refitted)", report.get("source", "<log>"), len(flagged), int(ok.sum()),
+            what, med, thr, RESIDUAL_FLAG_MADS)
+    return block["flagged"]
 
 
 def _header(source: str) -> dict[str, Any]:
@@ -106,6 +176,8 @@ def applied_report(run: AppliedRun) -> dict[str, Any]:
     if run.qc is not None:
         report["qc"] = run.qc
     report.update(run.extra)
+    if any(v is not None for v in run.residual_by_segment.values()):
+        flag_residual_outliers(report)  # in memory: once the qc has the residuals
     return report
 
 

@@ -127,9 +127,15 @@ def short_row(path: Path, header_line: int, n_fields: int, delimiter: str = ","
                     continue
                 if 34 in raw:  # quotes: let the csv module count
                     text = block.decode("utf-8", errors="replace")
-                    counts = np.array([len(r) for r in csv.reader(_io.StringIO(text),
-                                                                   delimiter=delimiter)])
+                    try:
+                        counts = np.array([len(r) for r in csv.reader(_io.StringIO(text),
+                                                                       delimiter=delimiter)])
+                    except csv.Error:  # a field running past the csv module's limit
+                        counts = np.zeros(0)
                     if len(counts) != len(nl):
+                        stray = open_quote_line(path, header_line)
+                        if stray is not None:
+                            raise InputError(stray_quote_message(path, stray))
                         continue  # a quoted newline: cannot count per line, trust the parser
                 else:
                     commas = np.flatnonzero(raw == ord(delimiter))
@@ -142,6 +148,55 @@ def short_row(path: Path, header_line: int, n_fields: int, delimiter: str = ","
     if first is None:
         return None
     return first[0], first[1], first[0] == last_data
+
+
+def quote_spans(path: Path, after: int = 0) -> list[tuple[int, int | None]]:
+    """Quoted fields that run over more than one line: ``(opening line, closing line)``.
+
+    Quotes are paired in file order from line ``after + 1`` (a doubled quote ``""`` inside a
+    quoted field counts two, so it keeps the pairing); the closing line is None for a quote
+    that is never closed.  Lines are 1-based.
+    """
+    spans: list[tuple[int, int | None]] = []
+    open_at: int | None = None
+    try:
+        with open(path, "rb") as fh:
+            for ln, raw in enumerate(fh, start=1):
+                if ln > after and raw.count(b'"') % 2:
+                    if open_at is None:
+                        open_at = ln
+                    else:
+                        spans.append((open_at, ln))
+                        open_at = None
+    except OSError:
+        return spans
+    if open_at is not None:
+        spans.append((open_at, None))
+    return spans
+
+
+def open_quote_line(path: Path, after: int = 0) -> int | None:
+    """1-based line of a double quote that opens a field and is never closed (None: none)."""
+    spans = quote_spans(path, after)
+    return spans[-1][0] if spans and spans[-1][1] is None else None
+
+
+def stray_quote_message(path: Path, line: int, closed_at: int | None = None) -> str:
+    """The error for a quote that opens a field and never closes (the rest of the file would
+    be one field), or closes only on a later line ``closed_at``."""
+    runs = ("is never closed, so the rest of the file would be one value" if closed_at is None
+            else f"closes only on line {closed_at}, so lines {line}-{closed_at} would be one row")
+    return (f"{clean(path)}: line {line}: a double quote (\") opens a field that {runs}; remove"
+            " the stray quote or close it on that line")
+
+
+def spanning_quote_message(path: Path, line: int, after: int = 0) -> str | None:
+    """The stray-quote error when the bad row ending on ``line`` is a quoted field run over
+    several lines (None when no quoted field ends there)."""
+    for start, end in quote_spans(path, after):
+        if end == line or (end is None and start <= line):
+            return stray_quote_message(path, start, end)
+    return None
 
 
 def _blank_lines(block: bytes, starts: np.ndarray, nl: np.ndarray) -> np.ndarray:
@@ -358,10 +413,16 @@ def _read_csv_pandas(path: Path, cols: list[str] | None, n_header: int = 0,
     except (pd.errors.ParserError, ValueError, OverflowError) as exc:
         msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
         m = re.search(r"Expected \d+ fields in line (\d+), saw (\d+)", msg)
+        spanning = spanning_quote_message(path, int(m.group(1))) if m else None
+        if spanning is not None:
+            raise InputError(spanning) from None
         if m and n_header:
             raise InputError(
                 f"{path}: line {m.group(1)}: {m.group(2)} fields but the header names"
                 f" {n_header} columns; fix that row (or check the delimiter)") from None
+        stray = open_quote_line(path) if "inside string" in msg else None
+        if stray is not None:
+            raise InputError(stray_quote_message(path, stray)) from None
         raise InputError(
             f"{path}: cannot parse as CSV ({msg}); check the delimiter and quoting") from None
 

@@ -55,8 +55,8 @@ def write_json(obj: Any, path: str | os.PathLike[str]) -> Path:
 
     A report (a dict with a ``source``, ``input`` or ``warnings`` key) written inside an
     output set (every command) gets the warnings logged so far by the command in a
-    ``warnings`` list (added to ``obj`` too): what a user was told on the terminal is
-    recorded beside the results.
+    ``warnings`` list (added to ``obj`` too; ``[]`` when there were none): what a user was told
+    on the terminal is recorded beside the results.
 
     Parameters
     ----------
@@ -72,9 +72,8 @@ def write_json(obj: Any, path: str | os.PathLike[str]) -> Path:
     """
     target = Path(path)
     if isinstance(obj, dict) and REPORT_KEYS & obj.keys():
-        warns = report_warnings(obj.get("warnings") or [])
-        if warns or "warnings" in obj:
-            obj["warnings"] = warns
+        # Always a list, empty when nothing was said: one shape for every command's report.
+        obj["warnings"] = report_warnings(obj.get("warnings") or [])
     text = dumps_readable(_jsonable(obj))
     with atomic_path(target) as tmp:
         tmp.write_text(text + "\n", encoding="utf-8")

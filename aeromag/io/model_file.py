@@ -58,7 +58,9 @@ def read_limited(path: str | os.PathLike[str], limit: int, what: str) -> str:
     try:
         st = os.stat(p)
     except FileNotFoundError:
-        raise InputError(f"{clean(p)}: {what} not found") from None
+        hint = (" (write one with 'aeromag calibrate CAL.csv -o MODEL.json')"
+                if "model" in what else "")
+        raise InputError(f"{clean(p)}: {what} not found; check the path{hint}") from None
     except OSError as exc:
         raise InputError(f"{clean(p)}: cannot read the {what} ({exc.strerror or exc})") from None
     if stat.S_ISDIR(st.st_mode):

@@ -462,9 +462,23 @@ def _discard(s: _OutputSet) -> None:
     s.pending.clear()
 
 
+#: Output names whose report is the name with its suffix replaced (interface.md: "OUT.json
+#: is OUT.csv with the suffix .json"); every other output keeps its suffix in the report's.
+CSV_SUFFIXES = (".csv", ".txt")
+
+
 def json_path_for(csv_path: str | os.PathLike[str]) -> Path:
-    """Return ``OUT.json`` for ``OUT.csv`` (the report path of an output log)."""
-    return Path(csv_path).with_suffix(".json")
+    """Return the report path of an output log: ``OUT.json`` for ``OUT.csv``.
+
+    A CSV output (``.csv``, ``.txt``) has its suffix replaced, as interface.md says; any other
+    output is named in full, ``OUT.parquet.json`` and ``OUT.xyz.json``, so that ``-o
+    d/survey.parquet`` and ``-o d/survey.xyz`` (or ``d/survey.csv``) never write the same
+    report.  A name without a suffix gets ``.json`` added.
+    """
+    p = Path(csv_path)
+    if p.suffix.lower() in CSV_SUFFIXES or not p.suffix or p.suffix.lower() == ".json":
+        return p.with_suffix(".json")
+    return p.with_name(p.name + ".json")
 
 
 def check_outputs(source: str | os.PathLike[str] | None, *outputs: str | os.PathLike[str],

@@ -255,12 +255,15 @@ def iter_log_batches(path: Path, fmt: str | None, columns: Sequence[str] | None 
 
     cm = dict(colmap or {})
     src_cols = None if columns is None else [cm.get(c, c) for c in columns]
+    # A batch of some columns is mapped by the entries for those columns only (read_log's map,
+    # applied to the columns read: the others are checked on the full first batch).
+    cm_read = cm if columns is None else {k: v for k, v in cm.items() if k in columns}
     drop = np.zeros(0, dtype=np.int64) if drop is None else np.asarray(drop, dtype=np.int64)
     start = 0
     for raw in iter_batches(Path(path), fmt, src_cols, batch_rows,
                             allow_truncated=allow_truncated_default(allow_truncated)):
         k = len(raw)
-        b = canonical_batch(raw, str(path), columns=cm, units=units)
+        b = canonical_batch(raw, str(path), columns=cm_read, units=units)
         if drop.size:
             lo, hi = np.searchsorted(drop, [start, start + k])
             if hi > lo:

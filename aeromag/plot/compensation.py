@@ -118,6 +118,7 @@ def plot_pca_scores(
     report = _report(report)
     seg = _segments_frame(report)
     scr = report.get("screening") or {}
+    own = ax is None
     fig, ax = target(ax, (6.0, 5.0))
     sc = np.array([np.r_[s, 0.0][:2] if len(s) < 2 else s[:2] for s in seg["scores"]],
                   dtype=float)
@@ -163,8 +164,13 @@ def plot_pca_scores(
     nd = int((~kept).sum())
     ax.set_title(f"PCA score plot: {len(seg)} segments, {nd} dropped")
     ax.grid(alpha=0.3)
-    ax.legend(loc="upper right", fontsize=8)  # "best" costs seconds with many segments
+    # Below the axes, outside them: inside, any corner can hide a kept segment's point (issue
+    # 30); "best" costs seconds with many segments.
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=3, fontsize=8,
+              frameon=False)
     ax.autoscale_view()
+    if own and fig.get_layout_engine() is None:
+        fig.subplots_adjust(bottom=0.22)  # room for the legend (a caller's ax is left alone)
     return finish(fig, path)
 
 

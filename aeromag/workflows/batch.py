@@ -459,12 +459,14 @@ def run_batch(
             raise InputError(f"{f} and {stems[f.stem]} would both write {f.stem}_comp.csv;"
                              " rename one or run them into different -o folders")
         stems[f.stem] = f
+    from ..io import json_path_for
+
     per_file: dict[Path, list[Path]] = {}
     for f in files:
         names = output_names(f, out)
-        outs = [names["comp"], names["comp"].with_suffix(".json")]
+        outs = [names["comp"], json_path_for(names["comp"])]
         if plan is not None:
-            outs += [names["track"], names["track"].with_suffix(".json")]
+            outs += [names["track"], json_path_for(names["track"])]
         per_file[f] = outs
     _refuse_overwriting_inputs(
         [(f, "log") for f in files] + [(Path(p), k) for p, k in ((model, "model"),
@@ -530,7 +532,8 @@ def run_batch(
          "n_warn": len(summary.warned),
          "n_skipped": sum(r.status == "skipped" for r in summary.results),
          "n_failed": len(summary.failed),
-         "files": [asdict(r) for r in summary.results]},
+         "files": [asdict(r) for r in summary.results],
+         "warnings": []},  # the run's own (each file's are in "files"): always a list
         out / f"{SUMMARY_NAME}.json")
     return summary
 

@@ -42,7 +42,11 @@ from ..compensation.checks import check_metrics
 from ..compensation.config import CompensationConfig
 from ..compensation.metrics import metrics_dict, require_samples
 from ..compensation.model import TLModel
-from ..compensation.prepare import check_total_field, total_field_from_fluxgate
+from ..compensation.prepare import (
+    check_field_scale,
+    check_total_field,
+    total_field_from_fluxgate,
+)
 from ..compensation.report import AppliedRun, applied_report
 from ..errors import InputError
 from ..io import (
@@ -284,6 +288,9 @@ def apply_model_chunked(
     s_end: list[np.ndarray] = []
     for w, a, b, _ in _windows(batches(need), chunk_rows, overlap):
         ar = arrays(w)
+        if not s_start:  # the level checks of prepare(), on the first window
+            bt = np.sqrt(np.einsum("ij,ij->i", ar["flux"], ar["flux"]))
+            check_field_scale(source, bt, ar["mag"] if has_mag else None)
         st = find_stretches(ar["t"], ar["valid"], max_gap)
         starts = (st >= 0) & np.r_[True, st[1:] != st[:-1]]
         ends = (st >= 0) & np.r_[st[1:] != st[:-1], True]

@@ -23,6 +23,7 @@ import pandas as pd
 from ..compensation import pipeline as _pipeline
 from ..compensation.config import CompensationConfig
 from ..compensation.model import TLModel
+from ..compensation.report import flag_residual_outliers
 from ..compensation.result import CompensationResult
 from ..conventions import FLUX_COLUMNS
 from ..errors import InputError
@@ -90,7 +91,7 @@ _BOX_HEADINGS, _BOX_MANEUVERS = 4, frozenset({"pitch", "roll", "yaw"})
 
 
 def _self_calibration(df: pd.DataFrame, cfg: CompensationConfig | None,
-                      source: str) -> dict[str, Any]:
+                      source: str, *, calibrating: bool = False) -> dict[str, Any]:
     """Whether a log fitted on itself holds a calibration box; warn when it does not.
 
     A survey's few headings and gusts separate the TL terms only in the band: the
@@ -115,7 +116,12 @@ def _self_calibration(df: pd.DataFrame, cfg: CompensationConfig | None,
                f" {', '.join(kinds) or 'none'}")
     box = len(headings) >= _BOX_HEADINGS and _BOX_MANEUVERS <= set(kinds)
     out.update(calibration_box=bool(box), headings=headings, maneuvers=kinds)
-    if not box:
+    if not box and calibrating:  # 'aeromag calibrate' on a log that is no calibration flight
+        log.warning("%s: not a calibration flight: no calibration box (%s), so the model's"
+                    " heading-dependent level is not determined and its Figure of Merit not"
+                    " applicable; calibrate on a box (four headings, each with pitch, roll and"
+                    " yaw maneuvers)", source, why)
+    elif not box:
         log.warning("%s: fitted on itself without a calibration box (%s): the heading-dependent"
                     " level of mag_tl is not determined, and the improvement ratio is in-sample"
                     " and flattering; fly a box, run 'aeromag calibrate' on it and apply it with"
@@ -155,6 +161,10 @@ def calibrate(
             res.report["segmentation"] = segmentation
             res.model.meta["segmentation"] = segmentation
         _add_qc(res)
+    # As compensate warns when it fits a log without a box: the same check, the same warning.
+    box = _self_calibration(df, cfg, source or "<log>", calibrating=True)
+    box.pop("metrics", None)  # the in-sample note is compensate's (a log fitted on itself)
+    res.report["calibration_box"] = box
     if segmentation is not None and res.data is not None and "line" in res.data.columns:
         # The detected legs were the fit's 'line' column, but they are no flight lines:
         # segments are named by id and time span, never "line 9" (issue 15).
@@ -290,6 +300,7 @@ def _add_qc(res: CompensationResult, maneuvers: Any = None) -> None:
         by_seg = res.report["qc"].get("residual_std_by_segment_nT") or {}
         for e in res.report["segments"]:
             e["residual_std"] = by_seg.get(str(e["id"]))
+        flag_residual_outliers(res.report)
 
 
 # --------------------------------------------------------------------------- files

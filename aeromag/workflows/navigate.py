@@ -135,7 +135,10 @@ def navigate_frame(
                 else:
                     date, how = NOMINAL_DATE, "nominal date"
                 auto = True
-            ref = igrf_field(where[0], where[1], where[2], date)
+            try:
+                ref = igrf_field(where[0], where[1], where[2], date)
+            except InputError as exc:  # a bad date, the package missing: name the log
+                raise InputError(f"{src}: {exc}") from None
             if how == "nominal date":
                 d = float(np.atleast_1d(ref.declination_deg)[0])
                 note = (f"{src}: no --date and the log's time is not UTC: the magnetic"

@@ -165,6 +165,7 @@ def write_report(
     qc.metrics["figures"] = sorted(pngs)
     qc.metrics["figures_skipped"] = skipped
     qc.metrics["segments"] = segment_rows(result, qc)
+    qc.metrics.setdefault("warnings", [])  # a report: write_json fills the list, [] if none
     write_json(qc.metrics, out / "qc.json")
     page = render_html(qc.metrics, report, pngs, title=title)
     html_path = out / "report.html"

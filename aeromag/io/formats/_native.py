@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import pandas as pd
@@ -28,6 +28,36 @@ def parse_datetime_seconds(date: pd.Series, clock: pd.Series, source: str,
         raise InputError(f"{source}: columns 'Date'/'Time', {row_location(rows, i)}: cannot"
                          f" read {stamp.iloc[i]!r} as a date and time; fix or remove the row")
     return datetime_seconds(dt, source, rows)
+
+
+def check_made_names(columns: Sequence[object], made: Mapping[str, str], source: str,
+                     what: str, header_line: int = 1) -> None:
+    """Refuse a source column named like a canonical column the native reader makes.
+
+    A vendor header holding e.g. a second ``time`` (or ``time `` with a blank) beside
+    ``Date``/``Time`` would collide with the ``time`` the reader computes.
+
+    Parameters
+    ----------
+    columns : sequence
+        Column names of the table, in file order (blanks stripped).
+    made : mapping
+        ``{canonical name: what it is made from}`` for the columns the reader adds.
+    source : str
+        File name quoted in the error.
+    what : str
+        The format, for the message (e.g. ``"MagArrow"``).
+    header_line : int
+        1-based line of the header in the file.
+    """
+    names = [str(c).strip() for c in columns]
+    for name, origin in made.items():
+        if name in names:
+            j = names.index(name)
+            raise InputError(
+                f"{source}: line {header_line}, column {j + 1} ({str(columns[j])!r}): the"
+                f" {what} header has a column {name!r}, but the reader makes {name!r} from"
+                f" {origin}; rename that column in the header (e.g. {name}_2) or remove it")
 
 
 def native_values(s: pd.Series, source: str, column: str,

@@ -24,12 +24,21 @@ def read_hdf5(path: Path) -> pd.DataFrame:
     arrays: dict[str, np.ndarray] = {}
     other: list[str] = []
     scalars: list[str] = []
+    unreadable: list[str] = []  # links to nothing: named in a warning, never lost silently
+    groups: list[str] = []
     try:
         with h5py.File(path, "r") as h5:
             for name in list(h5.keys()):
-                ds = h5.get(name)
+                try:
+                    ds = h5.get(name)
+                except Exception:  # noqa: BLE001 - an object h5py cannot open
+                    ds = None
+                if ds is None:  # a soft or external link to nothing, or a damaged object
+                    unreadable.append(name)
+                    continue
                 if not isinstance(ds, h5py.Dataset):
-                    continue  # a group: not a channel
+                    groups.append(name)  # a group: not a channel
+                    continue
                 if ds.ndim == 0 or (ds.ndim == 1 and ds.shape[0] <= 1):
                     scalars.append(name)  # metadata (MagNav's dt, N ...), not a channel
                     continue
@@ -37,7 +46,16 @@ def read_hdf5(path: Path) -> pd.DataFrame:
                     other.append(f"{clean(name)!r} is {ds.ndim}-D (shape"
                                  f" {'x'.join(map(str, ds.shape))})")
                     continue
-                arrays[name] = np.asarray(ds[()])
+                try:
+                    arrays[name] = np.asarray(ds[()])
+                except Exception as exc:  # noqa: BLE001 - a damaged chunk, a missing filter
+                    msg = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+                    raise InputError(
+                        f"{clean(path)}: dataset {clean(name)!r} cannot be read"
+                        f" ({clean(msg) or type(exc).__name__}): the file is damaged there;"
+                        " export the log again, or remove that dataset") from None
+    except InputError:
+        raise
     except Exception as exc:  # noqa: BLE001 - h5py raises many types on a damaged file
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise InputError(f"{clean(path)}: cannot read as HDF5 ({clean(msg)}); is it an HDF5"
@@ -61,6 +79,13 @@ def read_hdf5(path: Path) -> pd.DataFrame:
             except UnicodeDecodeError:
                 raise InputError(f"{clean(path)}: dataset {clean(k)!r} holds bytes that are not"
                                  " UTF-8 text; fix or remove that dataset") from None
+    if unreadable:
+        log.warning("%s: dataset(s) %s cannot be opened (a link to a missing object, or a"
+                    " damaged header): left out of the table; repair or re-export the file if"
+                    " you need them", clean(path), ", ".join(repr(clean(k)) for k in unreadable))
+    if groups:
+        log.info("%s: %d group(s) skipped, not channels: %s", clean(path), len(groups),
+                 ", ".join(repr(clean(k)) for k in groups[:10]))
     df = pd.DataFrame(arrays)
     df.attrs[ROWS_ATTR] = rows_numbered("sample")
     if scalars:

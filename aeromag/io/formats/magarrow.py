@@ -12,7 +12,7 @@ import pandas as pd
 from ...errors import InputError
 from ..csv import read_csv
 from ..rows import ROWS_ATTR
-from ._native import interp_sparse, native_values, parse_datetime_seconds
+from ._native import check_made_names, interp_sparse, native_values, parse_datetime_seconds
 
 log = logging.getLogger(__name__)
 
@@ -51,6 +51,11 @@ def read_magarrow(path: str | os.PathLike[str], *, allow_truncated: bool = False
     missing = [c for c in ("Date", "Time", "Mag") if c not in df.columns]
     if missing:
         raise InputError(f"{p}: not a MagArrow log: missing column(s) {', '.join(missing)}")
+    made = {"time": "Date and Time", "mag": "Mag"}
+    made.update({k: v for k, v in (("lat", "Latitude"), ("lon", "Longitude"),
+                                    ("alt", "Altitude + HeightOverEllipsoid"))
+                 if v.split()[0] in df.columns})
+    check_made_names(list(df.columns), made, src, "MagArrow")
     t = parse_datetime_seconds(df["Date"], df["Time"], src, rows)
     out = df.drop(columns=["Date", "Time"])
     out.attrs.clear()

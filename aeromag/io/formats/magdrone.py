@@ -12,9 +12,16 @@ import pandas as pd
 
 from ...errors import InputError
 from ..columns import FIELD_UNITS_TO_NT, check_unique_names, datetime_seconds, filled_cells
-from ..csv import check_text_file, not_utf8_message, short_row, truncated_row_message
+from ..csv import (
+    check_text_file,
+    not_utf8_message,
+    open_quote_line,
+    short_row,
+    stray_quote_message,
+    truncated_row_message,
+)
 from ..rows import ROWS_ATTR, row_location, rows_after_header
-from ._native import interp_sparse, native_values
+from ._native import check_made_names, interp_sparse, native_values
 
 log = logging.getLogger(__name__)
 
@@ -174,6 +181,9 @@ def read_magdrone(path: str | os.PathLike[str], *, sensor: int = 1,
         raw = pd.DataFrame({c: pd.Series(dtype=np.float64) for c in cols})
     except (pd.errors.ParserError, ValueError, OverflowError) as exc:
         msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+        stray = open_quote_line(p, header_at + 1) if "inside string" in msg else None
+        if stray is not None:
+            raise InputError(stray_quote_message(p, stray)) from None
         raise InputError(f"{p}: cannot parse the MagDrone table ({msg}); every row needs"
                          f" {n} values separated by ';'") from None
     if short is not None:  # the last row, cut short: allowed
@@ -205,6 +215,11 @@ def read_magdrone(path: str | os.PathLike[str], *, sensor: int = 1,
     check_unique_names([str(c) for c in df.columns], src, what="MagDrone header")
     if "Timestamp" not in df.columns:
         raise InputError(f"{p}: no 'Timestamp' column in the MagDrone table")
+    made = {"time": "Timestamp (and the GPS clock)", "time_logger": "Timestamp",
+            **{f"flux_{a}": f"B{sensor}{a}" for a in "xyz"}}
+    if "Latitude" in df.columns and "Longitude" in df.columns:
+        made.update(lat="Latitude", lon="Longitude", alt_msl="Altitude")
+    check_made_names(list(raw.columns), made, src, "MagDrone", header_at + 1)
     tu = units.get("Timestamp", "").strip()
     scale = _TIME_UNITS.get(tu.lower())
     if scale is None:
