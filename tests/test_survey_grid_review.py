@@ -6,9 +6,14 @@ point dipoles under north-south lines 150 m apart, 7 m along-line steps, heading
 
 from __future__ import annotations
 
-import numpy as np
-import pytest
+from pathlib import Path
 
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from aeromag.cli import app
 from aeromag.survey.grids import grid_dataset
 from aeromag.survey.transforms import Transform, apply_transform
 
@@ -32,6 +37,9 @@ def field(e: np.ndarray, n: np.ndarray, up: float = 0.0, inc: float = 90.0,
         b = 1e-7 * m * (3 * (r @ f)[..., None] * r / rn[..., None] ** 2 - f) / rn[..., None] ** 3
         out += (b @ f) * 1e9
     return out
+
+
+runner = CliRunner()
 
 
 @pytest.fixture(scope="module")
@@ -68,3 +76,68 @@ def test_dz_is_the_finite_difference_of_two_upward_continuations(pole_grid):
     a, b = dz.values[inner, inner], fd.values[inner, inner]
     assert np.corrcoef(a.ravel(), b.ravel())[0, 1] > 0.999
     assert np.sqrt(np.mean((a - b) ** 2)) < 0.02 * b.std()
+
+
+# --------------------------------------------------------------------------- refusals
+def _survey(seed: int = 11, spacing: float = 150.0, step: float = 7.0, width: float = 3000.0,
+            height: float = 3000.0) -> pd.DataFrame:
+    """North-south lines with a random heading jitter (0.3 deg) and a track wander, ties."""
+    rng = np.random.default_rng(seed)
+    parts = []
+    for k, xe in enumerate(np.arange(0.0, width + 1, spacing)):
+        hd = np.radians(rng.normal(0.0, 0.3))
+        s = np.arange(0.0, height, step)
+        xs = xe + s * np.sin(hd) + np.cumsum(rng.normal(0.0, 0.3, s.size))
+        ys = s * np.cos(hd)
+        if k % 2:
+            xs, ys = xs[::-1], ys[::-1]
+        parts.append(pd.DataFrame({"x_m": xs, "y_m": ys, "line": 10 + k}))
+    for j, yn in enumerate((500.0, 2000.0)):
+        s = np.arange(0.0, width, step)
+        parts.append(pd.DataFrame({"x_m": s, "y_m": yn + rng.normal(0, 1, s.size),
+                                   "line": 500 + j}))
+    df = pd.concat(parts, ignore_index=True)
+    df["tmi"] = field(df.x_m.to_numpy(), df.y_m.to_numpy(), inc=-58.0, dec=7.0)
+    return df
+
+
+@pytest.fixture(scope="module")
+def lat_lon_log(tmp_path_factory) -> Path:
+    from aeromag._core.geodesy import unproject
+
+    df = _survey()
+    lat, lon = unproject(df.x_m.to_numpy() + 400000.0, df.y_m.to_numpy() + 6200000.0, 32633)
+    path = tmp_path_factory.mktemp("review") / "syn.csv"
+    pd.DataFrame({"LAT": lat, "LON": lon, "LN": df.line, "MAG": df.tmi}).to_csv(path,
+                                                                                 index=False)
+    return path
+
+
+@pytest.mark.parametrize("args, message", [
+    # before: --blank 0 or -10 wrote a grid with every (or 28,006 of 32,218) cells blank
+    (["--blank", "0"], "--blank 0: the blanking distance must be a positive number"),
+    (["--blank", "-10"], "--blank -10: the blanking distance must be a positive number"),
+    # before: --crs 4326 gridded degrees as metres, a '0.00045 m' cell, exit 0
+    (["--crs", "4326"], "--crs 4326: WGS 84 is geographic in degree, not metres"),
+    (["--crs", "2229"], "is projected in US survey foot, not metres"),
+])
+def test_bad_blank_and_non_metre_crs_are_refused_in_one_line(lat_lon_log, tmp_path, args,
+                                                             message):
+    cols = ["--col", "lat=LAT", "--col", "lon=LON", "--col", "line=LN", "--value", "MAG"]
+    r = runner.invoke(app, ["grid", str(lat_lon_log), "-o", str(tmp_path / "g.nc"), *cols,
+                            *args])
+    lines = r.output.strip().splitlines()
+    assert r.exit_code == 1 and len(lines) == 1 and lines[0].startswith("error: "), r.output
+    assert message in lines[0], lines[0]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_line_spacing_refusal_names_the_file(tmp_path):
+    # before: 'error: cannot estimate the line spacing ...' without the file
+    log = tmp_path / "one.csv"
+    pd.DataFrame({"x_m": np.arange(50.0), "y_m": np.zeros(50), "tmi": np.arange(50.0)}
+                 ).to_csv(log, index=False)
+    r = runner.invoke(app, ["grid", str(log), "-o", str(tmp_path / "g.nc"), "--crs", "32633"])
+    assert r.exit_code == 1
+    assert r.output.strip() == (f"error: {log}: cannot estimate the line spacing (fewer than"
+                                " two straight lines): give --cell")

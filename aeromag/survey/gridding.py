@@ -407,6 +407,9 @@ def minimum_curvature(
         raise InputError(f"only {x.size} sample(s) with a position and a value: need 3 or more")
     if not 0.0 <= tension < 1.0:
         raise InputError(f"tension {tension}: must be in [0, 1)")
+    if blank_m is not None and not blank_m > 0:  # 0, negative or NaN blanked every cell
+        raise InputError(f"--blank {blank_m:g}: the blanking distance must be a positive"
+                         " number of metres (inf: blank nothing)")
     check_grid_memory(x, y, cell_m, max_bytes)
     xg, yg = grid_region(x, y, cell_m)
     if block not in ("median", "mean"):
