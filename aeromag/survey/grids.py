@@ -282,11 +282,14 @@ def grid(
     line = data["line"].to_numpy()[ok] if "line" in data.columns else None
     x, y, v = x[ok], y[ok], v[ok]
     spacing = None
-    if cell_m is None or blank_m is None:
-        try:
-            spacing = estimate_line_spacing(x, y, line)
-        except InputError as exc:
+    try:
+        spacing = estimate_line_spacing(x, y, line)
+    except InputError as exc:
+        if cell_m is None or blank_m is None:
             raise InputError(f"{source}: {exc}") from None
+    # the tension acts at the default cell whatever the cell asked for (GMT's grid units at
+    # the default cell); without a line spacing, at the cell itself
+    tension_length = default_cell(spacing) if spacing is not None else None
     cell = float(cell_m) if cell_m is not None else default_cell(spacing)
     if blank_m is None:
         blank: float | None = BLANK_LINE_SPACINGS * spacing
@@ -294,7 +297,8 @@ def grid(
         blank = None if not np.isfinite(blank_m) else float(blank_m)
     xg, yg, g, summary = minimum_curvature(x, y, v, cell_m=cell, tension=tension,
                                            blank_m=blank, line_spacing_m=spacing,
-                                           max_bytes=max_bytes)
+                                           max_bytes=max_bytes,
+                                           tension_length_m=tension_length)
     ds = grid_dataset(xg, yg, g, col, epsg, attrs={"method": "minimum curvature with tension",
                                                    "tension": float(tension)})
     out: dict[str, xr.Dataset] = {}
