@@ -195,3 +195,26 @@ def test_multigrid_matches_a_direct_solve_and_t0_is_the_thin_plate_spline():
     # measured 0.034 nT rms (max 0.13) between the two, both within 0.04 nT of the truth
     assert np.sqrt(np.mean((g - spline)[inner] ** 2)) < 0.1
     assert np.sqrt(np.mean((g - smooth(gx, gy))[inner] ** 2)) < 0.1
+
+
+def test_geotiff_with_transforms_is_written_and_read_back_with_its_crs(lat_lon_log, tmp_path):
+    # before: the transforms' attribute 'transform' ('dz') is rioxarray's name for the affine
+    # geotransform: -o GRID.tif --transform dz ended in a traceback (Affine() missing 'e', 'f')
+    import rioxarray
+    import xarray as xr
+
+    cols = ["--col", "lat=LAT", "--col", "lon=LON", "--col", "line=LN", "--value", "MAG"]
+    r = runner.invoke(app, ["grid", str(lat_lon_log), "-o", str(tmp_path / "g.tif"), *cols,
+                            "--cell", "60", "--transform", "dz,tilt"])
+    assert r.exit_code == 0, r.output
+    tilt = rioxarray.open_rasterio(tmp_path / "g_tilt.tif")
+    assert tilt.rio.crs.to_epsg() == 32633 and tilt.rio.resolution() == (60.0, -60.0)
+    assert float(tilt.max()) > 60.0  # positive over the 350 m deep source
+    r = runner.invoke(app, ["grid", str(lat_lon_log), "-o", str(tmp_path / "g.nc"), *cols,
+                            "--cell", "60", "--transform", "dz"])
+    assert r.exit_code == 0, r.output
+    with xr.open_dataset(tmp_path / "g_dz.nc", decode_coords="all") as ds:
+        assert ds.rio.crs.to_epsg() == 32633 and ds["MAG_dz"].attrs["units"] == "nT/m"
+        # the netCDF's cell centres are the GeoTIFF's pixel centres
+        np.testing.assert_allclose(ds.x.values, tilt.x.values)
+        np.testing.assert_allclose(ds.y.values, tilt.y.values[::-1])

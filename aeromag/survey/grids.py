@@ -307,5 +307,5 @@ def grid(
         da = apply_transform(ds[col], t, inclination_deg=inc, declination_deg=dec)
         out[t.suffix] = grid_dataset(xg, yg, da.values, str(da.name), epsg,
                                      units=da.attrs["units"],
-                                     attrs={"transform": t.suffix})
+                                     attrs={"grid_transform": t.suffix})
     return GridResult(ds, summary, epsg, col, out, field_direction)

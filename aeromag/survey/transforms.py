@@ -166,7 +166,7 @@ def apply_transform(grid: xr.DataArray, transform: Transform, *,
     return xr.DataArray(np.where(blank, np.nan, np.asarray(out.values, dtype=float)),
                         coords=grid.coords, dims=grid.dims,
                         name=f"{grid.name or 'grid'}_{transform.suffix}",
-                        attrs={**grid.attrs, "units": units, "transform": transform.suffix})
+                        attrs={**grid.attrs, "units": units, "grid_transform": transform.suffix})
 
 
 def _filter(padded: xr.DataArray, transform: Transform, inc: float | None,
