@@ -62,7 +62,7 @@ def _holdout(cell: float) -> None:
     from scipy.interpolate import RegularGridInterpolator, griddata
 
     from aeromag._core.geodesy import project
-    from aeromag.survey.gridding import minimum_curvature
+    from aeromag.survey.gridding import default_cell, estimate_line_spacing, minimum_curvature
 
     df = pd.read_csv(OSBORNE)
     x, y = project(df.latitude.to_numpy(), df.longitude.to_numpy(), 32754)
@@ -71,7 +71,10 @@ def _holdout(cell: float) -> None:
     lines = np.array(sorted(set(np.unique(line)) - TIES))
     test = np.isin(line, lines[5::10])
     t0 = time.perf_counter()
-    xg, yg, g, s = minimum_curvature(x[~test], y[~test], v[~test], cell_m=cell)
+    # the tension acts at the default cell, as `aeromag grid` does (tension_length_m)
+    length = default_cell(estimate_line_spacing(x[~test], y[~test], line[~test]))
+    xg, yg, g, s = minimum_curvature(x[~test], y[~test], v[~test], cell_m=cell,
+                                     tension_length_m=length)
     t1 = time.perf_counter()
     p_mc = RegularGridInterpolator((yg, xg), g)(np.column_stack([y[test], x[test]]))
     (bx, by), bv = vd.BlockReduce("median", spacing=cell).filter((x[~test], y[~test]),

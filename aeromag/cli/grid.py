@@ -36,8 +36,9 @@ _ROWS = [
     Option("grid_tension", ("--tension",), float, 0.25, "Tension of the minimum-curvature "
            "surface, 0 (Briggs, smoothest) to <1 (no overshoot).", _GRID, metavar="T"),
     Option("grid_transform", ("--transform",), str | None, None, "Also write transformed "
-           "grids GRID_NAME.ext: rtp (reduction to the pole), dz (first vertical derivative, "
-           "nT/m), tilt (tilt angle, degrees), up:H (upward continuation by H metres).", _GRID,
+           "grids GRID_NAME.ext: rtp (reduction to the pole), dz (first vertical derivative, down, "
+           "nT/m, positive over highs), tilt (degrees, + over sources), up:H (upward "
+           "continuation by H metres).", _GRID,
            metavar="rtp,dz,tilt,up:H"),
     Option("grid_field_dir", ("--field-dir",), str | None, None, "Main-field inclination and "
            "declination for rtp, degrees (default: IGRF at --date or the log's time).", _GRID,

@@ -31,8 +31,8 @@ from .transforms import Transform, apply_transform
 
 log = logging.getLogger(__name__)
 
-__all__ = ["BLANK_LINE_SPACINGS", "GRID_VALUE_COLUMNS", "GridResult", "grid", "grid_dataset",
-           "survey_positions", "value_column"]
+__all__ = ["BLANK_LINE_SPACINGS", "GRID_VALUE_COLUMNS", "GridResult", "check_projected_crs",
+           "grid", "grid_dataset", "survey_positions", "value_column"]
 
 #: The value columns ``grid`` takes by default, in order of preference (interface.md).
 GRID_VALUE_COLUMNS: tuple[str, ...] = ("tmi_mlev", "tmi_lev", "tmi")
@@ -131,11 +131,12 @@ def survey_positions(df: pd.DataFrame, crs: int | None = None, source: str = "<l
         if epsg is None:
             raise InputError(f"{source}: x_m/y_m without a CRS: give --crs EPSG (the level"
                              " run's OUT.json has it)")
+        check_projected_crs(int(epsg))
         return (df["x_m"].to_numpy(float), df["y_m"].to_numpy(float), int(epsg))
     if not {"lat", "lon"} <= set(df.columns):
         raise InputError(f"{source}: no positions: the log needs x_m and y_m, or lat and lon"
                          " (map them with --col lat=SOURCE --col lon=SOURCE)")
-    epsg = int(crs) if crs is not None else _utm(df, source)
+    epsg = check_projected_crs(int(crs)) if crs is not None else _utm(df, source)
     lat, lon = df["lat"].to_numpy(float), df["lon"].to_numpy(float)
     ok = np.isfinite(lat) & np.isfinite(lon)
     x = np.full(lat.shape, np.nan)
@@ -146,6 +147,41 @@ def survey_positions(df: pd.DataFrame, crs: int | None = None, source: str = "<l
         raise InputError(f"--crs {epsg}: cannot project to it ({exc}); give a projected"
                          " EPSG code, e.g. a UTM zone") from None
     return x, y, epsg
+
+
+def check_projected_crs(epsg: int) -> int:
+    """Refuse an EPSG code that is not a projected CRS in metres (the grid's cells are metres).
+
+    Parameters
+    ----------
+    epsg : int
+        EPSG code.
+
+    Returns
+    -------
+    int
+        The code.
+
+    Raises
+    ------
+    InputError
+        An unknown code, a geographic CRS (degrees) or a projection in other units (feet).
+    """
+    from pyproj import CRS
+    from pyproj.exceptions import CRSError
+
+    try:
+        crs = CRS.from_epsg(int(epsg))
+    except CRSError:
+        raise InputError(f"--crs {epsg}: not an EPSG code pyproj knows; give a projected EPSG"
+                         " code in metres, e.g. a UTM zone (326NN north, 327NN south)") from None
+    units = {a.unit_name for a in crs.axis_info[:2]}
+    if not crs.is_projected or not units <= {"metre", "meter"}:
+        kind = "projected" if crs.is_projected else "geographic"
+        raise InputError(f"--crs {epsg}: {crs.name} is {kind} in {', '.join(sorted(units))},"
+                         " not metres; give a projected EPSG code in metres, e.g. a UTM zone"
+                         " (326NN north, 327NN south)")
+    return int(epsg)
 
 
 def _utm(df: pd.DataFrame, source: str) -> int:
@@ -246,8 +282,14 @@ def grid(
     line = data["line"].to_numpy()[ok] if "line" in data.columns else None
     x, y, v = x[ok], y[ok], v[ok]
     spacing = None
-    if cell_m is None or blank_m is None:
+    try:
         spacing = estimate_line_spacing(x, y, line)
+    except InputError as exc:
+        if cell_m is None or blank_m is None:
+            raise InputError(f"{source}: {exc}") from None
+    # the tension acts at the default cell whatever the cell asked for (GMT's grid units at
+    # the default cell); without a line spacing, at the cell itself
+    tension_length = default_cell(spacing) if spacing is not None else None
     cell = float(cell_m) if cell_m is not None else default_cell(spacing)
     if blank_m is None:
         blank: float | None = BLANK_LINE_SPACINGS * spacing
@@ -255,7 +297,8 @@ def grid(
         blank = None if not np.isfinite(blank_m) else float(blank_m)
     xg, yg, g, summary = minimum_curvature(x, y, v, cell_m=cell, tension=tension,
                                            blank_m=blank, line_spacing_m=spacing,
-                                           max_bytes=max_bytes)
+                                           max_bytes=max_bytes,
+                                           tension_length_m=tension_length)
     ds = grid_dataset(xg, yg, g, col, epsg, attrs={"method": "minimum curvature with tension",
                                                    "tension": float(tension)})
     out: dict[str, xr.Dataset] = {}
@@ -264,5 +307,5 @@ def grid(
         da = apply_transform(ds[col], t, inclination_deg=inc, declination_deg=dec)
         out[t.suffix] = grid_dataset(xg, yg, da.values, str(da.name), epsg,
                                      units=da.attrs["units"],
-                                     attrs={"transform": t.suffix})
+                                     attrs={"grid_transform": t.suffix})
     return GridResult(ds, summary, epsg, col, out, field_direction)

@@ -1,9 +1,17 @@
 """Grid transforms of a total-field anomaly grid, through harmonica's FFT filters.
 
 ``rtp`` (reduction to the pole), ``dz`` (first vertical derivative), ``tilt`` (tilt angle) and
-``up:H`` (upward continuation by H metres).  As harmonica documents, a grid is padded with
-:func:`xrft.pad` before the FFT and cut back with :func:`xrft.unpad` after; blank (NaN) cells
-are filled with their nearest value for the transform and blanked again in the result.
+``up:H`` (upward continuation by H metres).
+
+Signs follow the industry's maps (Oasis montaj's 1VD, GMT ``grdfft -D``, Miller & Singh 1994),
+not harmonica's upward z: ``dz`` is the derivative downward, ``-dT/dz_up`` (positive over a
+positive anomaly, where the field grows towards its source), and the tilt angle is
+``atan(dz / |grad_h T|)``, +90 deg over a source at the pole, 0 over its edges.  harmonica's
+``derivative_upward`` (and the ``tilt_angle`` built on it) is the opposite sign.
+
+As harmonica documents, a grid is padded with :func:`xrft.pad` before the FFT and cut back
+with :func:`xrft.unpad` after; blank (NaN) cells are filled with their nearest value for the
+transform and blanked again in the result.
 """
 
 from __future__ import annotations
@@ -118,8 +126,8 @@ def apply_transform(grid: xr.DataArray, transform: Transform, *,
     Returns
     -------
     xarray.DataArray
-        The transformed grid (``rtp`` and ``up`` [nT], ``dz`` [nT/m], ``tilt`` [deg]),
-        blank where the input is.
+        The transformed grid (``rtp`` and ``up`` [nT], ``dz`` [nT/m], positive down: over a
+        positive anomaly; ``tilt`` [deg], positive over the source), blank where the input is.
 
     Raises
     ------
@@ -158,7 +166,7 @@ def apply_transform(grid: xr.DataArray, transform: Transform, *,
     return xr.DataArray(np.where(blank, np.nan, np.asarray(out.values, dtype=float)),
                         coords=grid.coords, dims=grid.dims,
                         name=f"{grid.name or 'grid'}_{transform.suffix}",
-                        attrs={**grid.attrs, "units": units, "transform": transform.suffix})
+                        attrs={**grid.attrs, "units": units, "grid_transform": transform.suffix})
 
 
 def _filter(padded: xr.DataArray, transform: Transform, inc: float | None,
@@ -170,8 +178,12 @@ def _filter(padded: xr.DataArray, transform: Transform, inc: float | None,
 
     if transform.kind == "rtp":
         return hm.reduction_to_pole(padded, inclination=inc, declination=dec), "nT"
-    if transform.kind == "dz":
-        return hm.derivative_upward(padded), "nT/m"
-    if transform.kind == "tilt":
-        return np.degrees(hm.tilt_angle(padded)), "degree"
+    if transform.kind in ("dz", "tilt"):
+        # harmonica's derivative is upward (negative over a positive anomaly): the maps'
+        # vertical derivative and Miller & Singh's tilt take it downward
+        down = -hm.derivative_upward(padded)
+        if transform.kind == "dz":
+            return down, "nT/m"
+        horiz = np.hypot(hm.derivative_easting(padded), hm.derivative_northing(padded))
+        return np.degrees(np.arctan2(down, horiz)), "degree"
     return hm.upward_continuation(padded, transform.height_m), "nT"

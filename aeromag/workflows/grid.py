@@ -178,7 +178,8 @@ def grid_file(
     report = {
         "source": str(src), "value": res.value, "crs": res.crs, "cell_m": s.cell_m,
         "method": s.method, "n_points": s.n_points, "blank_m": s.blank_m,
-        "tension": s.tension, "n_blocks": s.n_blocks, "shape": list(s.shape),
+        "tension": s.tension, "tension_length_m": s.tension_length_m,
+        "n_blocks": s.n_blocks, "shape": list(s.shape),
         "x_m": [float(ds.x[0]), float(ds.x[-1])], "y_m": [float(ds.y[0]), float(ds.y[-1])],
         "line_spacing_m": s.line_spacing_m, "iterations": s.iterations,
         "residual": s.residual, "misfit_rms_nT": s.misfit_rms_nT, "n_blank": s.n_blank,
