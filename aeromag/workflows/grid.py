@@ -106,6 +106,15 @@ def field_direction(df: pd.DataFrame, field_dir: str | None, date: str | None,
                         "inclination_deg": inc, "declination_deg": dec}
 
 
+def grid_json_path(grid_path: str | os.PathLike[str]) -> Path:
+    """GRID.json: the grid's path with the suffix ``.json`` (interface.md), ``g.nc`` -> ``g.json``.
+
+    Unlike a log's report (:func:`aeromag.io.json_path_for`, ``OUT.parquet.json``), the grid's
+    report is named as the contract fixes it for every grid format.
+    """
+    return Path(grid_path).with_suffix(".json")
+
+
 def _crs_beside(path: Path) -> int | None:
     """The ``crs`` of the level run's OUT.json beside a levelled log, if there is one."""
     doc = json_path_for(path)
@@ -159,7 +168,7 @@ def grid_file(
     src, out = Path(log_path), Path(out_path)
     check_grid_path(out)
     steps = parse_transforms(transforms)
-    outs = [out, json_path_for(out)] + [transform_path(out, t.suffix) for t in steps]
+    outs = [out, grid_json_path(out)] + [transform_path(out, t.suffix) for t in steps]
     if map_path is not None:
         outs.append(Path(map_path))
     check_outputs(src, *outs)
@@ -202,5 +211,5 @@ def grid_file(
         with atomic_path(mp) as tmp:  # in the set: appears with the grid or not at all
             tmp.write_bytes(figure_png(fig))
         report["map"] = mp.name
-    jpath = write_json(report, json_path_for(out))
+    jpath = write_json(report, grid_json_path(out))
     return GridFiles(res, out, jpath, tpaths, mp, report)
