@@ -275,11 +275,11 @@ def check_flow_against_gyro(t: np.ndarray, gyro: np.ndarray, flow: np.ndarray | 
         raise InputError(f"{source}: columns flow_x, flow_y: the flow turns against the gyro"
                          f" (slope {slope:.2f} on gyro_x, gyro_y, expected about +1): it has the"
                          " opposite sign to the interface's OPTICAL_FLOW_RAD convention; negate"
-                         " both columns, or leave flow out with --without flow")
+                         " both columns, or leave flow out (sensors without 'flow')")
     if slope > 15.0:
         raise InputError(f"{source}: columns flow_x, flow_y: the flow's rotation is {slope:.0f}"
-                         " times the gyro's: it is probably in deg/s; convert it with --units"
-                         " flow=deg/s (units={'flow': 'deg/s'})")
+                         " times the gyro's: it is probably in deg/s; convert it with"
+                         " units={'flow': 'deg/s'}")
     return slope
 
 

@@ -141,10 +141,10 @@ def navigate_frame(
                 raise InputError(f"{src}: {exc}") from None
             if how == "nominal date":
                 d = float(np.atleast_1d(ref.declination_deg)[0])
-                note = (f"{src}: no --date and the log's time is not UTC: the magnetic"
+                note = (f"{src}: no date='YYYY-MM-DD' and the log's time is not UTC: the magnetic"
                         f" reference is IGRF on the nominal date {date}, declination"
-                        f" {d:.1f}° at the first fix (it moves slowly; give --date"
-                        " YYYY-MM-DD for the flight's own)")
+                        f" {d:.1f}° at the first fix (it moves slowly; give"
+                        " date='YYYY-MM-DD' for the flight's own)")
                 log.warning("%s", note)
     ref_ned = None if ref is None else np.atleast_2d(ref.ned_nT)[0]
     decl = None
