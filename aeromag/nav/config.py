@@ -119,6 +119,12 @@ class NavConfig:
         one is fused (down-weighted) so the filter re-locks instead of ignoring it forever.
     max_rejections : int
         See ``gross_gate_sigma``.
+    gps_relock_s : float
+        GNSS only: after a fix refused as a gross fault, the following fixes are refused
+        beyond the Huber bound too (not down-weighted and fused) for up to this many seconds,
+        so that a receiver's jump does not drag the track while the position walk grows the
+        covariance; then the next fix is fused to re-lock.  0: the ``max_rejections`` rule
+        alone (PX4 EKF2 resets to GNSS after about 7 s of rejections).
     adaptive_noise : bool
         Size each measurement's noise from its innovations (bounded innovation-based
         adaptive estimation): a variance scale per sensor that follows the mean NIS per
@@ -187,6 +193,7 @@ class NavConfig:
     huber_p: float = 0.99
     gross_gate_sigma: float = 8.0
     max_rejections: int = 25
+    gps_relock_s: float = 15.0
     adaptive_noise: bool = True
     adaptive_rate: float = 0.02
     adaptive_max_scale: float = 1e4

@@ -218,7 +218,20 @@ class FusionMixin:
             stats = self.innovations[name]
             n_rej = self._rejections.get(name, 0)
             dof = z.size
-            if nis > self._gross_gate(dof) and n_rej < self.config.max_rejections:
+            now = float(ukf.time_s)
+            if n_rej == 0:
+                self._reject_since[name] = now
+            k2 = self._huber_bound(dof)
+            # GNSS: a receiver's jump lasts seconds.  Once a fix was refused as a gross fault,
+            # the following ones are refused beyond the Huber bound too, for up to
+            # gps_relock_s: otherwise the position walk grows the covariance until the
+            # jumped fixes pass the gross gate and, down-weighted but one after another, drag
+            # the track onto the jump (a 20-m, 10-s jump at 5 Hz: 13 m off on the
+            # independent simulator of tests/test_nav_independent.py; 2 m with this rule).
+            wait = self.config.gps_relock_s if name.startswith("gps") else 0.0
+            in_run = n_rej > 0 and now - self._reject_since.get(name, now) < wait
+            if (nis > self._gross_gate(dof) or (in_run and nis > k2)) and (
+                    n_rej < self.config.max_rejections or in_run):
                 stats.n_rejected += 1        # a gross fault: not fused
                 self._rejections[name] = n_rej + 1
                 continue
@@ -229,7 +242,6 @@ class FusionMixin:
             stats.n_fused += 1
             stats.nis_sum += nis
             R_eff = scale * R
-            k2 = self._huber_bound(dof)
             if self.config.robust == "huber" and nis > k2:
                 # Huber weight w = k / d on the Mahalanobis distance d: the innovation
                 # covariance is inflated to S / w (R absorbs the inflation).

@@ -88,6 +88,7 @@ class StartupMixin:
         self._qrate = self._noise_rates()
         self._last_grav = None
         self._rejections: dict[str, int] = {}
+        self._reject_since: dict[str, float] = {}
         self.noise_scale: dict[str, float] = dict.fromkeys(self.sensors, 1.0)
         self.innovations: dict[str, InnovationStats] = {
             s: InnovationStats(dof={"gps_pos": 3, "gps_vel": 3, "range": 1, "flow": 2,
