@@ -33,7 +33,7 @@ from .extended import (
     train_mlp,
 )
 from .fit import FitOutcome, fit_result, screen_stats, solve_fit
-from .normal import SegmentStats, _residual_std, segment_normal_equations
+from .normal import SegmentStats, segment_normal_equations, segment_residual_std
 from .prepare import Prepared
 from .result import CompensationResult
 from .terms import design_matrix, parse_terms
@@ -182,7 +182,7 @@ def extended_outcome(prep: Prepared, cfg: CompensationConfig, inputs: ExtendedIn
         coef_all = full.coef
         coef_tl, coef_ex, c0 = coef_all[:k], coef_all[k:], 0.0
         center = np.array([np.nanmean(inputs.values[j][valid]) for j in range(e)])
-        residual = _residual_std(stats_all, coef_all)
+        residual = segment_residual_std(stats_all, coef_all)
         sse = float(fstats.yy.sum() - 2 * coef_all @ fstats.rhs.sum(0)
                     + coef_all @ fstats.gram.sum(0) @ coef_all)
         band = "band-passed (the fitting band), as the TL self-fit"
@@ -202,7 +202,7 @@ def extended_outcome(prep: Prepared, cfg: CompensationConfig, inputs: ExtendedIn
         full, tl, contrib = _held_out(rstats, k, names, True, estimator)
         c0, coef_tl, coef_ex = full.coef[0], full.coef[1:1 + k], full.coef[1 + k:]
         center = X[:, 1 + k:].mean(axis=0) if e else np.zeros(0)
-        residual = _residual_std(stats, coef_tl)
+        residual = segment_residual_std(stats, coef_tl)
         sse = float(stats.yy[kept].sum() - 2 * coef_tl @ b + coef_tl @ G @ coef_tl)
         band = "full band against the reference, mean removed by the intercept"
         if cfg.estimator == "mlp":

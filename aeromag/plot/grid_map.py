@@ -15,7 +15,7 @@ from matplotlib.colors import LightSource, Normalize
 from matplotlib.figure import Figure
 
 from ..errors import InputError
-from ._style import _finish, _PathLike, _target, figure_png
+from ._style import PathLike, figure_png, finish, target
 
 __all__ = ["figure_png", "plot_grid_map"]
 
@@ -33,7 +33,7 @@ def _grid_array(grid: Any) -> Any:
 
 def plot_grid_map(
     grid: Any, *, lines: tuple[np.ndarray, np.ndarray] | None = None,
-    line_id: np.ndarray | None = None, ax: Axes | None = None, path: _PathLike | None = None,
+    line_id: np.ndarray | None = None, ax: Axes | None = None, path: PathLike | None = None,
     cmap: str = "RdYlBu_r", azimuth_deg: float = 315.0, elevation_deg: float = 45.0,
     max_line_points: int = 200_000, title: str | None = None,
 ) -> Figure:
@@ -85,7 +85,7 @@ def plot_grid_map(
     rgb = ls.shade(filled, cmap=mpl.colormaps[cmap], norm=norm, blend_mode="soft",
                    vert_exag=exag, dx=h, dy=h)
     rgb[..., 3] = np.where(blank, 0.0, 1.0)
-    fig, ax = _target(ax, (7.0, 7.0))
+    fig, ax = target(ax, (7.0, 7.0))
     ext = (x[0] - h / 2, x[-1] + h / 2, y[0] - h / 2, y[-1] + h / 2)
     ax.imshow(rgb, origin="lower", extent=ext, interpolation="nearest")
     if lines is not None:
@@ -110,4 +110,4 @@ def plot_grid_map(
     ax.set_xlabel(f"easting (m){where}")
     ax.set_ylabel("northing (m)")
     ax.set_title(title or f"{da.name}: shaded relief, light from {azimuth_deg:g} deg")
-    return _finish(fig, path)
+    return finish(fig, path)
