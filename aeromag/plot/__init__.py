@@ -7,8 +7,7 @@ Compensation diagnostics (:mod:`aeromag.plot.compensation`), maps (:mod:`aeromag
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from aeromag._core.lazy import lazy_names
 
 #: Public name -> module that defines it.
 _API: dict[str, str] = {
@@ -30,13 +29,4 @@ _API: dict[str, str] = {
 
 __all__ = sorted(_API)
 
-
-def __getattr__(name: str) -> Any:
-    module = _API.get(name)
-    if module is None:
-        raise AttributeError(f"module 'aeromag.plot' has no attribute {name!r}")
-    return getattr(importlib.import_module(module), name)
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_API))
+__getattr__, __dir__ = lazy_names(__name__, _API)
