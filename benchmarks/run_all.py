@@ -3,7 +3,7 @@
 At each size of a synthetic 10 Hz log (9 columns, 60 s lines):
 
 * ``aeromag calibrate LOG -o M.json`` against deinterf's default Tolles-Lawson fit of the same
-  file (pandas' pyarrow reader, ``TollesLawson().fit``, coefficients saved): the speed-up;
+  file (pandas' pyarrow reader, ``TollesLawsonRegressor().fit``, coefficients saved): the speed-up;
 * ``aeromag compensate LOG --model M.json -o OUT.csv`` against pyarrow reading and writing the
   same CSV (``pyarrow.csv.read_csv`` + ``write_csv``, the I/O floor): the ratio;
 
@@ -78,13 +78,13 @@ _DEINTERF = """
 import json
 import numpy as np
 import pandas as pd
-from deinterf.compensator.tmi.linear import Terms, TollesLawson
+from deinterf.compensator.tmi.linear import Terms, TollesLawsonRegressor
 from deinterf.foundation.sensors import MagVector, Tmi
 from deinterf.utils.data_ioc import DataIoC
 df = pd.read_csv(SRC, engine="pyarrow")
 fs = int(round(1.0 / float(np.median(np.diff(df["time"].to_numpy()[:10000])))))
 x = DataIoC().add(MagVector(bx=df["flux_x"], by=df["flux_y"], bz=df["flux_z"]))
-tl = TollesLawson(terms=Terms.Terms_16, sampling_rate=fs).fit(x, Tmi(tmi=df["mag"]))
+tl = TollesLawsonRegressor(terms=Terms.Terms_16, sampling_rate=fs).fit(x, Tmi(tmi=df["mag"]))
 with open(OUT, "w") as fh:
     json.dump({"coef": np.ravel(tl.model_.coef_).tolist()}, fh)
 _CODE = 0

@@ -32,21 +32,60 @@ def test_old_flat_modules_are_gone_and_public_names_stay_functions(old):
 
     with pytest.raises(ModuleNotFoundError):
         importlib.import_module(f"aeromag.{old}")
-    if old in am.__all__:  # am.compensate, am.simulate_mission: the functions
+    if old in am.__all__:  # am.compensate: the function
         assert not isinstance(getattr(am, old), types.ModuleType)
 
 
 def test_all_lists_the_public_api_and_every_name_resolves():
     assert len(am.__all__) == len(set(am.__all__))
-    for name in ("read_log", "compensate", "calibrate", "TollesLawson", "TLModel",
-                 "CompensationConfig", "check_track", "simulate_calibration",
-                 "simulate_survey"):
+    assert len(am.__all__) <= 45, f"{len(am.__all__)} public names: move some to a subpackage"
+    for name in ("read_log", "compensate", "calibrate", "TollesLawsonRegressor", "TLModel",
+                 "CompensationConfig", "check_track", "write_report", "level", "grid"):
         assert name in am.__all__, name
     for name in am.__all__:
         assert getattr(am, name) is not None, name
     assert set(am.__all__) <= set(dir(am))
+    with pytest.raises(AttributeError, match="no attribute 'simulate_survey'"):
+        am.simulate_survey  # noqa: B018  (simulators live in am.synthetic)
     p = _python("import aeromag as am; print(am.__all__)")
     assert p.returncode == 0 and "'compensate'" in p.stdout, p.stderr
+
+
+@pytest.mark.parametrize("sub", ["synthetic", "estimation", "plot", "workflows"])
+def test_public_subpackages_list_names_that_resolve(sub):
+    mod = getattr(am, sub)
+    assert isinstance(mod, types.ModuleType) and mod.__name__ == f"aeromag.{sub}"
+    assert mod.__all__ and len(mod.__all__) == len(set(mod.__all__))
+    for name in mod.__all__:
+        assert getattr(mod, name) is not None, f"{sub}.{name}"
+        assert name not in am.__all__, f"{name} is both am.{name} and am.{sub}.{name}"
+    with pytest.raises(AttributeError):
+        mod.no_such_name  # noqa: B018
+
+
+def test_subpackages_hold_the_moved_names_and_the_renames():
+    assert am.synthetic.simulate_growth.__module__ == "aeromag.synthetic.benchmarks"
+    assert am.synthetic.simulate_cstr.__module__ == "aeromag.synthetic.benchmarks"
+    assert am.estimation.SequentialResult.__module__ == "aeromag._core.sequential"
+    assert callable(am.workflows.report_file) and callable(am.plot.plot_psd)
+    for gone in ("TollesLawson", "OnlineTollesLawson", "OnlineTL", "build_report"):
+        assert gone not in am.__all__ and not hasattr(am, gone), gone
+    assert am.TollesLawsonRegressor().__class__.__name__ == "TollesLawsonRegressor"
+
+
+def test_docs_api_md_is_current():
+    """``docs/api.md`` is what ``python docs/make_api.py`` writes today (run it after a change)."""
+    import importlib.util
+    from pathlib import Path
+
+    docs = Path(__file__).resolve().parents[1] / "docs"
+    spec = importlib.util.spec_from_file_location("make_api", docs / "make_api.py")
+    make_api = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(make_api)
+    page = make_api.render()
+    assert (docs / "api.md").read_text() == page, "stale: run python docs/make_api.py"
+    assert "| `path` | path-like |" in page  # parameters, not only summaries
+    assert "## Survey chain" in page and "### `am.estimation.ParticleFilter`" in page
 
 
 def test_import_aeromag_is_light():

@@ -2,9 +2,9 @@
 
 ``aeromag compensate`` wraps the run in one output set whose warning capture puts every
 warning logged while reading, fitting and applying into OUT.json's ``warnings``.  A notebook
-calling :func:`aeromag.compensate_file` or :func:`aeromag.calibrate_file` directly got the
-warnings on its logger only: the file it wrote said nothing.  The log here has its fluxgate in
-microtesla (a --units-worthy warning) and is compensated with the shipped model.
+calling :func:`aeromag.workflows.compensate_file` or :func:`aeromag.workflows.calibrate_file`
+directly got the warnings on its logger only: the file it wrote said nothing.  The log here has
+its fluxgate in microtesla (a --units-worthy warning) and is compensated with the shipped model.
 """
 
 from __future__ import annotations

@@ -34,6 +34,7 @@ LAYERS: dict[str, int] = {
     "_core": 1,
     "compensation": 2, "compass": 2, "nav": 2, "detection": 2, "qc": 2, "track": 2,
     "synthetic": 2, "survey": 2,
+    "estimation": 2,  # public facade: re-exports the generic filters of _core (and nav's UKF)
     "io": 2,  # beside the domains: it may use _core; who may use it is checked separately
     "plot": 3,
     "workflows": 4,

@@ -103,7 +103,7 @@ def test_lowpass_with_filter_output_false_is_refused(survey):
 def test_compensate_file_refuses_before_writing(tmp_path):
     out = tmp_path / "out.csv"
     with pytest.raises(InputError, match="screen=False skips it"):
-        am.compensate_file(SAMPLES / "survey.csv", out,
+        am.workflows.compensate_file(SAMPLES / "survey.csv", out,
                            CompensationConfig(screen=False, min_excess=3.0))
     assert not out.exists() and not out.with_suffix(".json").exists()
 
@@ -131,7 +131,7 @@ def test_compensate_online_file_refuses_batch_fit_options(tmp_path):
 
 def test_internal_configurations_do_not_trip_it():
     # the scikit-learn estimator fits without screening, with its own checks
-    est = am.TollesLawson(ridge=0.1, max_condition=1e6)
+    est = am.TollesLawsonRegressor(ridge=0.1, max_condition=1e6)
     assert unused_options(est._config()) == []
     # calibrate turns the FOM on: no online run, nothing refused
     assert unused_options(dataclasses.replace(CompensationConfig(), fom=True)) == []

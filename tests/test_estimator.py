@@ -1,4 +1,4 @@
-"""The scikit-learn estimator TollesLawson: conventions and coefficient recovery."""
+"""The scikit-learn estimator TollesLawsonRegressor: conventions and coefficient recovery."""
 
 from __future__ import annotations
 
@@ -6,20 +6,20 @@ import numpy as np
 import pytest
 from sklearn.base import clone
 
-from aeromag.compensation.estimator import TollesLawson
+from aeromag.compensation.estimator import TollesLawsonRegressor
 from aeromag.compensation.terms import TERMS_16
 from aeromag.synthetic.calibration import simulate_calibration
 from aeromag.synthetic.physics import default_aircraft_coef
 
 
 def test_get_params_clone_roundtrip():
-    est = TollesLawson(terms="16", band=(0.05, 0.8), ridge=1e-4, order=3, max_gap_s=2.0)
+    est = TollesLawsonRegressor(terms="16", band=(0.05, 0.8), ridge=1e-4, order=3, max_gap_s=2.0)
     p = est.get_params()
     assert p == {"terms": "16", "band": (0.05, 0.8), "ridge": 1e-4, "order": 3,
                  "max_gap_s": 2.0, "max_condition": 1e5, "max_interference": 0.25}
     c = clone(est)
     assert c is not est and c.get_params() == p
-    assert TollesLawson(**p).get_params() == p
+    assert TollesLawsonRegressor(**p).get_params() == p
     c.set_params(ridge=0.0)
     assert c.ridge == 0.0 and est.ridge == 1e-4
     assert not hasattr(c, "coef_")
@@ -32,7 +32,7 @@ def cal():
 
 def test_fit_recovers_simulator_coefficients(cal):
     X = cal[["time", "flux_x", "flux_y", "flux_z"]]
-    est = TollesLawson()
+    est = TollesLawsonRegressor()
     assert est.fit(X, cal["mag"]) is est
     assert est.terms_ == TERMS_16
     truth = default_aircraft_coef()
@@ -48,8 +48,8 @@ def test_fit_recovers_simulator_coefficients(cal):
 
 def test_numpy_input_matches_dataframe(cal):
     X = cal[["time", "flux_x", "flux_y", "flux_z"]]
-    a = TollesLawson().fit(X, cal["mag"]).coef_
-    b = TollesLawson().fit(X.to_numpy(), cal["mag"].to_numpy()).coef_
+    a = TollesLawsonRegressor().fit(X, cal["mag"]).coef_
+    b = TollesLawsonRegressor().fit(X.to_numpy(), cal["mag"].to_numpy()).coef_
     assert np.allclose(a, b)
 
 
@@ -75,14 +75,14 @@ def test_estimator_refuses_what_calibrate_refuses():
 
     X, y = _level_flight()
     with pytest.raises(FitError, match="ill-conditioned"):
-        TollesLawson().fit(X, y)
+        TollesLawsonRegressor().fit(X, y)
     # The same data, regularised, fit.
-    assert TollesLawson(ridge=1e-3, max_interference=10.0).fit(X, y).coef_.shape == (16,)
+    assert TollesLawsonRegressor(ridge=1e-3, max_interference=10.0).fit(X, y).coef_.shape == (16,)
 
 
 def test_transform_is_mag_minus_predict(cal):
     X = cal[["time", "flux_x", "flux_y", "flux_z"]]
-    est = TollesLawson().fit(X, cal["mag"])
+    est = TollesLawsonRegressor().fit(X, cal["mag"])
     comp = est.transform(X, cal["mag"])
     np.testing.assert_allclose(comp, cal["mag"].to_numpy() - est.predict(X))
     np.testing.assert_allclose(est.transform(cal[["time", "flux_x", "flux_y", "flux_z", "mag"]]),
@@ -95,7 +95,7 @@ def test_library_errors_name_the_parameter_not_the_flag(cal):
 
     X = cal[["time", "flux_x", "flux_y", "flux_z"]].to_numpy()
     with pytest.raises(AeromagError) as exc:
-        TollesLawson().fit(X[:150], cal["mag"].to_numpy()[:150])
+        TollesLawsonRegressor().fit(X[:150], cal["mag"].to_numpy()[:150])
     msg = str(exc.value)
     assert "--" not in msg and "segment_seconds=" in msg, msg
 
@@ -133,7 +133,7 @@ def test_check_estimator_fails_only_the_stated_checks():
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = check_estimator(TollesLawson(), on_fail=None,
+        res = check_estimator(TollesLawsonRegressor(), on_fail=None,
                               expected_failed_checks=EXPECTED_FAILED_CHECKS)
     failed = {r["check_name"] for r in res if r["status"] == "failed"}
     passed = {r["check_name"] for r in res if r["status"] == "passed"}

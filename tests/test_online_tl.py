@@ -181,13 +181,13 @@ def test_forgetting_outside_range_refused():
 
 def test_sklearn_partial_fit_continues():
     pytest.importorskip("sklearn")
-    from aeromag.compensation.online_estimator import OnlineTollesLawson
+    from aeromag.compensation.online_estimator import OnlineTollesLawsonRegressor
 
     log, truth = simulate_online_tl(duration_s=600.0, jump_s=None, seed=3)
     X = log[["time", *FLUX]]
     y = log["mag"]
-    whole = OnlineTollesLawson(derivative="backward").fit(X, y)
-    est = OnlineTollesLawson(derivative="backward")
+    whole = OnlineTollesLawsonRegressor(derivative="backward").fit(X, y)
+    est = OnlineTollesLawsonRegressor(derivative="backward")
     for a in range(0, len(X), 1000):
         est.partial_fit(X.iloc[a:a + 1000], y.iloc[a:a + 1000])
     np.testing.assert_allclose(est.coef_, whole.coef_, rtol=1e-9, atol=1e-9)

@@ -121,7 +121,7 @@ def test_figures_display_in_jupyter_without_matplotlib_inline(res):
     r, _ = res
     import aeromag as am
 
-    fig = am.plot_pca_scores(r)
+    fig = am.plot.plot_pca_scores(r)
     fmt, _ = InteractiveShell.instance().display_formatter.format(fig)
     assert fmt["image/png"].startswith(PNG) if isinstance(fmt["image/png"], bytes) \
         else fmt["image/png"]

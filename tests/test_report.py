@@ -17,7 +17,7 @@ from typer.testing import CliRunner
 from aeromag.cli import app
 from aeromag.synthetic import simulate_calibration
 from aeromag.workflows.compensate import compensate_file
-from aeromag.workflows.report import FIGURES, build_report, load_compensated
+from aeromag.workflows.report import FIGURES, load_compensated, report_file
 
 
 class _Imgs(HTMLParser):
@@ -45,7 +45,7 @@ def out_csv(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def page(out_csv):
-    return build_report(out_csv, out_csv.parent / "report")
+    return report_file(out_csv, out_csv.parent / "report")
 
 
 def test_html_embeds_every_image(page):
@@ -110,7 +110,7 @@ def test_report_without_json(out_csv, tmp_path):
     d = tmp_path / "nojson"
     d.mkdir()
     shutil.copy(out_csv, d / "out.csv")
-    page = build_report(d / "out.csv", d / "rep")
+    page = report_file(d / "out.csv", d / "rep")
     qc = json.loads((page.parent / "qc.json").read_text())
     assert "pca_scores.png" in qc["figures_skipped"]
     assert Path(page).exists()
@@ -138,7 +138,7 @@ def test_report_on_a_survey_says_why_there_is_no_fom(tmp_path):
     df, _ = simulate_survey(seed=2)
     df.to_csv(tmp_path / "s.csv", index=False)
     compensate_file(tmp_path / "s.csv", tmp_path / "out.csv")
-    page = build_report(tmp_path / "out.csv", tmp_path / "rep")
+    page = report_file(tmp_path / "out.csv", tmp_path / "rep")
     qc = json.loads((page.parent / "qc.json").read_text())
     assert qc["fom"]["applicable"] is False and qc["fom"]["fom_after_nT"] is None
     assert "fom.png" in qc["figures_skipped"]
@@ -157,7 +157,7 @@ def test_report_on_an_uncompensated_log(tmp_path):
 
 def test_progress_callback(out_csv, tmp_path):
     calls = []
-    build_report(out_csv, tmp_path / "p", progress=lambda d, t, s: calls.append((d, t, s)))
+    report_file(out_csv, tmp_path / "p", progress=lambda d, t, s: calls.append((d, t, s)))
     done = [c[0] for c in calls]
     assert done == sorted(done) and done[-1] == calls[-1][1] and len(calls) >= 5
 
@@ -202,7 +202,7 @@ def test_dropped_segment_row_says_why(tmp_path):
     df, _ = simulate_calibration(seed=4, n_boxes=1, faults={3: "noise_burst"})
     df.to_csv(tmp_path / "cal.csv", index=False)
     compensate_file(tmp_path / "cal.csv", tmp_path / "out.csv")
-    page = build_report(tmp_path / "out.csv", tmp_path / "rep")
+    page = report_file(tmp_path / "out.csv", tmp_path / "rep")
     rows = json.loads((page.parent / "qc.json").read_text())["segments"]
     bad = [r for r in rows if not r["kept"]]
     assert [r["segment"] for r in bad] == [3] and bad[0]["line"] == 3

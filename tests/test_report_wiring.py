@@ -61,7 +61,7 @@ def test_plot_functions_take_the_result_and_return_figures(cal, tmp_path):
     res = compensate(df)
     for name in ("plot_pca_scores", "plot_explained_variance", "plot_timeseries", "plot_psd",
                  "plot_term_contributions", "plot_fom", "plot_map", "plot_residuals"):
-        fig = getattr(am, name)(res)
+        fig = getattr(am.plot, name)(res)
         assert isinstance(fig, Figure), name
         assert fig._repr_png_().startswith(b"\x89PNG"), name  # shows itself in Jupyter
     assert am.compute_qc(res).metrics["improvement_ratio"] > 1

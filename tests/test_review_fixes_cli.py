@@ -138,7 +138,8 @@ def test_compass_file_earth_field_not_three_numbers(tmp_path, field):
     import aeromag
 
     with pytest.raises(InputError, match=r"earth_field=\(F, I, D\)") as e:
-        aeromag.compass_file(SAMPLES / "calibration.csv", tmp_path / "c.csv", earth_field=field)
+        aeromag.workflows.compass_file(SAMPLES / "calibration.csv", tmp_path / "c.csv",
+                                       earth_field=field)
     assert "calibration.csv" in str(e.value)
 
 
@@ -146,7 +147,7 @@ def test_compass_file_earth_field_not_numbers(tmp_path):
     import aeromag
 
     with pytest.raises(InputError, match=r"earth_field=\(F, I, D\).*must be numbers"):
-        aeromag.compass_file(SAMPLES / "calibration.csv", tmp_path / "c.csv",
+        aeromag.workflows.compass_file(SAMPLES / "calibration.csv", tmp_path / "c.csv",
                              earth_field=(5e4, "seventy", 0))
 
 
@@ -154,11 +155,11 @@ def test_bad_unit_names_the_parameter_and_the_flag(tmp_path):
     import aeromag
 
     with pytest.raises(InputError) as e:
-        aeromag.compass_file(SAMPLES / "calibration.csv", tmp_path / "c.csv",
+        aeromag.workflows.compass_file(SAMPLES / "calibration.csv", tmp_path / "c.csv",
                              earth_field=(5e4, 70, 0), units={"flux": "furlong"})
     assert "units={'flux': 'furlong'}: unknown field unit 'furlong'" in str(e.value)
     with pytest.raises(InputError, match=r"units=\{'time': 'fortnight'\}: unknown time unit"):
-        aeromag.compensate_file(SAMPLES / "survey.csv", tmp_path / "o.csv",
+        aeromag.workflows.compensate_file(SAMPLES / "survey.csv", tmp_path / "o.csv",
                                 units={"time": "fortnight"})
     for cmd, out in (("compass", "c.csv"), ("compensate", "o.csv")):
         extra = ["--earth-field", "5e4", "70", "0"] if cmd == "compass" else []

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from sklearn.base import clone
 
 from aeromag._core.lstsq import solve_normal
-from aeromag.compensation.estimator import TollesLawson
+from aeromag.compensation.estimator import TollesLawsonRegressor
 from aeromag.compensation.model import TLModel
 from aeromag.compensation.terms import (
     EDDY_8,
@@ -95,13 +95,13 @@ def test_derivative_never_crosses_a_gap():
 def test_exact_recovery_without_noise():
     df, _ = hand_flight(seed=2, noise=0.0, flux_noise=0.0)
     X = df[["time", "flux_x", "flux_y", "flux_z"]]
-    est = TollesLawson().fit(X, df["mag"])
+    est = TollesLawsonRegressor().fit(X, df["mag"])
     np.testing.assert_allclose(est.coef_, COEF16, rtol=1e-5, atol=1e-5)
 
 
 def test_recovery_with_noise_and_prediction_matches_truth():
     df, h = hand_flight(seed=5)
-    est = TollesLawson(band=(0.1, 0.9)).fit(df[["time", "flux_x", "flux_y", "flux_z"]],
+    est = TollesLawsonRegressor(band=(0.1, 0.9)).fit(df[["time", "flux_x", "flux_y", "flux_z"]],
                                              df["mag"])
     pred = est.predict(df[["time", "flux_x", "flux_y", "flux_z"]])
     # The model's in-band part matches the truth to noise level; its level is the model's.
@@ -112,7 +112,7 @@ def test_recovery_with_noise_and_prediction_matches_truth():
 
 
 def test_estimator_follows_sklearn_conventions():
-    est = TollesLawson(terms="18", band=(0.2, 1.0), ridge=1e-3)
+    est = TollesLawsonRegressor(terms="18", band=(0.2, 1.0), ridge=1e-3)
     params = est.get_params()
     assert params == {"terms": "18", "band": (0.2, 1.0), "ridge": 1e-3, "order": 4,
                       "max_gap_s": None, "max_condition": 1e5, "max_interference": 0.25}
@@ -135,7 +135,7 @@ def test_bias_term_is_fitted_on_the_unfiltered_level():
     df, _ = hand_flight(seed=4, noise=0.0, flux_noise=0.0)
     df = df.assign(mag=df["mag"] + 123.0 - df["truth_clean"])  # interference + a bias only
     # mag here is no total field (~140 nT), so the interference limit is lifted
-    est = TollesLawson(terms="16,bias", max_interference=10.0)
+    est = TollesLawsonRegressor(terms="16,bias", max_interference=10.0)
     est.fit(df[["time", "flux_x", "flux_y", "flux_z"]], df["mag"])
     assert est.coef_[-1] == pytest.approx(123.0, abs=1e-3)
 

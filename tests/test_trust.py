@@ -227,7 +227,7 @@ def test_calibrate_warns_loudly_when_it_must_use_time_windows(caplog, monkeypatc
         raise am.InputError("x.csv: no attitude columns and a fluxgate that never turns")
 
     monkeypatch.setattr(aeromag.qc, "detect_maneuvers", no_detection)
-    df, _ = am.simulate_calibration(seed=1, n_boxes=1)
+    df, _ = am.synthetic.simulate_calibration(seed=1, n_boxes=1)
     with caplog.at_level(logging.WARNING, logger="aeromag"):
         res = am.calibrate(df.drop(columns="line"), am.CompensationConfig(fom=False))
     warned = [r.getMessage() for r in caplog.records if "time windows" in r.getMessage()]

@@ -5,7 +5,7 @@ Library code never prints; it reports progress through an optional callback
 command wraps its work in :func:`progress_bar` and passes the callback it yields::
 
     with progress_bar("report") as progress:
-        build_report(..., progress=progress)
+        report_file(..., progress=progress)
 
 The bar is drawn only when stderr is a terminal (pipes, logs and tests get nothing), and
 disappears when the command ends, so the command's one-line summary stays the last line.

@@ -36,8 +36,8 @@ def report(
     """
     setup_logging(verbose)
     with user_errors(), progress_bar("aeromag report") as progress:
-        from ..workflows.report import build_report
+        from ..workflows.report import report_file
 
-        page = build_report(out_csv, output, report_json, maneuver_column=maneuver_column,
+        page = report_file(out_csv, output, report_json, maneuver_column=maneuver_column,
                             progress=progress)
     typer.echo(str(page))

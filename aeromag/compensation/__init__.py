@@ -5,7 +5,7 @@ Modules, in pipeline order: ``config`` (:class:`CompensationConfig` and its opti
 ``prepare`` (arrays of a log), ``normal`` (per-segment normal equations), ``screening`` (the
 whole PCA screening loop), ``fit`` (the one fit kernel, shared with the scikit-learn
 estimator), ``apply``, ``metrics``, ``report``, ``result``, ``pipeline`` (:func:`compensate`,
-:func:`calibrate`), ``estimator`` (:class:`TollesLawson`, imported on first use: applying a
+:func:`calibrate`), ``estimator`` (:class:`TollesLawsonRegressor`, imported on first use: applying a
 model never imports scikit-learn).
 """
 
@@ -32,7 +32,7 @@ __all__ = [
     "Prepared",
     "ScreenResult",
     "TLModel",
-    "TollesLawson",
+    "TollesLawsonRegressor",
     "apply_model",
     "assign_segments",
     "compensate",
@@ -49,8 +49,8 @@ __all__ = [
 
 
 def __getattr__(name: str) -> Any:
-    if name == "TollesLawson":  # scikit-learn only when the estimator is used
-        from .estimator import TollesLawson
+    if name == "TollesLawsonRegressor":  # scikit-learn only when the estimator is used
+        from .estimator import TollesLawsonRegressor
 
-        return TollesLawson
+        return TollesLawsonRegressor
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

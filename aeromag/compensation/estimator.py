@@ -1,11 +1,12 @@
 """The Tolles-Lawson compensator as a scikit-learn estimator, so it can sit in a ``Pipeline``.
 
-``fit``, ``predict``, ``transform``, ``score``, ``get_params``: :meth:`TollesLawson.fit` runs
-the pipeline's own fit (:func:`aeromag.compensation.fit.fit_outcome`, one segment per
-stretch, no screening), so it refuses what ``aeromag calibrate`` refuses: a scaled condition
-number above ``max_condition`` and an interference above ``max_interference`` of the Earth
-field.  Kept apart from :mod:`aeromag.compensation.model`
-so that applying a saved model never imports scikit-learn.
+``fit``, ``predict``, ``transform``, ``score``, ``get_params``:
+:meth:`TollesLawsonRegressor.fit` runs the pipeline's own fit
+(:func:`aeromag.compensation.fit.fit_outcome`, one segment per stretch, no screening), so it
+refuses what ``aeromag calibrate`` refuses: a scaled condition number above
+``max_condition`` and an interference above ``max_interference`` of the Earth field.  Kept
+apart from :mod:`aeromag.compensation.model` so that applying a saved model never imports
+scikit-learn.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from .metrics import compensation_metrics
 from .model import TLModel
 from .prepare import prepare
 
-__all__ = ["TollesLawson"]
+__all__ = ["TollesLawsonRegressor"]
 
 #: Segment length that makes every stretch one segment [s].
 _WHOLE_STRETCH_S = 1e12
@@ -64,7 +65,7 @@ def _check_four(arr: np.ndarray) -> None:
                          f" {n} feature(s), shape {arr.shape}")
 
 
-class TollesLawson(RegressorMixin, BaseEstimator):
+class TollesLawsonRegressor(RegressorMixin, BaseEstimator):
     """Tolles-Lawson compensator with the scikit-learn estimator API.
 
     ``X`` has four columns: time [s], flux_x, flux_y, flux_z [nT] (an array or a DataFrame with
@@ -146,7 +147,7 @@ class TollesLawson(RegressorMixin, BaseEstimator):
                                   max_condition=self.max_condition,
                                   max_interference=self.max_interference)
 
-    def fit(self, X: Any, y: Any) -> TollesLawson:
+    def fit(self, X: Any, y: Any) -> TollesLawsonRegressor:
         """Fit the coefficients by band-passed least squares (the pipeline's fit).
 
         Parameters
@@ -158,7 +159,7 @@ class TollesLawson(RegressorMixin, BaseEstimator):
 
         Returns
         -------
-        TollesLawson
+        TollesLawsonRegressor
             ``self``.
 
         Raises
@@ -177,14 +178,14 @@ class TollesLawson(RegressorMixin, BaseEstimator):
         df = pd.DataFrame({"time": t, "flux_x": flux[:, 0], "flux_y": flux[:, 1],
                            "flux_z": flux[:, 2], "mag": yv})
         cfg = resolve_gap(self._config(), df)
-        prep = prepare(df, cfg, source="TollesLawson.fit")
+        prep = prepare(df, cfg, source="TollesLawsonRegressor.fit")
         fit = fit_outcome(prep, cfg)
         model = TLModel(fit.terms, fit.coef)
         ok = prep.flux_ok
         tl = model.predict(prep.flux[ok], prep.time[ok],
                            find_stretches(prep.time[ok], None, cfg.max_gap_s))
-        check_interference(tl, prep.field_nT, self.max_interference, source="TollesLawson.fit",
-                           fitted=True)
+        check_interference(tl, prep.field_nT, self.max_interference,
+                           source="TollesLawsonRegressor.fit", fitted=True)
         self.terms_ = fit.terms
         self.coef_ = fit.coef
         self.condition_number_ = fit.cond_scaled

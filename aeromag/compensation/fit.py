@@ -1,7 +1,7 @@
 """The one TL fit: per-segment normal equations, screening, one refit on the kept segments.
 
 :func:`fit_model` is what ``aeromag calibrate`` / ``compensate`` run and what the scikit-learn
-:class:`~aeromag.compensation.estimator.TollesLawson` calls, so both refuse the same data:
+:class:`~aeromag.compensation.estimator.TollesLawsonRegressor` calls, so both refuse the same data:
 :func:`solve_fit` refuses an unregularised fit whose scaled condition number exceeds
 ``max_condition`` and :func:`check_interference` a model whose interference no aircraft makes.
 """

@@ -18,10 +18,10 @@ from .estimator import split_X
 from .online import OnlineTL
 from .terms import design_matrix
 
-__all__ = ["OnlineTollesLawson"]
+__all__ = ["OnlineTollesLawsonRegressor"]
 
 
-class OnlineTollesLawson(RegressorMixin, BaseEstimator):
+class OnlineTollesLawsonRegressor(RegressorMixin, BaseEstimator):
     """Online Tolles-Lawson compensator (RLS with forgetting) with the scikit-learn API.
 
     ``X`` has four columns: time [s], flux_x, flux_y, flux_z [nT] (array or DataFrame with
@@ -72,7 +72,7 @@ class OnlineTollesLawson(RegressorMixin, BaseEstimator):
 
     _split_X = staticmethod(split_X)
 
-    def partial_fit(self, X: Any, y: Any) -> OnlineTollesLawson:
+    def partial_fit(self, X: Any, y: Any) -> OnlineTollesLawsonRegressor:
         """Continue the estimate with more samples (in time order).
 
         Parameters
@@ -104,7 +104,7 @@ class OnlineTollesLawson(RegressorMixin, BaseEstimator):
         self.n_samples_seen_ += int((~res.info["skipped"]).sum())
         return self
 
-    def fit(self, X: Any, y: Any) -> OnlineTollesLawson:
+    def fit(self, X: Any, y: Any) -> OnlineTollesLawsonRegressor:
         """Start afresh and run over the whole log (``X`` and ``y`` as in :meth:`partial_fit`).
 
         Returns
@@ -130,6 +130,7 @@ class OnlineTollesLawson(RegressorMixin, BaseEstimator):
         if not hasattr(self, "coef_"):
             from sklearn.exceptions import NotFittedError
 
-            raise NotFittedError("OnlineTollesLawson is not fitted yet: call fit or partial_fit")
+            raise NotFittedError(
+                "OnlineTollesLawsonRegressor is not fitted yet: call fit or partial_fit")
         t, flux = self._split_X(X)
         return design_matrix(flux, t, self.terms_) @ self.coef_

@@ -39,7 +39,7 @@ from ..qc import QCResult, compute_qc, kept_mask, segment_labels
 from ._report_html import CSS, extended_html, fmt, fom_rows, headline_words, html_table, html_time
 from .report_check import headline_from_data, headline_record
 
-__all__ = ["FIGURES", "build_report", "load_compensated", "render_html", "write_report"]
+__all__ = ["FIGURES", "report_file", "load_compensated", "render_html", "write_report"]
 
 log = logging.getLogger(__name__)
 
@@ -253,7 +253,7 @@ def _why_dropped(seg: dict[str, Any], screening: dict[str, Any]) -> str | None:
     return None
 
 
-def build_report(
+def report_file(
     out_csv: str | os.PathLike[str], out_dir: str | os.PathLike[str],
     report_json: str | os.PathLike[str] | None = None, *, progress: Progress | None = None,
     **qc_kw: Any,
