@@ -57,7 +57,7 @@ def bench_detection(rows: int) -> None:
 
 
 def bench_qc(rows: int) -> None:
-    from aeromag.compensation.pipeline import compensate
+    from aeromag.compensation.pipeline import run_compensation as compensate
     from aeromag.qc import compute_qc
 
     df = calibration(rows)

@@ -24,7 +24,8 @@ from typer.testing import CliRunner
 from aeromag.cli import app
 from aeromag.compensation.config import CompensationConfig
 from aeromag.compensation.model import TLModel
-from aeromag.compensation.pipeline import calibrate, compensate
+from aeromag.compensation.pipeline import calibrate
+from aeromag.compensation.pipeline import run_compensation as compensate
 from aeromag.errors import ConfigError, InputError
 from aeromag.synthetic import add_current_interference, simulate_calibration
 

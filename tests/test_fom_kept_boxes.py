@@ -16,7 +16,7 @@ import pytest
 from typer.testing import CliRunner
 
 from aeromag.cli import app
-from aeromag.compensation.pipeline import compensate
+from aeromag.compensation.pipeline import run_compensation as compensate
 from aeromag.qc import compute_qc, fom_summary
 from aeromag.qc.maneuvers import MANEUVERS
 from aeromag.synthetic import simulate_calibration

@@ -71,7 +71,8 @@ def test_duplicate_names_fall_back_to_one_by_one():
 
 def test_compensate_with_model_output_is_unchanged():
     """The applied model's table is the log plus exactly the four columns, values as before."""
-    from aeromag.compensation import CompensationConfig, compensate
+    from aeromag.compensation import CompensationConfig
+    from aeromag.compensation import run_compensation as compensate
 
     from .conftest import hand_flight
 

@@ -105,7 +105,7 @@ def test_every_nth_true_equals_flatnonzero_every_nth() -> None:
 
 @pytest.fixture(scope="module")
 def res():
-    from aeromag.compensation.pipeline import compensate
+    from aeromag.compensation.pipeline import run_compensation as compensate
     from aeromag.synthetic import simulate_calibration
 
     df, _ = simulate_calibration(seed=6, n_boxes=1, faults={4: "noise_burst"})

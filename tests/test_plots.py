@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from aeromag.compensation.pipeline import compensate
+from aeromag.compensation.pipeline import run_compensation as compensate
 from aeromag.errors import InputError
 from aeromag.plot import compensation as pc
 from aeromag.qc import compute_qc

@@ -8,7 +8,7 @@ import pytest
 
 from aeromag.compensation.config import CompensationConfig
 from aeromag.compensation.normal import SegmentStats, segment_normal_equations
-from aeromag.compensation.pipeline import compensate
+from aeromag.compensation.pipeline import run_compensation as compensate
 from aeromag.compensation.prepare import prepare
 from aeromag.compensation.result import CompensationResult
 from aeromag.compensation.terms import TERMS_16

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from aeromag.compensation.pipeline import compensate
+from aeromag.compensation.pipeline import run_compensation as compensate
 from aeromag.compensation.result import CompensationResult
 from aeromag.compensation.terms import TERMS_16
 from aeromag.qc import fit_diagnostics, segment_labels

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from aeromag.compensation.config import CompensationConfig
-from aeromag.compensation.pipeline import compensate
+from aeromag.compensation.pipeline import run_compensation as compensate
 from aeromag.qc import compute_qc, kept_mask, segment_labels
 from aeromag.qc.residuals import piece_residuals
 from aeromag.qc.total_field import fluxgate_is_total_field, prepared_total_field

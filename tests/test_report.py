@@ -214,7 +214,7 @@ def test_dropped_segment_row_says_why(tmp_path):
 def test_load_compensated_reads_the_report_columns_exactly(tmp_path):
     """The report reads its log through read_log: only the columns it uses, with their
     values (single precision for the drawn columns of REPORT_DTYPES)."""
-    from aeromag.compensation.pipeline import compensate as pipe_compensate
+    from aeromag.compensation.pipeline import run_compensation as pipe_compensate
     from aeromag.io import write_csv as io_write_csv
     from aeromag.synthetic import simulate_calibration as sim
     from aeromag.workflows.report import REPORT_COLUMNS, REPORT_DTYPES

@@ -153,7 +153,7 @@ def test_labels_values_as_int64_detection(cal):
 
 @pytest.fixture(scope="module")
 def compensated(cal):
-    from aeromag.compensation.pipeline import compensate
+    from aeromag.compensation.pipeline import run_compensation as compensate
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

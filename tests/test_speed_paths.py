@@ -133,7 +133,7 @@ def _default_ref(obj):
 def test_qc_concurrent_equals_serial(monkeypatch) -> None:
     """compute_qc's residuals and noise on the pool give the serial run's metrics exactly."""
     from aeromag._core import parallel
-    from aeromag.compensation.pipeline import compensate
+    from aeromag.compensation.pipeline import run_compensation as compensate
     from aeromag.qc import compute_qc
     from aeromag.synthetic import simulate_calibration
 
@@ -151,7 +151,7 @@ def test_qc_concurrent_equals_serial(monkeypatch) -> None:
 
 def test_known_sampling_rate_gives_the_same_fom_and_maneuvers() -> None:
     from aeromag._core.filters import sampling_rate
-    from aeromag.compensation.pipeline import compensate
+    from aeromag.compensation.pipeline import run_compensation as compensate
     from aeromag.qc import detect_maneuvers, fom_table
     from aeromag.synthetic import simulate_calibration
 

@@ -4,7 +4,7 @@ Modules, in pipeline order: ``config`` (:class:`CompensationConfig` and its opti
 ``terms`` (term sets and the design matrix), ``model`` (:class:`TLModel`), ``segments``,
 ``prepare`` (arrays of a log), ``normal`` (per-segment normal equations), ``screening`` (the
 whole PCA screening loop), ``fit`` (the one fit kernel, shared with the scikit-learn
-estimator), ``apply``, ``metrics``, ``report``, ``result``, ``pipeline`` (:func:`compensate`,
+estimator), ``apply``, ``metrics``, ``report``, ``result``, ``pipeline`` (:func:`run_compensation`,
 :func:`calibrate`), ``estimator`` (:class:`TollesLawsonRegressor`, imported on first use: applying a
 model never imports scikit-learn).
 """
@@ -18,7 +18,7 @@ from .config import CompensationConfig
 from .fit import fit_model
 from .metrics import compensation_metrics
 from .model import TLModel, predict_interference
-from .pipeline import compensate
+from .pipeline import run_compensation
 from .prepare import Prepared, prepare
 from .result import CompensationResult
 from .screening import ScreenResult, pca_screen
@@ -35,7 +35,7 @@ __all__ = [
     "TollesLawsonRegressor",
     "apply_model",
     "assign_segments",
-    "compensate",
+    "run_compensation",
     "compensation_metrics",
     "design_matrix",
     "direction_cosines",

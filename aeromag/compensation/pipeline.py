@@ -4,7 +4,7 @@ Python API used by the command line and by notebooks::
 
     import aeromag as am
     res = am.calibrate(cal_df)               # fit + screening -> res.model, res.report
-    out = am.compensate(survey_df, model=res.model)
+    out = am.compensate(survey_df, model=res.model)   # run_compensation + the qc block
     out.data[["mag", "mag_tl", "mag_comp"]]
 
 Steps (patent M1, see ``shared/methods.md``):
@@ -43,10 +43,10 @@ from .report import AppliedRun, applied_report
 from .result import CompensationResult
 from .segments import segment_counts
 
-__all__ = ["calibrate", "compensate"]
+__all__ = ["calibrate", "run_compensation"]
 
 
-def compensate(
+def run_compensation(
     df: pd.DataFrame, cfg: CompensationConfig | None = None, *, model: TLModel | None = None,
     source: str | None = None,
 ) -> CompensationResult:
@@ -119,7 +119,7 @@ def calibrate(
 ) -> CompensationResult:
     """Fit and screen the model on a calibration log (what ``aeromag calibrate`` runs).
 
-    The same as :func:`compensate` without a model, with the Figure of Merit on unless
+    The same as :func:`run_compensation` without a model, with the Figure of Merit on unless
     ``cfg.fom`` says otherwise.
 
     Parameters
@@ -140,4 +140,4 @@ def calibrate(
     cfg = cfg or CompensationConfig()
     if cfg.fom is None:
         cfg = dataclasses.replace(cfg, fom=True)
-    return compensate(df, cfg, source=source)
+    return run_compensation(df, cfg, source=source)

@@ -54,7 +54,7 @@ def compensate(
     Parameters
     ----------
     df, cfg, model, source
-        As in :func:`aeromag.compensation.pipeline.compensate` (log, options, saved model to
+        As in :func:`aeromag.compensation.pipeline.run_compensation` (log, options, saved model to
         apply instead of fitting, file name for messages).
 
     Returns
@@ -63,7 +63,7 @@ def compensate(
         The pipeline's result with the report's ``qc`` block added.
     """
     with _one_blas_thread():
-        res = _run(_pipeline.compensate(df, cfg, model=model, source=source))
+        res = _run(_pipeline.run_compensation(df, cfg, model=model, source=source))
         _add_qc(res)
     return res
 
