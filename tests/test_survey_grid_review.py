@@ -218,3 +218,24 @@ def test_geotiff_with_transforms_is_written_and_read_back_with_its_crs(lat_lon_l
         # the netCDF's cell centres are the GeoTIFF's pixel centres
         np.testing.assert_allclose(ds.x.values, tilt.x.values)
         np.testing.assert_allclose(ds.y.values, tilt.y.values[::-1])
+
+
+def test_grid_never_replaces_the_level_report_beside_it(tmp_path):
+    """level -o lev.csv writes lev.json; grid lev.csv -o lev.nc would write lev.json too."""
+    samples = Path(__file__).resolve().parents[1] / "data_samples"
+    lev = tmp_path / "lev.csv"
+    r = runner.invoke(app, ["level", str(samples / "level_survey.csv"), "--base",
+                            str(samples / "level_base.csv"), "-o", str(lev)])
+    assert r.exit_code == 0, r.output
+    before = (tmp_path / "lev.json").read_bytes()
+    r = runner.invoke(app, ["grid", str(lev), "-o", str(tmp_path / "lev.nc")])
+    assert r.exit_code == 1, r.output
+    lines = [ln for ln in r.output.splitlines() if ln.startswith("error: ")]
+    assert len(lines) == 1 and "lev_grid.nc" in lines[0], r.output
+    assert (tmp_path / "lev.json").read_bytes() == before
+    assert not (tmp_path / "lev.nc").exists()
+    # Another name works, and gridding again onto the same grid name replaces its own report.
+    for _ in range(2):
+        r = runner.invoke(app, ["grid", str(lev), "-o", str(tmp_path / "lev_grid.nc")])
+        assert r.exit_code == 0, r.output
+    assert (tmp_path / "lev.json").read_bytes() == before

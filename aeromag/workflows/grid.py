@@ -115,6 +115,32 @@ def grid_json_path(grid_path: str | os.PathLike[str]) -> Path:
     return Path(grid_path).with_suffix(".json")
 
 
+def refuse_foreign_report(json_path: Path, out: Path) -> None:
+    """Refuse a GRID.json that would replace another command's report.
+
+    ``aeromag level ... -o lev.csv`` writes ``lev.json``; ``aeromag grid lev.csv -o lev.nc``
+    would write ``lev.json`` too (GRID with the suffix ``.json``) and silently replace the
+    level report, which also holds the CRS the grid reads.  Only an earlier grid report
+    (one with ``cell_m`` and ``method``) may be replaced.
+
+    Raises
+    ------
+    InputError
+        When ``json_path`` exists and is not a grid report.
+    """
+    if not json_path.is_file():
+        return
+    try:
+        doc = json.loads(json_path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        doc = None
+    if isinstance(doc, dict) and "cell_m" in doc and "method" in doc:
+        return
+    raise InputError(f"-o {out}: its report {json_path} exists and is not a grid report (the"
+                     " report of another output, e.g. the level run's); give the grid another"
+                     f" name, e.g. -o {out.with_name(out.stem + '_grid' + out.suffix)}")
+
+
 def _crs_beside(path: Path) -> int | None:
     """The ``crs`` of the level run's OUT.json beside a levelled log, if there is one."""
     doc = json_path_for(path)
@@ -168,6 +194,7 @@ def grid_file(
     src, out = Path(log_path), Path(out_path)
     check_grid_path(out)
     steps = parse_transforms(transforms)
+    refuse_foreign_report(grid_json_path(out), out)
     outs = [out, grid_json_path(out)] + [transform_path(out, t.suffix) for t in steps]
     if map_path is not None:
         outs.append(Path(map_path))
