@@ -13,7 +13,8 @@ app = typer.Typer(
     name="aeromag",
     help="Aeromagnetic survey post-processing: Tolles-Lawson compensation with PCA screening "
     "of segments (offline or online), DGPS track-deviation checks, compass calibration, "
-    "UKF navigation, particle-filter fault detection, QC reports, batch processing.",
+    "UKF navigation, particle-filter fault detection, survey levelling (lag, diurnal, IGRF, "
+    "tie lines) and minimum-curvature gridding, QC reports, batch processing.",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
