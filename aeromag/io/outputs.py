@@ -481,6 +481,43 @@ def json_path_for(csv_path: str | os.PathLike[str]) -> Path:
     return p.with_name(p.name + ".json")
 
 
+def check_report_owner(json_path: str | os.PathLike[str],
+                       output_path: str | os.PathLike[str]) -> None:
+    """Refuse to replace a JSON report that describes another output.
+
+    A report records the file it describes in its ``output`` key (a file name beside the
+    report): ``aeromag level -o lev.csv`` and ``aeromag grid lev.csv -o lev.nc`` would both
+    write ``lev.json``, and the second would silently replace the first (which the grid step
+    reads for the CRS).  A report without ``output``, unreadable, or describing this very
+    output may be replaced.
+
+    Parameters
+    ----------
+    json_path : path-like
+        The report about to be written.
+    output_path : path-like
+        The output that report describes.
+
+    Raises
+    ------
+    InputError
+        When ``json_path`` exists and records another ``output``.
+    """
+    import json
+
+    jp, out = Path(json_path), Path(output_path)
+    if not jp.is_file():
+        return
+    try:
+        owner = json.loads(jp.read_text(encoding="utf-8")).get("output")
+    except (OSError, ValueError, AttributeError):
+        return
+    if isinstance(owner, str) and owner and Path(owner).name != out.name:
+        raise InputError(f"-o {clean(str(out))}: its report {clean(str(jp))} is the report of"
+                         f" {clean(Path(owner).name)} and would be replaced; give another -o"
+                         f" name, e.g. -o {clean(out.stem + '_grid' + out.suffix)}")
+
+
 def check_outputs(source: str | os.PathLike[str] | None, *outputs: str | os.PathLike[str],
                   kind: str = "input log",
                   inputs: Sequence[tuple[str | os.PathLike[str], str]] = ()) -> None:
@@ -509,6 +546,8 @@ def check_outputs(source: str | os.PathLike[str] | None, *outputs: str | os.Path
         raise InputError(f"-o {clean(str(outputs[0]))}: the report goes to OUT.json, so OUT"
                          " must not end in .json; give the output another name, e.g."
                          " -o survey_comp.csv")
+    if len(outputs) > 1 and Path(outputs[1]) == json_path_for(Path(outputs[0])):
+        check_report_owner(outputs[1], outputs[0])
     pairs = ([(source, kind)] if source is not None else []) + list(inputs)
     for out in outputs:
         o = Path(out)

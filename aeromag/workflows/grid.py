@@ -221,7 +221,7 @@ def grid_file(
         "residual": s.residual, "misfit_rms_nT": s.misfit_rms_nT, "n_blank": s.n_blank,
         "levels": s.levels, "stats": s.stats,
         "transforms": {k: str(transform_path(out, k).name) for k in res.transforms},
-        "field_direction": dir_info,
+        "field_direction": dir_info, "output": out.name,
     }
     write_grid(ds, out)
     tpaths = {}

@@ -172,14 +172,14 @@ def level_file(survey_path: PathLike, out_path: PathLike, *, plot_dir: PathLike 
     out = Path(out_path)
     out_json = json_path_for(out)
     with output_set():
-        check_outputs(survey_path, out, out_json)
+        check_outputs(survey_path, out, out_json)  # and check_report_owner(out_json, out)
         fmt_out = output_format(out)
         base = kw.get("base")
         if base is not None and not isinstance(base, (BaseRecord, pd.DataFrame)):
             paths = [base] if isinstance(base, (str, os.PathLike)) else list(base)
             check_outputs(None, out, out_json, inputs=[(p, "base record") for p in paths])
         res = level(survey_path, **kw)
-        report = {"input": str(survey_path), **res.to_report()}
+        report = {"input": str(survey_path), "output": out.name, **res.to_report()}
         data = res.data
         if fmt_out == "xyz":
             data = data.copy()
