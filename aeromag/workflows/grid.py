@@ -137,8 +137,8 @@ def refuse_foreign_report(json_path: Path, out: Path) -> None:
     if isinstance(doc, dict) and "cell_m" in doc and "method" in doc:
         return
     raise InputError(f"-o {out}: its report {json_path} exists and is not a grid report (the"
-                     " report of another output, e.g. the level run's); give the grid another"
-                     f" name, e.g. -o {out.with_name(out.stem + '_grid' + out.suffix)}")
+                     " report of another output, e.g. the level run's); give another -o name,"
+                     f" e.g. -o {out.with_name(out.stem + '_grid' + out.suffix)}")
 
 
 def _crs_beside(path: Path) -> int | None:
