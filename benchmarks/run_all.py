@@ -78,7 +78,11 @@ _DEINTERF = """
 import json
 import numpy as np
 import pandas as pd
-from deinterf.compensator.tmi.linear import Terms, TollesLawsonRegressor
+from deinterf.compensator.tmi.linear import Terms
+try:  # the name on deinterf's main branch
+    from deinterf.compensator.tmi.linear import TollesLawsonRegressor
+except ImportError:  # deinterf 1.2.0 as published on PyPI
+    from deinterf.compensator.tmi.linear import TollesLawson as TollesLawsonRegressor
 from deinterf.foundation.sensors import MagVector, Tmi
 from deinterf.utils.data_ioc import DataIoC
 df = pd.read_csv(SRC, engine="pyarrow")
