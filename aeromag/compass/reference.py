@@ -13,12 +13,13 @@ from typing import Any
 
 import numpy as np
 
+from .._core.igrf import IGRF_YEARS, decimal_year, igrf_ned
 from ..errors import InputError
 
 __all__ = ["ReferenceField", "explicit_field", "igrf_field", "IGRF_RANGE"]
 
 #: Years covered by the IGRF-14 coefficients that ppigrf ships.
-IGRF_RANGE = (1900.0, 2030.0)
+IGRF_RANGE = IGRF_YEARS
 
 
 @dataclass
@@ -132,16 +133,9 @@ def igrf_field(lat_deg: np.ndarray, lon_deg: np.ndarray, alt_m: np.ndarray | flo
         finite or out of range, or ``ppigrf`` is not installed.
     """
     when = _parse_date(date)
-    year = when.year + (when.timetuple().tm_yday - 1) / 365.25
-    if not (IGRF_RANGE[0] <= year < IGRF_RANGE[1]):
+    if not (IGRF_RANGE[0] <= decimal_year(when) < IGRF_RANGE[1]):
         raise InputError(f"date='{when.date()}' is outside IGRF-14 ({IGRF_RANGE[0]:.0f}-"
                          f"{IGRF_RANGE[1]:.0f}); give the field with earth_field=(F, I, D)")
-    try:
-        import ppigrf
-    except ImportError:
-        raise InputError("the IGRF reference needs the ppigrf package, a dependency of"
-                         " aeromag that is missing here: pip install ppigrf (or reinstall"
-                         " aeromag), or give the field with earth_field=(F, I, D)") from None
     lat = np.atleast_1d(np.asarray(lat_deg, dtype=np.float64))
     lon = np.atleast_1d(np.asarray(lon_deg, dtype=np.float64))
     alt = np.broadcast_to(np.asarray(alt_m, dtype=np.float64), lat.shape)
@@ -149,13 +143,11 @@ def igrf_field(lat_deg: np.ndarray, lon_deg: np.ndarray, alt_m: np.ndarray | flo
         raise InputError("lat/lon/alt: positions must be finite for the IGRF reference")
     if np.abs(lat).max(initial=0) > 90:
         raise InputError("lat: latitudes must be in [-90, 90] degrees")
-    # The field varies over tens of km: evaluate at unique rounded positions (1e-4 deg,
-    # 1 m, about 10 m) and map back, so a 1e6-sample log costs a few evaluations.
-    key = np.column_stack([np.round(lat, 4), np.round(lon, 4), np.round(alt, 0)])
-    uniq, inv = np.unique(key, axis=0, return_inverse=True)
-    e, n, u = ppigrf.igrf(uniq[:, 1], uniq[:, 0], uniq[:, 2] / 1000.0, when)
-    e, n, u = (np.asarray(x, dtype=np.float64).reshape(-1) for x in (e, n, u))
-    ned = np.column_stack([n, e, -u])[np.asarray(inv).reshape(-1)]
+    try:  # what is left to refuse is a missing ppigrf
+
+        ned = igrf_ned(lat, lon, alt, when)
+    except InputError as e:
+        raise InputError(f"{e}; or give the field with earth_field=(F, I, D)") from None
     info = {"source": "IGRF", "model": "IGRF-14", "package": "ppigrf",
             "date": when.date().isoformat(), **_summary(ned)}
     return ReferenceField(ned, info)
