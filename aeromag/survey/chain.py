@@ -112,6 +112,8 @@ class LevelResult:
             "levelling": ({"method": lev.method, "passes": [p.to_dict() for p in lev.passes],
                            "n_unlevelled_pieces": lev.n_unlevelled,
                            "n_networks": lev.n_networks,
+                           "n_parameters_effective": _f(lev.n_parameters_effective),
+                           "dof": _f(lev.dof),
                            "n_rejected": lev.passes[-1].n_rejected if lev.passes else 0}
                           if lev is not None else {"method": "none"}),
             "decorrugation": self.decorrugation.to_dict() if self.decorrugation else None,
@@ -389,6 +391,14 @@ def level_survey(df: pd.DataFrame, *, value: str | None = None, base: BaseRecord
         lres = level_network(cx, geom.n_pieces, geom.piece_is_tie, method=method,
                              piece_samples=counts, source=src)
         out["tmi_lev"] = tmi + lres.correction(geom.piece, geom.along_m)
+        n_used = lres.dof + lres.n_parameters_effective
+        if np.isfinite(lres.dof) and lres.dof < max(5.0, 0.25 * n_used):
+            msg = (f"{src}: levelling fits {lres.n_parameters_effective:.1f} effective "
+                   f"parameters to {n_used:.0f} crossings ({lres.dof:.1f} degrees of "
+                   "freedom): the levelled misties show the fit, not the level error left; "
+                   "fly more tie lines, or level with fewer parameters (--level shift)")
+            log.warning(msg)
+            warnings.append(msg)
     else:
         out["tmi_lev"] = tmi
     dec = None

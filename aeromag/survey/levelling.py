@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
-from scipy.sparse.linalg import spsolve
+from scipy.sparse.linalg import splu, spsolve
 
 from ..errors import InputError
 from .crossings import Crossings
@@ -116,6 +116,13 @@ class LevellingResult:
         Pieces without a crossing (no correction).
     n_networks : int
         Connected networks of pieces (each with its own datum).
+    n_parameters_effective : float
+        Effective number of fitted parameters (trace of the hat matrix of the last pass, the
+        datum constraints and the trend prior included): what the corrections can absorb.
+    dof : float
+        Crossings with weight minus ``n_parameters_effective``. When it is small, the
+        levelled misties show how well the corrections fit the crossings, not the level
+        error that is left.
     """
 
     method: str
@@ -126,6 +133,8 @@ class LevellingResult:
     passes: list[LevellingPass] = field(default_factory=list)
     n_unlevelled: int = 0
     n_networks: int = 1
+    n_parameters_effective: float = float("nan")
+    dof: float = float("nan")
 
     def correction(self, piece: np.ndarray, along_m: np.ndarray) -> np.ndarray:
         """The correction at samples (0 where the piece was not levelled).
@@ -199,6 +208,22 @@ def _plan_knots(cx: Crossings, n_pieces: int, is_tie: np.ndarray, method: str, t
                                 max(2, s.size // 3)))
         knots.append(_knots(s, n))
     return knots
+
+
+def _leverage(N: sp.spmatrix, A: sp.csr_matrix, weights: np.ndarray, block: int = 2048
+              ) -> np.ndarray:
+    """Diagonal of the hat matrix ``A N^-1 A^T W`` (one leverage per crossing, 0-1).
+
+    ``N`` is factorised once and solved for blocks of crossings, so memory stays at
+    ``n_par x block`` whatever the number of crossings.
+    """
+    lu = splu(sp.csc_matrix(N))
+    At = sp.csc_matrix(A.T)
+    h = np.empty(A.shape[0])
+    for i in range(0, A.shape[0], block):
+        cols = At[:, i:i + block].toarray()
+        h[i:i + block] = weights[i:i + block] * np.einsum("ij,ij->j", cols, lu.solve(cols))
+    return np.clip(h, 0.0, 1.0)
 
 
 def level_network(cx: Crossings, n_pieces: int, is_tie: np.ndarray, *, method: str = "trend",
@@ -353,6 +378,8 @@ def level_network(cx: Crossings, n_pieces: int, is_tie: np.ndarray, *, method: s
                   kind, res_passes[-1].mistie_std_nT, res_passes[-1].mistie_robust_std_nT)
     values = [x[offs[k]:offs[k + 1]] for k in range(n_pieces)]
     n_unlev = sum(1 for k in knots if k.size == 0)
+    n_eff = float(_leverage(N, A, weights).sum())  # effective parameters: trace of the hat
+    n_used = int(np.count_nonzero(weights > 1e-3 * float(weights.max())))
     return LevellingResult(method, knots, values, cx.mistie_nT + A @ x,
                            weights / max(float(weights.max()), 1e-300), res_passes, n_unlev,
-                           int(used.sum()))
+                           int(used.sum()), n_eff, n_used - n_eff)
