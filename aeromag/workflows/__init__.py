@@ -25,6 +25,7 @@ _API: dict[str, str] = {
     "navigate_file": "aeromag.workflows.navigate",
     "level_file": "aeromag.workflows.level",
     "grid_file": "aeromag.workflows.grid",
+    "write_survey_report": "aeromag.workflows.survey_report",
     "write_simulation": "aeromag.workflows.simulate",
     "write_level_simulation": "aeromag.workflows.simulate_level",
     "write_online_simulation": "aeromag.workflows.simulate_online",

@@ -132,23 +132,6 @@ def level(survey: pd.DataFrame | PathLike, *,
                         allow_base_gaps=allow_base_gaps, progress=progress, source=src)
 
 
-def _figures(res: LevelResult, out_dir: Path) -> list[Path]:
-    """The QC figures, written with the outputs (all files or none)."""
-    from ..plot.levelling import plot_mistie_histogram, plot_stacked_profiles
-
-    out_dir.mkdir(parents=True, exist_ok=True)
-    col = "tmi_mlev" if "tmi_mlev" in res.data.columns else "tmi_lev"
-    jobs = [("profiles.png", lambda p: plot_stacked_profiles(res, column=col, path=p))]
-    if res.crossings is not None and res.crossings.n:
-        jobs.insert(0, ("misties.png", lambda p: plot_mistie_histogram(res, path=p)))
-    written = []
-    for name, draw in jobs:
-        with atomic_path(out_dir / name) as tmp:
-            draw(tmp)
-        written.append(out_dir / name)
-    return written
-
-
 def level_file(survey_path: PathLike, out_path: PathLike, *, plot_dir: PathLike | None = None,
                **kw: Any) -> LevelResult:
     """Read a survey, level it, write OUT and OUT.json (both or neither).
@@ -161,7 +144,9 @@ def level_file(survey_path: PathLike, out_path: PathLike, *, plot_dir: PathLike 
         ``.csv``, ``.parquet`` or ``.xyz`` (Geosoft XYZ with Line/Tie headers); the report
         goes to OUT.json.
     plot_dir : path-like, optional
-        Also write the QC figures there (mistie histograms, stacked profiles).
+        Also write the QC page there (:func:`aeromag.workflows.survey_report.
+        write_survey_report`: the anomaly map, mistie histograms, stacked profiles and
+        ``report.html``).
     **kw
         Options of :func:`level`.
 
@@ -187,6 +172,9 @@ def level_file(survey_path: PathLike, out_path: PathLike, *, plot_dir: PathLike 
         with atomic_path(out) as tmp:
             write_table(data, tmp, fmt_out)
         if plot_dir is not None:
-            report["figures"] = [str(p) for p in _figures(res, Path(plot_dir))]
+            from .survey_report import write_survey_report
+
+            report["figures"] = [str(p) for p in write_survey_report(res, plot_dir,
+                                                                     report=report)]
         write_json(report, out_json)
     return res

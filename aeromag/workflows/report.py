@@ -279,6 +279,9 @@ def report_file(
     Path
         The HTML page.
     """
+    from .survey_report import refuse_levelled_log
+
+    refuse_levelled_log(out_csv, report_json)
     result, config = load_compensated(out_csv, report_json)
     return write_report(result, out_dir, config=config, progress=progress, **qc_kw)
 

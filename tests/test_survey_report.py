@@ -1,0 +1,80 @@
+"""The levelling QC page (`aeromag level --plot DIR`, `am.workflows.write_survey_report`):
+the anomaly map, the mistie histograms, the stacked profiles and one self-contained HTML page
+with the steps' figures; and `aeromag report` refusing a levelled log with the command that
+fits."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+import aeromag as am
+from aeromag.cli import app
+
+SAMPLES = Path(__file__).resolve().parents[1] / "data_samples"
+
+
+@pytest.fixture(scope="module")
+def levelled(tmp_path_factory):
+    d = tmp_path_factory.mktemp("lev")
+    out = d / "lev.csv"
+    r = CliRunner().invoke(app, ["level", str(SAMPLES / "level_survey.csv"), "--base",
+                                 str(SAMPLES / "level_base.csv"), "--lag", "0.4",
+                                 "--decorrugate", "--plot", str(d / "qc"), "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    return out, d / "qc"
+
+
+def test_level_plot_writes_map_misties_profiles_and_one_page(levelled):
+    out, qc = levelled
+    for name in ("map.png", "misties.png", "profiles.png"):
+        assert (qc / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+    page = (qc / "report.html").read_text()
+    assert page.count("data:image/png;base64,") == 3
+    rep = json.loads(out.with_suffix(".json").read_text())
+    assert sorted(Path(p).name for p in rep["figures"]) == [
+        "map.png", "misties.png", "profiles.png", "report.html"]
+    # The page states the report's figures, not other ones.
+    before = rep["mistie_std_nT"]["before"]
+    assert f"{before:.4g}" in page
+    assert "degrees of freedom" in page and "Levelling passes" in page
+    assert len(re.findall(r"<tr><td>\d+</td><td>(?:line|tie)</td>", page)) == len(rep["lines"])
+    assert "Warning:" in page  # the sample's nearly saturated network is said on the page
+
+
+def test_report_refuses_a_levelled_log_in_one_line(levelled, tmp_path):
+    out, _ = levelled
+    r = subprocess.run([sys.executable, "-m", "aeromag", "report", str(out), "-o",
+                        str(tmp_path / "rep")], capture_output=True, text=True)
+    assert r.returncode == 1
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: {out}: a levelled survey")
+    assert "aeromag level" in lines[0] and "--plot DIR" in lines[0]
+    assert not (tmp_path / "rep" / "report.html").exists()
+
+
+def test_python_api_writes_the_page_for_a_table_without_ties_as_a_warning(tmp_path):
+    # An independent survey: 6 N-S lines 300 m apart, no ties, levelling off; the map,
+    # profiles and page are still written, the misties figure is not (no crossings).
+    rng = np.random.default_rng(2)
+    parts = []
+    for k in range(6):
+        y = np.arange(0.0, 3000.0, 10.0)
+        x = np.full_like(y, 300.0 * k) + rng.normal(0, 2, y.size)
+        parts.append(pd.DataFrame({"lat": -31.0 + y / 110_900.0,
+                                   "lon": 116.0 + x / (111_320.0 * np.cos(np.radians(31.0))),
+                                   "alt": 120.0, "line": 10 + k,
+                                   "mag": 30 * np.exp(-((x - 800) ** 2 + (y - 1500) ** 2)
+                                                      / 4e5)}))
+    res = am.level(pd.concat(parts, ignore_index=True), igrf=False, method="none")
+    files = am.workflows.write_survey_report(res, tmp_path / "qc")
+    assert [f.name for f in files] == ["map.png", "profiles.png", "report.html"]
+    assert "levelling</td><td>none" in (tmp_path / "qc" / "report.html").read_text()
