@@ -78,3 +78,12 @@ def test_python_api_writes_the_page_for_a_table_without_ties_as_a_warning(tmp_pa
     files = am.workflows.write_survey_report(res, tmp_path / "qc")
     assert [f.name for f in files] == ["map.png", "profiles.png", "report.html"]
     assert "levelling</td><td>none" in (tmp_path / "qc" / "report.html").read_text()
+
+
+def test_grid_file_reports_its_steps(levelled, tmp_path):
+    out, _ = levelled
+    seen = []
+    am.workflows.grid_file(out, tmp_path / "g.nc", map_path=tmp_path / "g.png",
+                           progress=lambda done, total, step: seen.append((done, total, step)))
+    assert [s for _, _, s in seen] == ["reading", "gridding", "writing", "map", "done"]
+    assert all(total == 4 for _, total, _ in seen) and seen[-1][0] == 4

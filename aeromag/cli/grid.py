@@ -14,6 +14,7 @@ import typer
 
 from ._app import setup_logging, user_errors
 from ._options import OPTIONS, Option, Options, add_option, command
+from ._progress import progress_bar
 
 _GRID = frozenset({"grid"})
 _REQUIRED = inspect.Parameter.empty  # no default: required
@@ -72,14 +73,14 @@ def grid(opts: Options) -> None:
     from ..io import parse_column_map
     from ..workflows.grid import grid_file
 
-    with user_errors():
+    with user_errors(), progress_bar("grid") as progress:
         columns = parse_column_map(opts.grid_col or [], option="--col")
         res = grid_file(
             opts.grid_log, opts.grid_output, value=opts.grid_value, cell_m=opts.grid_cell,
             blank_m=opts.grid_blank, crs=opts.grid_crs, tension=opts.grid_tension,
             transforms=opts.grid_transform, field_dir=opts.grid_field_dir,
             date=opts.grid_date, columns=columns or None, fmt=opts.grid_fmt,
-            map_path=opts.grid_map)
+            map_path=opts.grid_map, progress=progress)
     s = res.result.summary
     ny, nx = s.shape
     extra = "".join(f", {p}" for p in res.transform_paths.values())

@@ -11,7 +11,7 @@ import datetime as _dt
 import json
 import logging
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -160,6 +160,7 @@ def grid_file(
     field_dir: str | None = None, date: str | None = None,
     columns: Mapping[str, str] | None = None, fmt: str | None = None,
     map_path: str | os.PathLike[str] | None = None, max_bytes: int | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
 ) -> GridFiles:
     """Grid one column of a levelled log and write the grid files and GRID.json as a set.
 
@@ -186,6 +187,8 @@ def grid_file(
         Also write the anomaly map there (PNG).
     max_bytes : int, optional
         Memory the solve may use.
+    progress : callable, optional
+        ``progress(done, total, step)`` as the steps (reading, gridding, writing, map) start.
 
     Returns
     -------
@@ -199,6 +202,13 @@ def grid_file(
     if map_path is not None:
         outs.append(Path(map_path))
     check_outputs(src, *outs)
+    n_steps = 4 if map_path is not None else 3
+
+    def report_step(done: int, step: str) -> None:
+        if progress is not None:
+            progress(done, n_steps, step)
+
+    report_step(0, "reading")
     df = read_log(src, columns=dict(columns) if columns else None, required=(), fmt=fmt,
                   min_rows=3)
     beside = _crs_beside(src)
@@ -207,6 +217,7 @@ def grid_file(
     direction, dir_info = (None, None)
     if any(t.kind == "rtp" for t in steps):
         direction, dir_info = field_direction(df, field_dir, date, str(src))
+    report_step(1, "gridding")
     res = grid(df, value=value, cell_m=cell_m, blank_m=blank_m, crs=crs, tension=tension,
                transforms=steps, field_direction=direction, max_bytes=max_bytes)
     s = res.summary
@@ -223,12 +234,14 @@ def grid_file(
         "transforms": {k: str(transform_path(out, k).name) for k in res.transforms},
         "field_direction": dir_info, "output": out.name,
     }
+    report_step(2, "writing")
     write_grid(ds, out)
     tpaths = {}
     for k, tds in res.transforms.items():
         tpaths[k] = write_grid(tds, transform_path(out, k))
     mp = None
     if map_path is not None:
+        report_step(3, "map")
         from ..plot.grid_map import figure_png, plot_grid_map
 
         x, y, _ = survey_positions(df, res.crs, str(src))
@@ -239,4 +252,5 @@ def grid_file(
             tmp.write_bytes(figure_png(fig))
         report["map"] = mp.name
     jpath = write_json(report, grid_json_path(out))
+    report_step(n_steps, "done")
     return GridFiles(res, out, jpath, tpaths, mp, report)
