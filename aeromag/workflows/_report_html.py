@@ -134,3 +134,21 @@ def extended_html(ext: dict[str, Any] | None) -> str:
             ["extra", "coefficient (nT per unit)", "mean", "std",
              "held-out increase without it (nT)", "increase (%)"]))
     return "".join(parts)
+
+
+def page_head(title: str, subtitle: str) -> str:
+    """The start of a self-contained page: doctype, title, the style sheet, the heading."""
+    return (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
+            f"<title>{html.escape(title)}</title><style>{CSS}</style></head><body>"
+            f"<h1>{html.escape(title)}</h1><p class='small'>{html.escape(subtitle)}</p>")
+
+
+def figure_html(name: str, png: bytes | str | Path, caption: str) -> str:
+    """A PNG embedded as a base64 ``data:`` URI, with its caption (the page stays one file)."""
+    import base64
+
+    data = png if isinstance(png, bytes | bytearray) else Path(png).read_bytes()
+    b64 = base64.b64encode(data).decode("ascii")
+    cap = html.escape(caption)
+    return (f"<figure id='{html.escape(Path(name).stem)}'><img alt='{cap}' "
+            f"src='data:image/png;base64,{b64}'><figcaption>{cap}</figcaption></figure>")

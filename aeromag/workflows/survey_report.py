@@ -12,7 +12,6 @@ atomically.
 
 from __future__ import annotations
 
-import base64
 import html
 import json
 import logging
@@ -27,7 +26,7 @@ from .. import __version__
 from ..errors import InputError
 from ..io import atomic_path, json_path_for
 from ..survey.chain import LevelResult
-from ._report_html import CSS, fmt, html_table, html_time
+from ._report_html import figure_html, fmt, html_table, html_time, page_head
 
 __all__ = ["SURVEY_FIGURES", "refuse_levelled_log", "render_survey_html",
            "write_survey_report"]
@@ -165,10 +164,7 @@ def render_survey_html(rep: dict[str, Any], res: LevelResult, figures: dict[str,
     """
     src = str(rep.get("input") or res.data.attrs.get("source", ""))
     title = title or f"aeromag levelling report: {src}"
-    parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
-             f"<title>{html.escape(title)}</title><style>{CSS}</style></head><body>",
-             f"<h1>{html.escape(title)}</h1>",
-             f"<p class='small'>aeromag {html.escape(__version__)}</p>", "<h2>Summary</h2>"]
+    parts = [page_head(title, f"aeromag {__version__}"), "<h2>Summary</h2>"]
     for w in res.warnings:
         parts.append(f"<p class='warn'>Warning: {html.escape(w)}</p>")
     parts.append(html_table(_summary_rows(rep, res), ["step", "value"]))
@@ -178,10 +174,7 @@ def render_survey_html(rep: dict[str, Any], res: LevelResult, figures: dict[str,
                  "few degrees of freedom mean the levelled misties show the fit rather than "
                  "the level error left.</p>")
     for name, png in figures.items():
-        b64 = base64.b64encode(png).decode("ascii")
-        parts.append(f"<figure><img alt='{html.escape(name)}' src='data:image/png;base64,"
-                     f"{b64}'><figcaption>{html.escape(SURVEY_FIGURES.get(name, name))}"
-                     "</figcaption></figure>")
+        parts.append(figure_html(name, png, SURVEY_FIGURES.get(name, name)))
     passes = (rep.get("levelling") or {}).get("passes") or []
     if passes:
         parts.append("<h2>Levelling passes</h2>")
