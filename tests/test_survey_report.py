@@ -87,3 +87,12 @@ def test_grid_file_reports_its_steps(levelled, tmp_path):
                            progress=lambda done, total, step: seen.append((done, total, step)))
     assert [s for _, _, s in seen] == ["reading", "gridding", "writing", "map", "done"]
     assert all(total == 4 for _, total, _ in seen) and seen[-1][0] == 4
+
+
+def test_level_result_describes_itself_in_one_line_and_a_table():
+    res = am.level(SAMPLES / "level_survey.csv", base=SAMPLES / "level_base.csv", lag=0.4)
+    text = repr(res)
+    assert "\n" not in text and text.startswith("LevelResult(samples=3730, lines / ties=8 / 3")
+    assert "mistie_std_nT=" in text and "dof" in text and "warning(s)" in text
+    page = res._repr_html_()
+    assert page.startswith("<table>") and "degrees of freedom" in page  # the warning row

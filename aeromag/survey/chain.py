@@ -124,6 +124,51 @@ class LevelResult:
             "lines": self._lines(),
         }
 
+    def summary_rows(self) -> list[tuple[str, str]]:
+        """(label, value) pairs of the short description (``repr`` and notebooks)."""
+        g = self.geometry
+        n_ties = len({float(v) for v in g.piece_line[g.piece_is_tie]})
+        n_lines = len({float(v) for v in g.piece_line}) - n_ties
+        rows = [("samples", str(len(self.data))), ("lines / ties", f"{n_lines} / {n_ties}"),
+                ("value", self.value), ("crs", f"EPSG:{g.crs}")]
+        est = self.lag_estimate
+        rows.append(("lag_s", f"{self.lag_s:.3f}" + (f" +- {est.std_s:.3f} (auto)" if est
+                                                      else "")))
+        rows.append(("igrf", self.igrf.model if self.igrf is not None else "not removed"))
+        rows.append(("diurnal", f"datum {self.diurnal.datum_nT:.1f} nT"
+                     if self.diurnal is not None else "not removed"))
+        ms, mr = self.mistie_std_nT, self.mistie_robust_std_nT
+        if self.crossings is not None:
+            rows.append(("crossings", str(self.crossings.n)))
+        if ms.get("before") is not None:
+            rows.append(("mistie_std_nT", f"{ms['before']:.3g} -> {ms['after']:.3g}"))
+            rows.append(("mistie_robust_std_nT", f"{mr['before']:.3g} -> {mr['after']:.3g}"))
+        lev = self.levelling
+        rows.append(("levelling", "none" if lev is None else
+                     f"{lev.method}, {lev.n_parameters_effective:.1f} effective parameters, "
+                     f"{lev.dof:.1f} dof"))
+        if self.decorrugation is not None:
+            rows.append(("decorrugation", f"bound {self.decorrugation.limit_nT:.3g} nT"))
+        rows += [("warning", w) for w in self.warnings]
+        return rows
+
+    def __repr__(self) -> str:
+        """One line: samples, lines, lag, misties before and after, warnings."""
+        rows = self.summary_rows()
+        parts = [f"{k}={v}" for k, v in rows if k != "warning"]
+        if len(parts) < len(rows):
+            parts.append(f"{len(rows) - len(parts)} warning(s)")
+        return f"{type(self).__name__}({', '.join(parts)})"
+
+    def _repr_html_(self) -> str:
+        """A small HTML table of the same summary (Jupyter)."""
+        import html
+
+        cells = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th>"
+                        f"<td style='text-align:left'>{html.escape(v)}</td></tr>"
+                        for k, v in self.summary_rows())
+        return f"<table><caption>{type(self).__name__}</caption>{cells}</table>"
+
     def _lines(self) -> list[dict[str, Any]]:
         g = self.geometry
         lev, dec = self.levelling, self.decorrugation
