@@ -12,14 +12,12 @@ below the sensor: a line spacing of 0.26-0.53 times the source distance, tighter
   0.51, 0.99 nT at T = 0.  The exact field on the samples, at a constant height, gridded at
   T = 0: 0.34, 0.31, 0.81 nT, the floor of a cubic spline across the lines through the exact
   field on them (0.39, 0.36, 0.77 nT): the solver is at the sampling floor.
-* micro-levelling after tie-line levelling: every line's correction rejected by the crossing
-  check, anomaly against the truth 0.487, 0.410, 0.499 nT before and after (0.90, 0.73,
-  0.73 nT after without the check).
+* micro-levelling after tie-line levelling: every line's correction rejected by the
+  crossing check, anomaly against the truth 0.487, 0.410, 0.499 nT before and after (0.90,
+  0.73, 0.73 nT without the check).  Osborne: tests/test_survey_level_real.py.
 """
 
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -30,11 +28,8 @@ from scipy.interpolate import CubicSpline
 import aeromag as am
 from aeromag.survey.decorrugation import decorrugate
 from aeromag.survey.diurnal import BaseRecord
-from aeromag.survey.levelling import robust_std
 from aeromag.synthetic import geodetic_to_local, level_survey_anomaly, simulate_level_survey
 
-OSBORNE = (Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "survey"
-           / "osborne-magnetic.csv.xz")
 EDGE_M = 400.0
 
 
@@ -202,30 +197,3 @@ def test_micro_levelling_on_an_independent_survey(seed):
     assert rob["after"] < rob["before"]
     none = am.level(df, igrf=False, method="none", decorrugate=True)
     assert _line_rms(none, "tmi_mlev") < 0.85 * _line_rms(none, "tmi_lev")
-
-
-@pytest.fixture(scope="module")
-def osborne():
-    if not OSBORNE.exists():
-        pytest.skip(f"real data absent ({OSBORNE}): a standalone clone")
-    df = pd.read_csv(OSBORNE)
-    df = df.rename(columns={"flight_line": "line", "longitude": "lon", "latitude": "lat",
-                            "height_orthometric_m": "alt", "total_field_anomaly_nt": "tmi0"})
-    return df.iloc[::2].reset_index(drop=True)
-
-
-def test_micro_levelling_does_not_raise_osborne_crossover_std(osborne):
-    """The archive is already levelled (and micro-levelled by its contractor): the check
-    rejects the corrections of all 273 lines with crossings (robust crossover std 10.18 nT
-    before and after); without it the same filter raised it to 11.60 nT (std 25.1 -> 27.7)."""
-    res = am.level(osborne, value="tmi0", igrf=False, decorrugate=True)
-    rep = res.decorrugation.to_dict()
-    rob = rep["mistie_robust_std_nT"]
-    assert rob["before"] == pytest.approx(res.mistie_robust_std_nT["after"])
-    assert rob["after"] <= rob["before"] + 1e-9
-    cx, lev = res.crossings, res.levelling
-    bare = decorrugate(res.geometry, res.data["tmi_lev"].to_numpy(),
-                       limit_nT=res.decorrugation.limit_nT)
-    i, f = cx.line_index, cx.line_frac
-    c = bare.correction_nT[i] * (1 - f) + bare.correction_nT[i + 1] * f
-    assert robust_std(lev.mistie_lev_nT - c) > rob["before"] + 0.5
