@@ -76,7 +76,8 @@ def test_simulator_chain(sims, seed):
 
 def test_decorrugation_bounded(sims):
     """On the simulator (compact dipoles, 4-km lines) the directional filter cannot tell the
-    sources from corrugation: what it removes is held to the bound (3 x robust mistie std)."""
+    sources from corrugation: what it removes is held to the bound (3 x robust mistie std),
+    and the crossing check rejects it (tests/test_survey_quality.py)."""
     df, base, truth, _ = sims[1]
     res = am.level(df, base=_base(base), lag=0.4, decorrugate=True)
     dec = res.decorrugation

@@ -195,6 +195,7 @@ class LevelResult:
                                   "correction_nT": lev.values_nT[k].tolist()} for k in ks]
             if dec is not None:
                 row["mlev_std_removed_nT"] = dec.std_removed_nT.get(float(num))
+                row["mlev_scale"] = dec.scale.get(float(num))
             out.append(row)
         return out
 
@@ -448,10 +449,13 @@ def level_survey(df: pd.DataFrame, *, value: str | None = None, base: BaseRecord
         out["tmi_lev"] = tmi
     dec = None
     if decorrugate_lines:
+        after = lres.mistie_lev_nT if lres is not None else cx.mistie_nT
         if decorrugation_limit_nT is None:
-            after = lres.mistie_lev_nT if lres is not None else cx.mistie_nT
             decorrugation_limit_nT = max(3.0 * robust_std(after), 0.1)
-        dec = decorrugate(geom, out["tmi_lev"].to_numpy(), limit_nT=decorrugation_limit_nT)
+        # the crossing check: the levelled misties, weighted as the levelling's last pass did
+        dec = decorrugate(geom, out["tmi_lev"].to_numpy(), limit_nT=decorrugation_limit_nT,
+                          crossings=cx, mistie_nT=after,
+                          crossing_weight=lres.weight if lres is not None else None)
         out["tmi_mlev"] = out["tmi_lev"].to_numpy() - dec.correction_nT
     report(6, steps, "done")
     return LevelResult(out, col, geom, lag_s, lag_est, ires, dres, cx, lres, dec, warnings)

@@ -9,23 +9,47 @@ the lines); the ties are left out (they are the datum).  Both directional filter
 Gaussian (normalised convolution, so the survey's edges and gaps are filtered over the data
 there is); the filtered grid is sampled back onto each line's samples and subtracted.
 
-Bounded so that it cannot remove geology: a correction is clipped to ``limit_nT`` (by
-default three times the robust mistie std left by the tie-line levelling: the size of level
-error the crossings show is left), so a geological feature striking along the lines loses
-at most that much; the std removed per line is reported.
+Bounded so that it cannot remove geology, twice:
+
+* a correction is clipped to ``limit_nT`` (by default three times the robust mistie std left
+  by the tie-line levelling: the size of level error the crossings show is left), so a
+  geological feature striking along the lines loses at most that much;
+* the crossing check (given the crossings and their misties after levelling): the ties are
+  the datum and are not corrected, so a correction ``c`` of a line changes its misties from
+  ``m`` to ``m - c`` at its crossings.  A correction the misties do not support is not a
+  level error the ties see but geology the directional filter took for one (after tie-line
+  levelling ``m`` is only noise, and any ``c`` raises it).  Each line's correction is
+  scaled by the least-squares factor ``a = clip(sum w m c / sum w c^2, 0, 1)``, which never
+  raises the weighted mistie sum ``sum w (m - a c)^2``, and rejected (``a = 0``) unless
+  that sum falls significantly: ``sum w m c / sqrt(sum w c^2) >= 2 sigma``, ``sigma`` the
+  pooled robust std of the residuals ``sqrt(w) (m - a c)`` over the survey, corrected for
+  the one factor fitted per line (a one-sided 2-sigma test of the regression of the
+  misties on the correction; on 4 crossings of noise a bare least-squares factor keeps
+  some geology by chance).  A line without
+  a crossing keeps the clipped correction.
+
+The std removed per line, the scale per line and the mistie std before and after are
+reported.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 from scipy.ndimage import gaussian_filter1d
 
+from .crossings import Crossings
 from .geometry import SurveyGeometry
+from .levelling import robust_std
 
 __all__ = ["DecorrugationResult", "decorrugate"]
+
+#: Significance the crossing check asks of a line's correction: the lowering of its weighted
+#: mistie sum, in units of the misties' robust scale, must be at least CHECK_T squared
+#: (a one-sided 2-sigma test that the correction has the sign and shape of its misties).
+CHECK_T = 2.0
 
 #: Gaussian sigma per cut-off wavelength (half-power point of exp(-(2 pi sigma / L)^2 / 2)).
 _SIGMA_PER_WAVELENGTH = np.sqrt(2.0 * np.log(2.0)) / (2.0 * np.pi)
@@ -47,6 +71,13 @@ class DecorrugationResult:
         Line number -> std of the correction applied to it [nT].
     fraction_clipped : float
         Share of the corrected samples whose correction was clipped.
+    scale : dict
+        Line number -> factor of the crossing check applied to its correction (1: kept,
+        0: rejected; a line in pieces: the sample-weighted mean of its pieces'); empty
+        without crossings.
+    mistie_std_nT, mistie_robust_std_nT : dict
+        ``{"before": ..., "after": ...}``: std and robust std of the crossing misties before
+        and after the micro-levelling [nT] (None without crossings).
     """
 
     correction_nT: np.ndarray
@@ -55,15 +86,35 @@ class DecorrugationResult:
     along_wavelength_m: float
     std_removed_nT: dict[float, float]
     fraction_clipped: float
+    scale: dict[float, float] = field(default_factory=dict)
+    mistie_std_nT: dict[str, float | None] = field(
+        default_factory=lambda: {"before": None, "after": None})
+    mistie_robust_std_nT: dict[str, float | None] = field(
+        default_factory=lambda: {"before": None, "after": None})
 
     def to_dict(self) -> dict:
         """JSON-ready summary."""
         vals = np.array(list(self.std_removed_nT.values()) or [np.nan])
-        return {"limit_nT": self.limit_nT, "across_wavelength_m": self.across_wavelength_m,
-                "along_wavelength_m": self.along_wavelength_m,
-                "fraction_clipped": self.fraction_clipped,
-                "std_removed_median_nT": float(np.nanmedian(vals)),
-                "std_removed_max_nT": float(np.nanmax(vals))}
+        sc = np.array(list(self.scale.values()) or [np.nan])
+        with np.errstate(all="ignore"):
+            return {"limit_nT": self.limit_nT,
+                    "across_wavelength_m": self.across_wavelength_m,
+                    "along_wavelength_m": self.along_wavelength_m,
+                    "fraction_clipped": self.fraction_clipped,
+                    "std_removed_median_nT": _nan_none(np.nanmedian(vals)),
+                    "std_removed_max_nT": _nan_none(np.nanmax(vals)),
+                    "crossing_check": bool(self.scale),
+                    "n_lines_kept": int(np.sum(sc >= 1.0)),
+                    "n_lines_scaled": int(np.sum((sc > 0.0) & (sc < 1.0))),
+                    "n_lines_rejected": int(np.sum(sc <= 0.0)),
+                    "n_lines_unchecked": (len(self.std_removed_nT) - len(self.scale)
+                                          if self.scale else None),
+                    "mistie_std_nT": self.mistie_std_nT,
+                    "mistie_robust_std_nT": self.mistie_robust_std_nT}
+
+
+def _nan_none(v: float) -> float | None:
+    return float(v) if np.isfinite(v) else None
 
 
 def _smooth(g: np.ndarray, sigma: float, axis: int) -> np.ndarray:
@@ -78,7 +129,9 @@ def _smooth(g: np.ndarray, sigma: float, axis: int) -> np.ndarray:
 
 
 def decorrugate(geom: SurveyGeometry, value: np.ndarray, *, limit_nT: float,
-                across_lines: float = 4.0, along_lines: float = 20.0) -> DecorrugationResult:
+                across_lines: float = 4.0, along_lines: float = 20.0,
+                crossings: Crossings | None = None, mistie_nT: np.ndarray | None = None,
+                crossing_weight: np.ndarray | None = None) -> DecorrugationResult:
     """Remove the line-parallel corrugation of levelled line data.
 
     Parameters
@@ -93,6 +146,15 @@ def decorrugate(geom: SurveyGeometry, value: np.ndarray, *, limit_nT: float,
         Cut-off wavelength of the across-line high-pass, in line spacings.
     along_lines : float
         Cut-off wavelength of the along-line low-pass, in line spacings.
+    crossings : Crossings, optional
+        The line-tie crossings of ``value``'s survey: enables the crossing check (each
+        line's correction scaled so that it never raises the line's weighted mistie sum).
+    mistie_nT : ndarray, optional
+        Misties of ``value`` at the crossings [nT] (default ``crossings.mistie_nT``; after
+        tie-line levelling give the levelled misties).
+    crossing_weight : ndarray, optional
+        Weight of each crossing in the check (default equal; the levelling's final weights
+        discount steep gradients, height differences and rejected crossings).
 
     Returns
     -------
@@ -148,15 +210,60 @@ def decorrugate(geom: SurveyGeometry, value: np.ndarray, *, limit_nT: float,
     corrug = np.nan_to_num(_smooth(high, sig_along, axis=1))
     at = RegularGridInterpolator((v_nodes, u_nodes), corrug, bounds_error=False,
                                  fill_value=0.0)
+    # the crossing check: each piece's clipped correction at its crossings against its misties
+    piece_scale = np.ones(geom.n_pieces)
+    checked = np.zeros(geom.n_pieces, dtype=bool)
+    mist = c_at = w = None
+    if crossings is not None and crossings.n > 0:
+        mist = np.asarray(crossings.mistie_nT if mistie_nT is None else mistie_nT, float)
+        w = (np.ones(crossings.n) if crossing_weight is None
+             else np.asarray(crossing_weight, float))
+        uc = crossings.x_m * np.sin(th) + crossings.y_m * np.cos(th)
+        vc = crossings.x_m * np.cos(th) - crossings.y_m * np.sin(th)
+        c_at = np.clip(at(np.column_stack([vc, uc])), -limit_nT, limit_nT)
+        ok = np.isfinite(mist) & np.isfinite(w) & (w > 0)
+        pc = crossings.line_piece[ok]
+        m_, c_, w_ = mist[ok], c_at[ok], w[ok]
+        n_p = geom.n_pieces
+        smc = np.bincount(pc, weights=w_ * m_ * c_, minlength=n_p)
+        scc = np.bincount(pc, weights=w_ * c_ * c_, minlength=n_p)
+        checked = np.bincount(pc, minlength=n_p) > 0
+        # the factor a minimising sum w (m - a c)^2 is smc / scc; it lowers the sum by
+        # smc^2 / scc, which must exceed what the misties' noise gives (t >= 2), the noise
+        # being the pooled robust scale of the residuals sqrt(w) (m - a c) (one factor fitted
+        # per checked piece: dof-corrected)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            best = np.clip(np.where(scc > 0, smc / scc, 0.0), 0.0, 1.0)
+        resid = np.sqrt(w_) * (m_ - best[pc] * c_)
+        n_used, n_fit = resid.size, int(checked.sum())
+        sigma = robust_std(resid) * np.sqrt(n_used / max(n_used - n_fit, 1))
+        sigma = max(sigma, 1e-6 * max(robust_std(np.sqrt(w_) * m_), 1e-9))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t = np.where(scc > 0, smc / (sigma * np.sqrt(scc)), 0.0)
+        piece_scale = np.where(checked, np.where(t >= CHECK_T, best, 0.0), 1.0)
     removed: dict[float, float] = {}
+    scale_n: dict[float, list[float]] = {}
     n_clip = n_tot = 0
     for g in groups:
+        k = int(geom.piece[g[0]])
         c = at(np.column_stack([v[g], u[g]]))
         n_clip += int(np.count_nonzero(np.abs(c) > limit_nT))
         n_tot += c.size
-        c = np.clip(c, -limit_nT, limit_nT)
+        c = piece_scale[k] * np.clip(c, -limit_nT, limit_nT)
         corr[g] = c
-        num = float(geom.piece_line[geom.piece[g[0]]])
+        num = float(geom.piece_line[k])
         removed[num] = float(np.hypot(removed.get(num, 0.0), np.std(c)))
-    return DecorrugationResult(corr, float(limit_nT), across_lines * spacing,
-                               along_lines * spacing, removed, n_clip / max(n_tot, 1))
+        if checked[k]:
+            acc = scale_n.setdefault(num, [0.0, 0.0])
+            acc[0] += piece_scale[k] * g.size
+            acc[1] += g.size
+    res = DecorrugationResult(corr, float(limit_nT), across_lines * spacing,
+                              along_lines * spacing, removed, n_clip / max(n_tot, 1),
+                              scale={num: a / n for num, (a, n) in scale_n.items()})
+    if mist is not None and c_at is not None:
+        after = mist - piece_scale[crossings.line_piece] * c_at
+        fin = np.isfinite(mist)
+        res.mistie_std_nT = {"before": float(np.std(mist[fin])),
+                             "after": float(np.std(after[fin]))}
+        res.mistie_robust_std_nT = {"before": robust_std(mist), "after": robust_std(after)}
+    return res

@@ -16,7 +16,7 @@ from .benchmarks import simulate_cstr, simulate_growth
 from .calibration import simulate_calibration
 from .compass import simulate_compass
 from .currents import add_current_interference, current_channels
-from .level_survey import simulate_level_survey
+from .level_survey import level_survey_anomaly, simulate_level_survey
 from .mission import simulate_mission
 from .online_tl import simulate_online_tl
 from .physics import (
@@ -72,6 +72,7 @@ __all__ = [
     "simulate_compass",
     "simulate_cstr",
     "simulate_growth",
+    "level_survey_anomaly",
     "simulate_level_survey",
     "simulate_mission",
     "simulate_online_tl",

@@ -23,7 +23,7 @@ import pandas as pd
 
 from .physics import dipole_field_ned, local_to_geodetic
 
-__all__ = ["LevelSurveyScenario", "simulate_level_survey"]
+__all__ = ["LevelSurveyScenario", "level_survey_anomaly", "simulate_level_survey"]
 
 
 @dataclass
@@ -88,6 +88,60 @@ def _dipoles(rng: np.random.Generator, sc: LevelSurveyScenario, n: int = 12
     depth = rng.uniform(250.0, 700.0, n)
     mom = rng.normal(0.0, 1.0, (n, 3)) * (depth[:, None] / 400.0) ** 3 * 4e7
     return np.column_stack([north, east, depth]), mom
+
+
+def _dipole_anomaly(src_ned: np.ndarray, mom: np.ndarray, east: np.ndarray, north: np.ndarray,
+                    up: np.ndarray, dirn: np.ndarray) -> np.ndarray:
+    """Total-field anomaly [nT] of the dipoles at local east, north, up [m].
+
+    Projected on the unit main-field directions ``dirn`` (NED, one row per point).
+    """
+    pts = np.column_stack([north, east, -up])
+    b = sum(dipole_field_ned(pts, s, m) for s, m in zip(src_ned, mom, strict=True))
+    return np.einsum("ij,ij->i", b, dirn)
+
+
+def level_survey_anomaly(truth: dict[str, Any], east_m: Any, north_m: Any, up_m: Any,
+                         when_utc: str | None = None) -> np.ndarray:
+    """The simulated survey's true total-field anomaly at arbitrary points.
+
+    The same dipoles and formula as the ``truth_anomaly`` column of
+    :func:`simulate_level_survey` (which is this function at the samples), so a grid can be
+    compared with the true field on its nodes.
+
+    Parameters
+    ----------
+    truth : dict
+        The truth returned by :func:`simulate_level_survey` (its ``dipoles`` and
+        ``scenario``).
+    east_m, north_m, up_m : array_like
+        Points in the simulator's local east-north-up frame at ``scenario["origin"]`` [m]
+        (:func:`~aeromag.synthetic.physics.geodetic_to_local` maps latitude, longitude and
+        height into it; the lines fly at ``up = scenario["height_m"]``).
+    when_utc : str, optional
+        ISO UTC time of the main field whose direction projects the anomaly (default the
+        survey's start; the direction changes by < 1e-4 degree over a survey).
+
+    Returns
+    -------
+    ndarray
+        Total-field anomaly [nT], the shape of the broadcast inputs.
+    """
+    import ppigrf
+
+    sc = truth["scenario"]
+    e, n, u = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (east_m, north_m, up_m)))
+    shape = e.shape
+    e, n, u = e.ravel(), n.ravel(), u.ravel()
+    origin = tuple(float(v) for v in sc["origin"])
+    lat, lon, alt = local_to_geodetic(e, n, u, origin)
+    when = _dt.datetime.fromisoformat(when_utc or sc["start_utc"]).replace(tzinfo=None)
+    be, bn, bu = ppigrf.igrf(lon, lat, alt / 1000.0, when)
+    ned = np.column_stack([np.ravel(bn), np.ravel(be), -np.ravel(bu)])
+    dirn = ned / np.linalg.norm(ned, axis=1)[:, None]
+    src = np.asarray(truth["dipoles"]["ned_m"], dtype=float)
+    mom = np.asarray(truth["dipoles"]["moment_Am2"], dtype=float)
+    return _dipole_anomaly(src, mom, e, n, u, dirn).reshape(shape)
 
 
 def _track(sc: LevelSurveyScenario, rng: np.random.Generator) -> list[dict[str, Any]]:
@@ -228,13 +282,9 @@ def simulate_level_survey(seed: int = 0, scenario: LevelSurveyScenario | None = 
     f_lag, ned_lag = igrf_at(lat_l, lon_l, alt_l)
     unit = ned_lag / f_lag[:, None]
 
-    def anomaly(e: np.ndarray, n: np.ndarray, u: np.ndarray, dirn: np.ndarray) -> np.ndarray:
-        pts = np.column_stack([n, e, -(u - 0.0)])
-        b = sum(dipole_field_ned(pts, s, m) for s, m in zip(src_ned, mom, strict=True))
-        return np.einsum("ij,ij->i", b, dirn)
-
-    an_lag = anomaly(cat["el"], cat["nl"], cat["ul"], unit)
-    an_now = anomaly(cat["e"], cat["n"], cat["u"], ned_now / f_now[:, None])
+    an_lag = _dipole_anomaly(src_ned, mom, cat["el"], cat["nl"], cat["ul"], unit)
+    an_now = _dipole_anomaly(src_ned, mom, cat["e"], cat["n"], cat["u"],
+                             ned_now / f_now[:, None])
 
     def diurnal(tt: np.ndarray) -> np.ndarray:
         arg = 2 * np.pi * np.outer(tt - t_start, 1.0 / per) + ph
