@@ -313,7 +313,7 @@ def test_cli_xyz_keeps_lines_and_ties(sim_files, tmp_path):
                                  str(sim_files / "level_base.csv"), "-o", str(out)])
     assert r.exit_code == 0, r.output
     text = out.read_text()
-    assert text.count("\nTie ") == 3 and text.count("\nLine ") == 8
+    assert text.count("\nTie ") == 5 and text.count("\nLine ") == 8
     back = am.read_log(out, required=())
     assert set(back["line_type"]) == {"line", "tie"}
 

@@ -29,7 +29,7 @@ def write_level_simulation(out_dir: str | os.PathLike[str], *, seed: int = 0,
     seed : int
         Random seed.
     small : bool
-        A small block (8 lines of 2 km, 3 ties): the shipped sample.
+        A small block (8 lines of 2 km, 5 ties): the shipped sample.
 
     Returns
     -------
@@ -37,7 +37,7 @@ def write_level_simulation(out_dir: str | os.PathLike[str], *, seed: int = 0,
         ``level_survey``, ``level_base``, ``level_truth``.
     """
     out = sim_folder(out_dir)
-    kw = {"n_lines": 8, "line_length_m": 2000.0, "n_ties": 3, "rate_hz": 5.0} if small else {}
+    kw = {"n_lines": 8, "line_length_m": 2000.0, "n_ties": 5, "rate_hz": 5.0} if small else {}
     survey, base, truth = simulate_level_survey(seed, **kw)
     # Written to the sensors' resolution: 1e-7 deg (1 cm), 1 mm, 1 pT; the base to 0.01 nT.
     survey = survey.round({"time": 3, "lat": 7, "lon": 7, "alt": 3, "mag": 3,
