@@ -7,8 +7,9 @@ dropped or shifted, for OUT.json) and ``df.attrs[ROWS_ATTR]`` (where each row is
 file).  :func:`sniff_base_dump` recognises them from their content, whatever the extension.
 
 **GEM Systems GSM-19 base file** (``NNname.b``; GEM Systems, *GSM-19 Series Magnetometers,
-Version 7* manual, ch. 6 "Data organization and transfer": file extension ``.b`` = base, a new
-file at each midnight crossing; layout as read by MagPy, ``geomagpy/magpy``
+Version 7* manual, ch. 6 "Data organization and transfer",
+https://www.easymanua.ls/gem/gsm-19/manual?p=71: file extension ``.b`` = base, a new file at
+each midnight crossing; layout as read by MagPy, ``geomagpy/magpy``
 ``magpy/lib/format_gsm19.py``)::
 
     /Gem Systems GSM-19W 3101329 v7.0 28 VI 2019 M ew3fl.v7o     <- instrument, firmware
@@ -29,10 +30,11 @@ Networks Canada's description of GEM's GSM-90 quality indicator,
 https://wiki.oceannetworks.ca/display/DP/194): a reading with Y = 0 is dropped and counted.
 
 **Geometrics G-856 dump** (Geometrics, *G-856AX Memory-Mag Operation Manual*, appendix
-"Output format": each line is 29 ASCII characters, starting with a space or an asterisk and a
-3-digit line number; the rest of the field list as written and read by PyMaGra,
-``HZeyen/pymagra`` ``Pymagra/in_out/geometrics.py``, ``Geometrics.read_base`` and
-``write_base``)::
+"Output format",
+https://manualshive.com/en/manual/geometrics/memory-mag-g-856ax/2214709?page=50: each line
+is 29 ASCII characters, starting with a space or an asterisk and a 3-digit line number; the
+rest of the field list as written and read by PyMaGra, ``HZeyen/pymagra``
+``Pymagra/in_out/geometrics.py``, ``Geometrics.read_base`` and ``write_base``)::
 
     *  0 306 005000    1 504943                                   <- flag, line, day of year,
                                                                      hhmmss, station, 0.1 nT
