@@ -124,6 +124,13 @@ def test_gsm19_midnight_wrap_and_utc_offset(tmp_path):
     np.testing.assert_array_equal(read_base_file(p)["time"], t)
 
 
+def test_g856_new_year(tmp_path):
+    t = dt.datetime(2014, 12, 31, 23, 59, 58, tzinfo=dt.UTC).timestamp() + np.arange(5.0)
+    p = write_g856(tmp_path / "ny.txt", t, np.full(5, 50_000.0), np.zeros(5, bool))
+    for date in ("2014-12-31", "2015-01-01"):  # the survey's date on either side of midnight
+        np.testing.assert_array_equal(read_base(p, date=date)[0], t)
+
+
 def test_shipped_samples_are_read_and_sniffed_whatever_the_extension(tmp_path):
     gsm = SAMPLES / "formats" / "gsm19_base_sample.b"
     g856 = SAMPLES / "formats" / "g856_base_sample.txt"

@@ -41,8 +41,9 @@ rest of the field list as written and read by PyMaGra, ``HZeyen/pymagra``
 
 The reading is in tenths of a nT.  A ``?`` before the reading (PyMaGra strips it) is taken as
 the instrument's doubt about that reading: it is dropped and counted.  The dump gives the
-day of the year but no year: ``date`` (``--date YYYY-MM-DD``, the survey's UTC date) gives it,
-and a day that drops back (365 -> 1) is in the next year.  Times are taken as UTC.
+day of the year but no year: ``date`` (``--date YYYY-MM-DD``, the survey's UTC date) gives it
+(the year before for a dump begun in late December for a January date), and a day that drops
+back (365 -> 1) is in the next year.  Times are taken as UTC.
 """
 
 from __future__ import annotations
@@ -311,7 +312,9 @@ def read_g856(path: str | os.PathLike[str], date: str | None = None) -> pd.DataF
         raise InputError(f"{clean(p)}: no G-856 reading in the file")
     first = _parse_date(date, p, "a G-856 dump gives the day of year but no year")
     d = np.asarray(doy, dtype=np.int64)
-    year = first.year + np.concatenate(([0], np.cumsum(np.diff(d) < -300)))
+    # a dump started late in December for a survey dated in January began the year before
+    start = first.year - int(d[0] - first.timetuple().tm_yday > 300)
+    year = start + np.concatenate(([0], np.cumsum(np.diff(d) < -300)))
     jan1 = np.array([(_dt.datetime(int(y), 1, 1) - _dt.datetime(1970, 1, 1)).total_seconds()
                      for y in year])
     ndays = np.where([_dt.date(int(y), 12, 31).timetuple().tm_yday == 366 for y in year],
