@@ -94,7 +94,7 @@ def test_boulder_iaga2002_days():
     assert one.attrs["f_source"] == "F" and len(one) == 1440
     assert one["time"].iloc[0] == pd.Timestamp("2014-11-01", tz="UTC").timestamp()
     assert 52300 < one["mag"].median() < 52500
-    t, v, src = read_base(BOU)
+    t, v, src, _ = read_base(BOU)
     assert t.size == 2880 and np.all(np.diff(t) == 60.0) and "bou20141102" in src
     # These are "variation" data: the vector components lack their baselines (F from them is
     # 534 nT off), but their variation is the scalar F's, which is all a diurnal needs.

@@ -150,8 +150,9 @@ OPTIONS: list[Option] = [
         "grid": "The column to grid (default: tmi_mlev, else tmi_lev, else tmi)."},
        {"level", "grid"}, metavar="COL"),
     _o("base", "--base", list[Path] | None, None, "Base-station record: CSV with time (UTC s "
-       "since 1970 or ISO 8601) and mag (nT), or IAGA-2002 .min/.sec (F, or F from the vector "
-       "components); repeatable for consecutive days. Without it: no diurnal correction (a "
+       "since 1970 or ISO 8601) and mag (nT), IAGA-2002 .min/.sec (F, or F from the vector "
+       "components), a GEM GSM-19 base file or a Geometrics G-856 dump (with --date); "
+       "repeatable for consecutive days. Without it: no diurnal correction (a "
        "warning says so).", {"level"}, metavar="FILE"),
     _o("base_datum", "--base-datum", float | None, None, "Datum of the diurnal correction, nT "
        "(default: the base's mean over the survey).", {"level"}, metavar="NT"),
@@ -159,7 +160,7 @@ OPTIONS: list[Option] = [
        "coverage get an empty diurnal (and tmi) with a warning, instead of an error (never "
        "extrapolated).", {"level"}),
     _o("date", "--date", str | None, None, "The UTC date of a log whose time is seconds since "
-       "midnight.", {"level"}, metavar="YYYY-MM-DD"),
+       "midnight (level: also the year of a G-856 base dump).", {"level"}, metavar="YYYY-MM-DD"),
     _o("lag", "--lag", str, "0", "The magnetometer's lag behind the position, s (positive when "
        "the reading at time t is the field at the position of time t - lag), or auto: "
        "estimated from adjacent lines flown in opposite directions.", {"level"},

@@ -20,6 +20,7 @@ module             what it holds
 ``messages``       echoed names without control characters
 ``plans``          mission plans (``.csv``, QGroundControl ``.plan``, ``.waypoints``)
 ``base``           base-station records: CSV ``time,mag`` and IAGA-2002 (``.min``, ``.sec``)
+``base_dumps``     GEM GSM-19 base files and Geometrics G-856 dumps (content-sniffed)
 =================  ===============================================================
 """
 

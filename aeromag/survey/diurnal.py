@@ -40,11 +40,15 @@ class BaseRecord:
         Total field [nT] (NaN: missing).
     source : str
         File it came from.
+    notes : tuple of str
+        What the reader dropped or shifted (flagged readings, a clock offset), reported
+        among the diurnal step's warnings.
     """
 
     time_s: np.ndarray
     mag_nT: np.ndarray
     source: str = "<base>"
+    notes: tuple[str, ...] = ()
 
 
 @dataclass
@@ -198,7 +202,7 @@ def diurnal_correction(time_s: np.ndarray, base: BaseRecord, *, datum_nT: float 
         raise InputError(f"{src}: base-station times must be increasing, with at least two "
                          "samples")
     cleaned, spikes = clean_base(base, spike_mad=spike_mad)
-    warnings: list[str] = []
+    warnings: list[str] = list(base.notes)
     if spikes.any():
         msg = (f"{src}: {int(spikes.sum())} base-station spike(s) removed (first at "
                f"{bt[spikes][0]:.0f} s; robust threshold {spike_mad:g} MAD)")

@@ -33,14 +33,16 @@ __all__ = ["level", "level_file", "base_record"]
 PathLike = str | os.PathLike[str]
 
 
-def base_record(base: PathLike | Sequence[PathLike] | BaseRecord | pd.DataFrame | None
-                ) -> BaseRecord | None:
+def base_record(base: PathLike | Sequence[PathLike] | BaseRecord | pd.DataFrame | None,
+                date: str | None = None) -> BaseRecord | None:
     """A base-station record from a file, files, a ``time,mag`` table or a record.
 
     Parameters
     ----------
     base : path-like, sequence of path-like, BaseRecord, DataFrame or None
         The record.
+    date : str, optional
+        ``YYYY-MM-DD``, for a base dump without its date (G-856: the year).
 
     Returns
     -------
@@ -54,8 +56,8 @@ def base_record(base: PathLike | Sequence[PathLike] | BaseRecord | pd.DataFrame 
             raise InputError(f"base table: missing column(s) {', '.join(missing)}")
         return BaseRecord(base["time"].to_numpy(float), base["mag"].to_numpy(float),
                           str(base.attrs.get("source", "<base>")))
-    t, v, src = read_base(base)
-    return BaseRecord(t, v, src)
+    t, v, src, notes = read_base(base, date=date)
+    return BaseRecord(t, v, src, tuple(notes))
 
 
 def _parse_ties(ties: str | Sequence[float]) -> str | list[float]:
@@ -85,7 +87,8 @@ def level(survey: pd.DataFrame | PathLike, *,
     survey : DataFrame or path-like
         The survey (``time``, ``lat``, ``lon``, ``alt``, ``line``, a total field).
     base : path-like, list of path-like, BaseRecord or DataFrame, optional
-        Base-station record(s): CSV ``time,mag`` or IAGA-2002 ``.min``/``.sec``.
+        Base-station record(s): CSV ``time,mag``, IAGA-2002 ``.min``/``.sec``, a GEM GSM-19
+        base file or a Geometrics G-856 dump (``date`` gives a G-856 dump its year).
     value : str, optional
         Column to level (default ``mag_comp``, else ``mag``).
     date : str, optional
@@ -126,7 +129,7 @@ def level(survey: pd.DataFrame | PathLike, *,
     else:
         src = str(survey)
         df = read_log(survey, columns=columns, units=units, required=(), fmt=fmt)
-    return level_survey(df, value=value, base=base_record(base), date=date, lag=lag,
+    return level_survey(df, value=value, base=base_record(base, date), date=date, lag=lag,
                         igrf=igrf, ties=_parse_ties(ties), method=method,
                         decorrugate_lines=decorrugate, crs=crs, base_datum_nT=base_datum_nT,
                         allow_base_gaps=allow_base_gaps, progress=progress, source=src)
