@@ -229,11 +229,14 @@ def test_level_with_gsm19_and_g856_bases_matches_the_csv_base(converted, tmp_pat
     kept = _level(["--base", str(converted / "base_kept.csv")], tmp_path / "k.csv")
     gsm = _level(["--base", str(converted / "base.b")], tmp_path / "g.csv")
     # the same record (fields to 0.01 nT) less the two flagged readings: the diurnal of the
-    # CSV without them, to 0.01 nT; dropping them moves the diurnal by their noise only
+    # CSV without them, to 0.01 nT; dropping them moves the diurnal by their noise only (the
+    # simulated base noise is 0.05 nT: at most 4 of it)
     assert np.nanmax(np.abs(gsm["diurnal"] - kept["diurnal"])) <= 0.01
-    assert np.nanmax(np.abs(gsm["diurnal"] - csv["diurnal"])) < 0.05
+    assert np.nanmax(np.abs(gsm["diurnal"] - csv["diurnal"])) < 0.2
+    assert np.nanmedian(np.abs(gsm["diurnal"] - csv["diurnal"])) < 0.01
     rep = json.loads((tmp_path / "g.json").read_text())
-    assert "2 of 2546 GSM-19 readings of quality Y = 0" in " ".join(rep["warnings"])
+    n = len(pd.read_csv(SAMPLES / "level_base.csv"))
+    assert f"2 of {n} GSM-19 readings of quality Y = 0" in " ".join(rep["warnings"])
     # G-856 records 0.1 nT: it matches the CSV record rounded to 0.1 nT, to 0.01 nT
     c01 = _level(["--base", str(converted / "base01.csv")], tmp_path / "c01.csv")
     g856 = _level(["--base", str(converted / "base.txt"), "--date", "2014-11-02"],
