@@ -169,6 +169,11 @@ def _std_pair(res: LevelResult, fn: Callable[[np.ndarray], float]) -> dict[str, 
     return {"before": float(fn(cx.mistie_nT)), "after": float(fn(after))}
 
 
+def _add(df: pd.DataFrame, name: str, values: np.ndarray) -> None:
+    """A new column holding ``values`` itself (``df[name] = array`` would copy it)."""
+    df[name] = pd.Series(values, index=df.index, copy=False)
+
+
 def value_column(df: pd.DataFrame, value: str | None, source: str) -> str:
     """The column to level: ``value``, else ``mag_comp``, else ``mag``.
 
@@ -363,16 +368,22 @@ def level_survey(df: pd.DataFrame, *, value: str | None = None, base: BaseRecord
         if t is None:
             raise InputError(f"{src}: --lag {lag_s:g} needs a time column")
         vd = apply_lag(t, vd, geom.piece, lag_s)
-    tmi = vd - igrf_v
-    out = df.copy()
-    out["x_m"], out["y_m"] = geom.x_m, geom.y_m
+    vd -= igrf_v  # in place: vd is this function's own array (v - diurnal, or lagged)
+    tmi = vd
+    del vd
+    # The table shares the input's columns (copy on write: the caller's frame is never
+    # changed) and the new columns' arrays (no second copy of each).
+    out = df.copy(deep=False)
+    _add(out, "x_m", geom.x_m)
+    _add(out, "y_m", geom.y_m)
     lt = np.full(v.size, "", dtype=object)
     on = geom.piece >= 0
     lt[on] = np.where(geom.is_tie[on], "tie", "line")
     out["line_type"] = lt
-    out["igrf"] = igrf_v if ires is not None else np.nan
-    out["diurnal"] = diurnal if dres is not None else np.nan
-    out["tmi"] = tmi
+    del lt
+    _add(out, "igrf", igrf_v if ires is not None else np.full(v.size, np.nan))
+    _add(out, "diurnal", diurnal if dres is not None else np.full(v.size, np.nan))
+    _add(out, "tmi", tmi)
     report(4, steps, "crossings")
     h = df["alt"].to_numpy(float) if "alt" in df.columns else None
     cx = None
@@ -388,7 +399,9 @@ def level_survey(df: pd.DataFrame, *, value: str | None = None, base: BaseRecord
         counts = np.bincount(geom.piece[geom.piece >= 0], minlength=geom.n_pieces)
         lres = level_network(cx, geom.n_pieces, geom.piece_is_tie, method=method,
                              piece_samples=counts, source=src)
-        out["tmi_lev"] = tmi + lres.correction(geom.piece, geom.along_m)
+        lev = lres.correction(geom.piece, geom.along_m)
+        lev += tmi  # tmi + correction, without a third array
+        _add(out, "tmi_lev", lev)
     else:
         out["tmi_lev"] = tmi
     dec = None
@@ -397,6 +410,6 @@ def level_survey(df: pd.DataFrame, *, value: str | None = None, base: BaseRecord
             after = lres.mistie_lev_nT if lres is not None else cx.mistie_nT
             decorrugation_limit_nT = max(3.0 * robust_std(after), 0.1)
         dec = decorrugate(geom, out["tmi_lev"].to_numpy(), limit_nT=decorrugation_limit_nT)
-        out["tmi_mlev"] = out["tmi_lev"].to_numpy() - dec.correction_nT
+        _add(out, "tmi_mlev", out["tmi_lev"].to_numpy() - dec.correction_nT)
     report(6, steps, "done")
     return LevelResult(out, col, geom, lag_s, lag_est, ires, dres, cx, lres, dec, warnings)

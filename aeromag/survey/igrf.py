@@ -23,6 +23,8 @@ __all__ = ["IGRFResult", "igrf_total_intensity", "parse_date", "IGRF_YEARS"]
 #: Years the IGRF-14 coefficients shipped with ppigrf cover.
 IGRF_YEARS = (1900.0, 2030.0)
 _DAY = 86400.0
+#: Samples interpolated at a time.
+_BLOCK = 500_000
 
 
 @dataclass
@@ -143,14 +145,25 @@ def igrf_total_intensity(lat: np.ndarray, lon: np.ndarray, height_m: np.ndarray,
                         for d in days])
     grids = [_lattice_field(lat_n, lon_n, h_n, _dt.datetime(d.year, d.month, d.day))
              for d in days]
-    pts = np.column_stack([lat[ok], lon_w[ok], h[ok]])
-    vals = [RegularGridInterpolator((lat_n, lon_n, h_n), g, bounds_error=False,
-                                    fill_value=None)(pts) for g in grids]
-    tt = t[ok]
-    j = np.clip(np.searchsorted(t_nodes, tt, side="right") - 1, 0, len(days) - 2)
-    w = (tt - t_nodes[j]) / _DAY
-    stack = np.array(vals)
-    f = (1 - w) * stack[j, np.arange(tt.size)] + w * stack[j + 1, np.arange(tt.size)]
+    interps = [RegularGridInterpolator((lat_n, lon_n, h_n), g, bounds_error=False,
+                                       fill_value=None) for g in grids]
+    idx = np.flatnonzero(ok)
+    f = np.empty(idx.size)
+    # Only the two days around each sample, a block of samples at a time: the memory is the
+    # block's, not (days x samples) (13 days x 1e7 samples were 1 GB, and 4 GB of the
+    # interpolator's temporaries); each sample's value is the same as evaluated all at once.
+    for a in range(0, idx.size, _BLOCK):
+        k = idx[a:a + _BLOCK]
+        tt = t[k]
+        j = np.clip(np.searchsorted(t_nodes, tt, side="right") - 1, 0, len(days) - 2)
+        w = (tt - t_nodes[j]) / _DAY
+        pts = np.column_stack([lat[k], lon_w[k], h[k]])
+        fb = np.empty(k.size)
+        for d in np.unique(j):
+            m = j == d
+            p = pts[m]
+            fb[m] = (1 - w[m]) * interps[d](p) + w[m] * interps[d + 1](p)
+        f[a:a + _BLOCK] = fb
     out = np.full(lat.shape, np.nan)
     out[ok] = f
     return IGRFResult(out, "IGRF-14", [d.isoformat() for d in days[:-1]])

@@ -23,7 +23,14 @@ from ..io import atomic_path, json_path_for, read_log, write_json
 from ..io.grids import check_grid_path, write_grid
 from ..io.outputs import check_outputs
 from ..survey.gridding import DEFAULT_TENSION
-from ..survey.grids import GridResult, grid, survey_positions
+from ..survey.grids import (
+    GRID_COLUMNS,
+    GRID_VALUE_COLUMNS,
+    GridResult,
+    grid,
+    survey_positions,
+    value_column,
+)
 from ..survey.transforms import parse_transforms
 
 log = logging.getLogger(__name__)
@@ -199,8 +206,19 @@ def grid_file(
     if map_path is not None:
         outs.append(Path(map_path))
     check_outputs(src, *outs)
-    df = read_log(src, columns=dict(columns) if columns else None, required=(), fmt=fmt,
-                  min_rows=3)
+    # Only the columns the grid uses: a levelled log has 15 or more (1e7 samples: 3.5 GB
+    # read whole); the value candidates not taken are dropped once the value is chosen.
+    wanted = (value,) if value is not None else GRID_VALUE_COLUMNS
+    cmap = dict(columns) if columns else None
+    df = read_log(src, columns=cmap, required=(), fmt=fmt, min_rows=3,
+                  usecols=[*GRID_COLUMNS, *wanted])
+    if not any(c in df.columns for c in wanted):  # the refusal names every column of the log
+        df = read_log(src, columns=cmap, required=(), fmt=fmt, min_rows=3)
+    elif value is None:
+        chosen = value_column(list(df.columns), None, str(src))
+        for c in GRID_VALUE_COLUMNS:
+            if c != chosen and c in df.columns:
+                del df[c]
     beside = _crs_beside(src)
     if beside is not None:
         df.attrs["crs"] = beside

@@ -15,6 +15,9 @@ from ..rows import ROWS_ATTR, rows_numbered
 
 log = logging.getLogger(__name__)
 
+#: Rows per row group written (pyarrow's default largest row group).
+ROW_GROUP = 1024 * 1024
+
 def read_parquet(path: Path) -> pd.DataFrame:
     """Read a Parquet file; a named pandas index (``df.set_index("time")``) becomes a column.
 
@@ -35,7 +38,10 @@ def read_parquet(path: Path) -> pd.DataFrame:
     except Exception as exc:  # noqa: BLE001 - any pyarrow failure is a bad file
         raise InputError(parquet_error(path, exc)) from None
     try:
-        df = table.to_pandas()
+        # one block per column, each Arrow column freed as it is converted: the peak is the
+        # table's size plus a column, not twice (or, consolidating, three times) the table
+        df = table.to_pandas(split_blocks=True, self_destruct=True)
+        del table
     except Exception as exc:  # noqa: BLE001 - any pyarrow failure is a bad file
         raise InputError(parquet_error(path, exc)) from None
     named = [n for n in df.index.names if n is not None]
@@ -106,7 +112,11 @@ def write_parquet(df: pd.DataFrame, path: str | os.PathLike[str]) -> Path:
     import pyarrow.parquet as pq
 
     p = Path(path)
-    table = pa.Table.from_pandas(df, preserve_index=False)
-    with atomic_path(p) as tmp:
-        pq.write_table(table, tmp, write_page_checksum=True)
+    # Converted and written one row group at a time (pyarrow's default row-group length):
+    # the same file as one write of the whole table, without a second copy of the table.
+    schema = pa.Schema.from_pandas(df, preserve_index=False)
+    with atomic_path(p) as tmp, pq.ParquetWriter(tmp, schema, write_page_checksum=True) as w:
+        for a in range(0, max(len(df), 1), ROW_GROUP):
+            w.write_table(pa.Table.from_pandas(df.iloc[a:a + ROW_GROUP], schema=schema,
+                                               preserve_index=False))
     return p
