@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-GEN_VERSION = 1
+GEN_VERSION = 2
 ORIGIN = (-20.0, 140.0)  # south-west corner of the block, deg (UTM zone 54 S)
 STEP_M = 5.0  # 50 m/s at 10 Hz
 RATE_HZ = 10.0
@@ -49,6 +49,7 @@ SPACING_M = 200.0
 TIE_SPACING_M = 2000.0
 T0 = 1_414_890_000.0  # 2014-11-02 01:00 UTC
 TARGET_CELLS = 640_000
+ROW_GROUP = 1024 * 1024
 PAD_M = 1000.0  # the anomaly lattice reaches this far beyond the block (run-ins, turns)
 
 
@@ -120,6 +121,7 @@ def generate(n: int, folder: Path, seed: int = 7) -> tuple[Path, Path, dict]:
     t = T0
     run_in = 15.0 * 50.0  # 15 s of run-in, m
     total = 0
+    pending: list = []
     tmp = survey.with_suffix(".tmp")
     with pq.ParquetWriter(tmp, schema) as w:
         for k, (kind, num, fixed) in enumerate(tracks):
@@ -140,10 +142,15 @@ def generate(n: int, folder: Path, seed: int = 7) -> tuple[Path, Path, dict]:
                    + shift + trend * (s / span - 0.5) + rng.normal(0, 0.03, s.size))
             lon, lat = back.transform(e0 + east, n0 + north)
             alt = 280.0 + (5.0 if kind == "tie" else 0.0) + rng.normal(0, 1.0, s.size)
-            w.write_table(pa.table({"time": tt, "lat": np.asarray(lat), "lon": np.asarray(lon),
-                                    "alt": alt, "line": np.full(s.size, float(num)),
-                                    "mag": mag}, schema=schema))
+            pending.append(pa.table({"time": tt, "lat": np.asarray(lat),
+                                     "lon": np.asarray(lon), "alt": alt,
+                                     "line": np.full(s.size, float(num)), "mag": mag},
+                                    schema=schema))
             total += s.size
+            if sum(len(p) for p in pending) >= ROW_GROUP or k == len(tracks) - 1:
+                # row groups of pyarrow's default length, as aeromag writes them
+                w.write_table(pa.concat_tables(pending), row_group_size=ROW_GROUP)
+                pending = []
             t = tt[-1] + 60.0  # a one-minute turn without samples
     tmp.replace(survey)
     tb = np.arange(np.floor(T0) - 600.0, t + 600.0, 1.0)

@@ -208,18 +208,25 @@ def grid_file(
     check_outputs(src, *outs)
     # Only the columns the grid uses: a levelled log has 15 or more (1e7 samples: 3.5 GB
     # read whole); the value candidates not taken are dropped once the value is chosen.
+    # lat, lon, alt only when they may serve: no CRS known for x_m/y_m (no level report
+    # beside the log, no --crs), a re-projection asked, or rtp's field direction.
+    beside = _crs_beside(src)
+    geo = beside is None or crs is not None or any(t.kind == "rtp" for t in steps)
     wanted = (value,) if value is not None else GRID_VALUE_COLUMNS
     cmap = dict(columns) if columns else None
+    lean = [c for c in GRID_COLUMNS if geo or c not in ("lat", "lon", "alt")]
     df = read_log(src, columns=cmap, required=(), fmt=fmt, min_rows=3,
-                  usecols=[*GRID_COLUMNS, *wanted])
+                  usecols=[*lean, *wanted])
     if not any(c in df.columns for c in wanted):  # the refusal names every column of the log
         df = read_log(src, columns=cmap, required=(), fmt=fmt, min_rows=3)
-    elif value is None:
+    elif not geo and not {"x_m", "y_m"} <= set(df.columns):  # positions from lat/lon, then
+        df = read_log(src, columns=cmap, required=(), fmt=fmt, min_rows=3,
+                      usecols=[*GRID_COLUMNS, *wanted])
+    if value is None and any(c in df.columns for c in wanted):
         chosen = value_column(list(df.columns), None, str(src))
         for c in GRID_VALUE_COLUMNS:
             if c != chosen and c in df.columns:
                 del df[c]
-    beside = _crs_beside(src)
     if beside is not None:
         df.attrs["crs"] = beside
     direction, dir_info = (None, None)

