@@ -143,6 +143,8 @@ class LevellingResult:
             Correction [nT] (constant beyond the end knots).
         """
         out = np.full(piece.size, np.nan)
+        if piece.size == 0:
+            return out
         # Runs of one piece (a piece is one run in a survey's geometry): slices, no sort
         # and no index arrays of every sample.
         cuts = np.flatnonzero(np.diff(piece)) + 1
