@@ -43,7 +43,8 @@ class LevelResult:
     ----------
     data : DataFrame
         The survey with ``x_m``, ``y_m``, ``line_type``, ``igrf``, ``diurnal``, ``tmi``,
-        ``tmi_lev`` (and ``tmi_mlev``) added.
+        ``tmi_lev`` (and ``tmi_mlev``) added (holding the steps' arrays, e.g.
+        ``geometry.x_m``, not copies of them; the input table is never changed).
     value : str
         The column levelled.
     geometry : SurveyGeometry

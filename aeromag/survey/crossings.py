@@ -21,7 +21,7 @@ from scipy.spatial import cKDTree
 
 from .geometry import SurveyGeometry
 
-__all__ = ["Crossings", "along_gradient", "find_crossings"]
+__all__ = ["BLOCK_SAMPLES", "Crossings", "along_gradient", "find_crossings"]
 
 
 @dataclass
@@ -148,13 +148,13 @@ def _segments(geom: SurveyGeometry, tie: bool, valid: np.ndarray) -> np.ndarray:
 
 
 #: Line segments screened against the ties' cells at a time.
-_BLOCK = 1_000_000
+BLOCK_SAMPLES = 1_000_000
 
 
 def _seg_len(x: np.ndarray, y: np.ndarray, s: np.ndarray) -> float:
     """Longest of the segments starting at the samples ``s`` [m], in blocks."""
-    return max(float(np.max(np.hypot(x[k + 1] - x[k], y[k + 1] - y[k])))
-               for k in (s[a:a + _BLOCK] for a in range(0, s.size, _BLOCK)))
+    blocks = (s[a:a + BLOCK_SAMPLES] for a in range(0, s.size, BLOCK_SAMPLES))
+    return max(float(np.max(np.hypot(x[k + 1] - x[k], y[k + 1] - y[k]))) for k in blocks)
 
 
 def _near_ties(x: np.ndarray, y: np.ndarray, ls: np.ndarray, ts: np.ndarray, radius: float
@@ -177,8 +177,8 @@ def _near_ties(x: np.ndarray, y: np.ndarray, ls: np.ndarray, ts: np.ndarray, rad
     near = np.unique(np.concatenate([(ty - y0 + dy) * width + (tx - x0 + dx)
                                      for dx in (-1, 0, 1) for dy in (-1, 0, 1)]))
     keep = []
-    for a in range(0, ls.size, _BLOCK):
-        k = ls[a:a + _BLOCK]
+    for a in range(0, ls.size, BLOCK_SAMPLES):
+        k = ls[a:a + BLOCK_SAMPLES]
         cx, cy = cells(k)
         inside = (cx >= x0) & (cx < x0 + width) & (cy >= y0)
         key = (cy - y0) * width + (cx - x0)

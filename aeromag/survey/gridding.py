@@ -35,9 +35,9 @@ from ..errors import FitError, InputError
 
 log = logging.getLogger(__name__)
 
-__all__ = ["DEFAULT_TENSION", "GridSummary", "MEMORY_BYTES_PER_CELL", "check_grid_memory",
-           "default_cell", "estimate_line_spacing", "far_from_samples", "grid_region",
-           "minimum_curvature", "missing_extra"]
+__all__ = ["BLOCK_SAMPLES", "DEFAULT_TENSION", "GridSummary", "MEMORY_BYTES_PER_CELL",
+           "check_grid_memory", "default_cell", "estimate_line_spacing", "far_from_samples",
+           "grid_region", "minimum_curvature", "missing_extra"]
 
 #: Default tension: GMT's recommendation for potential-field data (``surface -T0.25``).
 DEFAULT_TENSION = 0.25
@@ -51,7 +51,7 @@ MEMORY_BYTES_PER_CELL = 2_000
 #: Coarsest level solved directly (nodes).
 _DIRECT_NODES = 6_000
 #: Samples handled at a time where a whole-survey temporary would be the memory peak.
-_BLOCK = 1_000_000
+BLOCK_SAMPLES = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -135,8 +135,9 @@ def _pieces(x: np.ndarray, y: np.ndarray, line: np.ndarray | None) -> np.ndarray
     new = step > 5.0 * max(med, 1e-9)
     ang = np.arctan2(dy, dx)
     del dx, dy, step
-    for a in range(0, max(ang.size - 1, 0), _BLOCK):  # blocks: no complex array of n samples
-        d = np.diff(ang[a:a + _BLOCK + 1])
+    # in blocks: no complex array of every sample
+    for a in range(0, max(ang.size - 1, 0), BLOCK_SAMPLES):
+        d = np.diff(ang[a:a + BLOCK_SAMPLES + 1])
         new[a + 1:a + 1 + d.size] |= np.abs(np.angle(np.exp(1j * d))) > np.radians(60.0)
     if line is not None:
         new |= np.diff(line) != 0
@@ -387,11 +388,12 @@ def far_from_samples(x_m: np.ndarray, y_m: np.ndarray, xg: np.ndarray, yg: np.nd
     nodes = np.column_stack([gxx.ravel(), gyy.ravel()])
     del gyy, gxx
     far = np.ones(nodes.shape[0], dtype=bool)
-    for a in range(0, x_m.size, 4 * _BLOCK):
+    step = 4 * BLOCK_SAMPLES
+    for a in range(0, x_m.size, step):
         todo = np.flatnonzero(far)
         if todo.size == 0:
             break
-        tree = cKDTree(np.column_stack([x_m[a:a + 4 * _BLOCK], y_m[a:a + 4 * _BLOCK]]))
+        tree = cKDTree(np.column_stack([x_m[a:a + step], y_m[a:a + step]]))
         dist, _ = tree.query(nodes[todo], k=1, distance_upper_bound=distance_m)
         far[todo[np.isfinite(dist)]] = False
     return far.reshape(yg.size, xg.size)

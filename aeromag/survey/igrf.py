@@ -18,13 +18,13 @@ from scipy.interpolate import RegularGridInterpolator
 
 from ..errors import InputError
 
-__all__ = ["IGRFResult", "igrf_total_intensity", "parse_date", "IGRF_YEARS"]
+__all__ = ["BLOCK_SAMPLES", "IGRFResult", "igrf_total_intensity", "parse_date", "IGRF_YEARS"]
 
 #: Years the IGRF-14 coefficients shipped with ppigrf cover.
 IGRF_YEARS = (1900.0, 2030.0)
 _DAY = 86400.0
 #: Samples interpolated at a time.
-_BLOCK = 500_000
+BLOCK_SAMPLES = 500_000
 
 
 @dataclass
@@ -152,8 +152,8 @@ def igrf_total_intensity(lat: np.ndarray, lon: np.ndarray, height_m: np.ndarray,
     # Only the two days around each sample, a block of samples at a time: the memory is the
     # block's, not (days x samples) (13 days x 1e7 samples were 1 GB, and 4 GB of the
     # interpolator's temporaries); each sample's value is the same as evaluated all at once.
-    for a in range(0, idx.size, _BLOCK):
-        k = idx[a:a + _BLOCK]
+    for a in range(0, idx.size, BLOCK_SAMPLES):
+        k = idx[a:a + BLOCK_SAMPLES]
         tt = t[k]
         j = np.clip(np.searchsorted(t_nodes, tt, side="right") - 1, 0, len(days) - 2)
         w = (tt - t_nodes[j]) / _DAY
@@ -163,7 +163,7 @@ def igrf_total_intensity(lat: np.ndarray, lon: np.ndarray, height_m: np.ndarray,
             m = j == d
             p = pts[m]
             fb[m] = (1 - w[m]) * interps[d](p) + w[m] * interps[d + 1](p)
-        f[a:a + _BLOCK] = fb
+        f[a:a + BLOCK_SAMPLES] = fb
     out = np.full(lat.shape, np.nan)
     out[ok] = f
     return IGRFResult(out, "IGRF-14", [d.isoformat() for d in days[:-1]])
