@@ -196,3 +196,22 @@ def test_level_correction_of_few_samples(n):
                         np.zeros(0), np.zeros(0))
     out = r.correction(np.zeros(n, dtype=np.int64), np.full(n, 5.0))
     assert out.shape == (n,) and np.all(out == 2.0)
+
+
+def test_csv_written_in_slices_is_the_file_of_one_slice(tmp_path, monkeypatch):
+    from aeromag.io import csv_write, write_csv
+
+    rng = np.random.default_rng(9)
+    n = 60
+    df = pd.DataFrame({"time": np.arange(n) * 0.5, "mag": rng.normal(size=n),
+                       "whole": np.r_[rng.normal(size=n - 1), 3.0],  # integral only at the end
+                       "flag": rng.random(n) < 0.5,
+                       "note": ["ok"] * (n - 1) + ["a, b"]})  # quoting needed in the last
+    write_csv(df, tmp_path / "one.csv")
+    monkeypatch.setattr(csv_write, "CSV_SLICE_ROWS", 7)
+    write_csv(df, tmp_path / "sliced.csv")
+    text = (tmp_path / "sliced.csv").read_bytes()
+    assert text == (tmp_path / "one.csv").read_bytes()
+    assert b"3.0\n" not in text or b',3.0,' in text  # an integral float keeps its ".0"
+    back = pd.read_csv(tmp_path / "sliced.csv")
+    assert back["whole"].dtype == np.float64 and back["note"].iloc[-1] == "a, b"
