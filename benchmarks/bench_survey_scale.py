@@ -6,7 +6,7 @@ For each size a synthetic survey is written once (cached in ``--keep``, default
 /tmp/aeromag_bench_scale) by a generator of this script, independent of aeromag: east-west
 lines 200 m apart, north-south ties every 2 km, 10 Hz at 50 m/s (5 m per sample), each line
 with a curved run-in and a few metres of cross-track wander, the block 1.5 times longer than
-wide and as large as the sample count asks (1e7 samples: 389 lines of 117 km, 58 ties); the
+wide and as large as the sample count asks (1e7 samples: 390 lines of 117 km, 58 ties); the
 field is 50,500 nT + a smooth random anomaly (a 50 m lattice of filtered noise, bilinear at the
 samples, ~150 nT std) + a diurnal (sinusoids of 20-180 min) + a shift and a trend per line + 0.03
 nT noise; time is UTC seconds since 1970 (the survey lasts n / 10 s, 11.6 days for 1e7).  Files:
