@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["IGRF_YEARS", "igrf_ned", "decimal_year"]
+__all__ = ["BLOCK_SAMPLES", "IGRF_YEARS", "decimal_year", "igrf_ned", "igrf_total"]
 
 #: Years the IGRF-14 coefficients shipped with ppigrf cover, [first, last).
 IGRF_YEARS = (1900.0, 2030.0)
@@ -29,6 +29,8 @@ _DAY = 86400.0
 _EPOCH = _dt.datetime(1970, 1, 1)
 _STEP_DEG = 0.05
 _STEP_M = 500.0
+#: Samples interpolated at a time (memory is the block's, whatever the log's length).
+BLOCK_SAMPLES = 500_000
 
 
 def decimal_year(when: _dt.datetime) -> float:
@@ -71,18 +73,28 @@ def _field(ppigrf, lat: np.ndarray, lon: np.ndarray, h_m: np.ndarray, when: _dt.
     return np.column_stack([n, e, -u])
 
 
-def _at_epoch(ppigrf, lat: np.ndarray, lon: np.ndarray, h: np.ndarray, when: _dt.datetime
-              ) -> np.ndarray:
-    """The field at points at one epoch: on a lattice when that is cheaper, else exactly."""
+def _evaluator(ppigrf, lat: np.ndarray, lon: np.ndarray, h: np.ndarray, when: _dt.datetime,
+               total: bool):
+    """``f(idx)``: the field (``(len(idx), 3)``, or its intensity) at samples ``idx``.
+
+    On a lattice (an interpolator built once) when the samples outnumber its nodes, else
+    evaluated exactly at all samples once.
+    """
     lat_n, lon_n, h_n = _nodes(lat, _STEP_DEG), _nodes(lon, _STEP_DEG), _nodes(h, _STEP_M)
     if lat.size <= lat_n.size * lon_n.size * h_n.size:
-        return _field(ppigrf, lat, lon, h, when)
+        exact = _field(ppigrf, lat, lon, h, when)
+        if total:
+            exact = np.linalg.norm(exact, axis=1)
+        return lambda idx: exact[idx]
     from scipy.interpolate import RegularGridInterpolator
 
     la, lo, hh = np.meshgrid(lat_n, lon_n, h_n, indexing="ij")
     g = _field(ppigrf, la.ravel(), lo.ravel(), hh.ravel(), when).reshape(*la.shape, 3)
-    return RegularGridInterpolator((lat_n, lon_n, h_n), g, bounds_error=False,
-                                   fill_value=None)(np.column_stack([lat, lon, h]))
+    if total:  # the intensity is as smooth as the components: interpolate one value, not 3
+        g = np.linalg.norm(g, axis=-1)
+    interp = RegularGridInterpolator((lat_n, lon_n, h_n), g, bounds_error=False,
+                                     fill_value=None)
+    return lambda idx: interp(np.column_stack([lat[idx], lon[idx], h[idx]]))
 
 
 def igrf_ned(lat_deg: np.ndarray, lon_deg: np.ndarray, height_m: np.ndarray | float,
@@ -109,7 +121,44 @@ def igrf_ned(lat_deg: np.ndarray, lon_deg: np.ndarray, height_m: np.ndarray | fl
     InputError
         No complete sample, a latitude outside [-90, 90], an epoch outside IGRF-14
         (1900-2030), or ``ppigrf`` is not installed.
+
+    Notes
+    -----
+    Samples are interpolated ``BLOCK_SAMPLES`` at a time and each only between the two UTC
+    midnights around it, so memory is the block's, not (days x samples): a 13-day survey of
+    1e7 samples held 3 GB of temporaries when every day was evaluated at every sample.
     """
+    return _igrf(lat_deg, lon_deg, height_m, when, total=False)
+
+
+def igrf_total(lat_deg: np.ndarray, lon_deg: np.ndarray, height_m: np.ndarray | float,
+               when: _dt.datetime | np.ndarray | float) -> np.ndarray:
+    """IGRF-14 total intensity at positions, heights and times (as :func:`igrf_ned`).
+
+    Parameters
+    ----------
+    lat_deg, lon_deg : array_like, shape (n,)
+        Geodetic latitude and longitude [deg, WGS84].
+    height_m : array_like, shape (n,) or float
+        Height above the WGS84 ellipsoid [m].
+    when : datetime.datetime, or array_like of shape (n,) or float
+        One epoch for every sample, or each sample's UTC time [s since 1970].
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Total intensity [nT]; NaN where a position, height or time is not finite.
+
+    Raises
+    ------
+    InputError
+        As :func:`igrf_ned`.
+    """
+    return _igrf(lat_deg, lon_deg, height_m, when, total=True)
+
+
+def _igrf(lat_deg: np.ndarray, lon_deg: np.ndarray, height_m: np.ndarray | float,
+          when: _dt.datetime | np.ndarray | float, *, total: bool) -> np.ndarray:
     lat = np.atleast_1d(np.asarray(lat_deg, dtype=np.float64))
     lon = np.atleast_1d(np.asarray(lon_deg, dtype=np.float64))
     h = np.broadcast_to(np.asarray(height_m, dtype=np.float64), lat.shape)
@@ -135,16 +184,24 @@ def igrf_ned(lat_deg: np.ndarray, lon_deg: np.ndarray, height_m: np.ndarray | fl
             raise InputError(f"time: {e.date()} is outside IGRF-14 ({IGRF_YEARS[0]:.0f}-"
                              f"{IGRF_YEARS[1]:.0f})")
     ppigrf = _ppigrf()
-    fields = [_at_epoch(ppigrf, la, lo, hh, e) for e in epochs]
-    if one_epoch:
-        f = fields[0]
-    else:
-        t_nodes = np.array([(e - _EPOCH).total_seconds() for e in epochs])
-        j = np.clip(np.searchsorted(t_nodes, tt, side="right") - 1, 0, len(epochs) - 2)
-        w = ((tt - t_nodes[j]) / _DAY)[:, None]
-        stack = np.stack(fields)
-        rows = np.arange(tt.size)
-        f = (1 - w) * stack[j, rows] + w * stack[j + 1, rows]
-    out = np.full((lat.size, 3), np.nan)
+    fields = [_evaluator(ppigrf, la, lo, hh, e, total) for e in epochs]
+    f = np.empty((la.size,) if total else (la.size, 3))
+    t_nodes = np.array([(e - _EPOCH).total_seconds() for e in epochs])
+    for a in range(0, la.size, BLOCK_SAMPLES):
+        idx = np.arange(a, min(a + BLOCK_SAMPLES, la.size))
+        if one_epoch:
+            f[idx] = fields[0](idx)
+            continue
+        tb = tt[idx]
+        j = np.clip(np.searchsorted(t_nodes, tb, side="right") - 1, 0, len(epochs) - 2)
+        w = (tb - t_nodes[j]) / _DAY
+        if not total:
+            w = w[:, None]
+        for d in np.unique(j):
+            m = j == d
+            f[idx[m]] = (1 - w[m]) * fields[d](idx[m]) + w[m] * fields[d + 1](idx[m])
+    if ok.all():
+        return f
+    out = np.full((lat.size, *f.shape[1:]), np.nan)
     out[ok] = f
     return out

@@ -92,7 +92,7 @@ def csv_header(columns: Iterable[Any]) -> str:
     return buf.getvalue()
 
 
-def floats_as_pandas_text(table: Any) -> Any:
+def floats_as_pandas_text(table: Any, columns: Iterable[str] | None = None) -> Any:
     """Format float columns as pandas does: shortest round trip, integral values with ``.0``.
 
     Arrow writes ``1.0`` as ``1``; read back, a float column whose values are all integral
@@ -100,15 +100,17 @@ def floats_as_pandas_text(table: Any) -> Any:
     that the same number is the same text in every output (in memory and chunk by chunk: a
     ``0.0`` never becomes ``0`` because the rest of a chunk happens to be integral).  Only
     float columns holding an integral value are rewritten (one vectorised scan), which keeps
-    the writer fast on measurement data.
+    the writer fast on measurement data; ``columns``: rewrite exactly these float columns
+    instead (those of a whole table, for a slice of it).
     """
     import pyarrow as pa
     import pyarrow.compute as pc
 
+    chosen = None if columns is None else set(columns)
     for i, f in enumerate(table.schema):
         if not pa.types.is_floating(f.type):
             continue
-        if not _has_integral(table.column(i)):
+        if not (_has_integral(table.column(i)) if chosen is None else f.name in chosen):
             continue
         txt = pc.cast(table.column(i), pa.string())
         has_point = pc.match_substring_regex(txt, "[.eEnN]")
@@ -244,26 +246,57 @@ def write_csv_passthrough(
     return row == n
 
 
+#: Rows converted to Arrow and written at a time: the memory is a slice's, not a second copy
+#: of the whole table (1e7 samples x 14 columns: 1.1 GB).
+CSV_SLICE_ROWS = 1 << 20
+
+
 def _write_csv_arrow(df: pd.DataFrame, dest: Path) -> bool:
-    """Write ``df`` with pyarrow; return False (nothing written) when pyarrow cannot."""
+    """Write ``df`` with pyarrow; return False (nothing promised) when pyarrow cannot.
+
+    One slice of rows at a time, each converted with the whole table's schema; every value is
+    formatted on its own (:func:`floats_as_pandas_text`), so the file is the one a single
+    conversion of the whole table writes.  A value needing quotes anywhere: the whole file is
+    written again with quoting where needed.
+    """
     try:
         import pyarrow as pa
     except ImportError:  # pragma: no cover - pyarrow is optional
         return False
     try:
-        table = pa.Table.from_pandas(df, preserve_index=False)
+        schema = pa.Schema.from_pandas(df, preserve_index=False)
     except (pa.ArrowException, TypeError, ValueError):
         return False
-    if any(pa.types.is_temporal(f.type) or pa.types.is_nested(f.type) for f in table.schema):
+    if any(pa.types.is_temporal(f.type) or pa.types.is_nested(f.type) for f in schema):
         return False
-    table = floats_as_pandas_text(table)
+    # which float columns become text is decided on the whole table (under quoting, text
+    # is quoted: a slice must not decide otherwise than the whole)
+    fails = (pa.ArrowException, TypeError, ValueError, KeyError)
+    named = df.set_axis(schema.names, axis=1)  # the schema's (text) names, e.g. of 0, 1, ...
+    try:
+        as_text = [f.name for i, f in enumerate(schema) if pa.types.is_floating(f.type)
+                   and _has_integral(pa.Table.from_pandas(
+                       named.iloc[:, [i]], schema=pa.schema([f]), preserve_index=False
+                   ).column(0))]
+    except fails:
+        return False
     header = csv_header(df.columns).encode("utf-8")
     with open(dest, "wb") as fh:
-        fh.write(header)
-        try:
-            write_arrow_csv(table, fh, "none")
-        except pa.ArrowInvalid:  # a string needs quoting
-            fh.seek(len(header))
+        for quoting in ("none", "needed"):
+            fh.seek(0)
             fh.truncate()
-            write_arrow_csv(table, fh, "needed")
+            fh.write(header)
+            try:
+                for a in range(0, len(df), CSV_SLICE_ROWS):
+                    try:
+                        table = pa.Table.from_pandas(named.iloc[a:a + CSV_SLICE_ROWS],
+                                                     schema=schema, preserve_index=False)
+                    except fails:
+                        return False
+                    write_arrow_csv(floats_as_pandas_text(table, as_text), fh, quoting)
+            except pa.ArrowInvalid:  # a string needs quoting
+                if quoting == "needed":
+                    raise
+                continue
+            return True
     return True

@@ -4,10 +4,12 @@ The straight part of every piece is a polyline of segments between consecutive s
 Candidate (line segment, tie segment) pairs come from a k-d tree of the tie segments'
 midpoints queried with the line segments' midpoints within half the two longest segments'
 lengths (``scipy.spatial.cKDTree.sparse_distance_matrix``): about one candidate per true
-crossing, never all pairs.  Each candidate is tested exactly (segment intersection); at a
-crossing the value, the height and the along-track gradient of each of the two lines are
-interpolated linearly along its segment.  A (line piece, tie piece) pair crossing more than
-once (a wiggle) keeps one crossing, the one nearest to the middle of the crossings.
+crossing, never all pairs.  Only the line segments in cells (of that radius) next to a tie
+segment's go into the tree: a few per crossing, not the whole survey.  Each candidate is
+tested exactly (segment intersection); at a crossing the value, the height and the
+along-track gradient of each of the two lines are interpolated linearly along its segment.
+A (line piece, tie piece) pair crossing more than once (a wiggle) keeps one crossing, the
+one nearest to the middle of the crossings.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from scipy.spatial import cKDTree
 
 from .geometry import SurveyGeometry
 
-__all__ = ["Crossings", "along_gradient", "find_crossings"]
+__all__ = ["BLOCK_SAMPLES", "Crossings", "along_gradient", "find_crossings"]
 
 
 @dataclass
@@ -92,7 +94,8 @@ class Crossings:
                 value[b] + g * (value[b + 1] - value[b]))
 
 
-def along_gradient(geom: SurveyGeometry, value: np.ndarray, half_width: int = 3) -> np.ndarray:
+def along_gradient(geom: SurveyGeometry, value: np.ndarray, half_width: int = 3,
+                   index: np.ndarray | None = None) -> np.ndarray:
     """Along-track derivative of a value inside each piece [value unit per m].
 
     A central difference over ``2 half_width`` samples, shortened at the piece's ends.
@@ -105,26 +108,30 @@ def along_gradient(geom: SurveyGeometry, value: np.ndarray, half_width: int = 3)
         Per-sample values.
     half_width : int
         Samples each side.
+    index : ndarray of int, optional
+        Only at these samples (default: every sample); the values are those of the whole
+        array at the same samples.
 
     Returns
     -------
     ndarray
-        NaN where no two samples of the piece are available.
+        Per sample (or per ``index``); NaN where no two samples of the piece are available.
     """
     n = value.size
-    i = np.arange(n)
+    i = np.arange(n) if index is None else np.asarray(index, dtype=np.int64)
     p = geom.piece
-    out = np.full(n, np.nan)
+    pi = p[i]
+    out = np.full(i.size, np.nan)
     lo = np.clip(i - half_width, 0, n - 1)
     hi = np.clip(i + half_width, 0, n - 1)
     # Pull each end back inside the sample's piece.
     for _ in range(half_width):
-        bad = p[lo] != p
+        bad = p[lo] != pi
         lo[bad] += 1
-        bad = p[hi] != p
+        bad = p[hi] != pi
         hi[bad] -= 1
     ds = np.hypot(geom.x_m[hi] - geom.x_m[lo], geom.y_m[hi] - geom.y_m[lo])
-    ok = (hi > lo) & (p >= 0) & (ds > 0)
+    ok = (hi > lo) & (pi >= 0) & (ds > 0)
     out[ok] = (value[hi[ok]] - value[lo[ok]]) / ds[ok]
     return out
 
@@ -132,12 +139,52 @@ def along_gradient(geom: SurveyGeometry, value: np.ndarray, half_width: int = 3)
 def _segments(geom: SurveyGeometry, tie: bool, valid: np.ndarray) -> np.ndarray:
     """First sample of each segment of straight parts of the line (or tie) pieces."""
     p = geom.piece
-    i = np.arange(p.size - 1)
     ok = (p[:-1] >= 0) & (p[:-1] == p[1:]) & geom.straight[:-1] & geom.straight[1:]
     ok &= valid[:-1] & valid[1:]
     tie_s = np.zeros(p.size - 1, dtype=bool)
     tie_s[ok] = geom.piece_is_tie[p[:-1][ok]]
-    return i[ok & (tie_s == tie)]
+    ok &= tie_s == tie
+    return np.flatnonzero(ok)
+
+
+#: Line segments screened against the ties' cells at a time.
+BLOCK_SAMPLES = 1_000_000
+
+
+def _seg_len(x: np.ndarray, y: np.ndarray, s: np.ndarray) -> float:
+    """Longest of the segments starting at the samples ``s`` [m], in blocks."""
+    blocks = (s[a:a + BLOCK_SAMPLES] for a in range(0, s.size, BLOCK_SAMPLES))
+    return max(float(np.max(np.hypot(x[k + 1] - x[k], y[k + 1] - y[k]))) for k in blocks)
+
+
+def _near_ties(x: np.ndarray, y: np.ndarray, ls: np.ndarray, ts: np.ndarray, radius: float
+               ) -> np.ndarray:
+    """The line segments whose midpoint may lie within ``radius`` of a tie segment's.
+
+    Cells of ``radius``: a midpoint within ``radius`` of another lies in the same cell or a
+    neighbouring one, so the line segments outside the cells next to a tie's never make a
+    candidate pair; the rest (a few per crossing) go to the k-d tree.
+    """
+    size = 2.0 * (radius * 1.001 if radius > 0 else 1.0)  # twice the cell: of x[k] + x[k+1]
+
+    def cells(k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return (np.floor((x[k] + x[k + 1]) / size).astype(np.int64),
+                np.floor((y[k] + y[k + 1]) / size).astype(np.int64))
+
+    tx, ty = cells(ts)
+    x0, y0 = int(tx.min()) - 2, int(ty.min()) - 2
+    width = int(tx.max()) - x0 + 3
+    near = np.unique(np.concatenate([(ty - y0 + dy) * width + (tx - x0 + dx)
+                                     for dx in (-1, 0, 1) for dy in (-1, 0, 1)]))
+    keep = []
+    for a in range(0, ls.size, BLOCK_SAMPLES):
+        k = ls[a:a + BLOCK_SAMPLES]
+        cx, cy = cells(k)
+        inside = (cx >= x0) & (cx < x0 + width) & (cy >= y0)
+        key = (cy - y0) * width + (cx - x0)
+        j = np.clip(np.searchsorted(near, key), 0, near.size - 1)
+        keep.append(k[inside & (near[j] == key)])
+    return np.concatenate(keep)
 
 
 def find_crossings(geom: SurveyGeometry, value: np.ndarray, height_m: np.ndarray | None = None
@@ -162,17 +209,21 @@ def find_crossings(geom: SurveyGeometry, value: np.ndarray, height_m: np.ndarray
     ls = _segments(geom, False, valid)
     ts = _segments(geom, True, valid)
     empty = np.array([], dtype=float)
+    ei = np.array([], dtype=np.int64)
+    none = Crossings(ei, ei, empty, empty, empty, empty, empty, empty, empty, empty, empty,
+                     empty, empty, ei, ei, empty, empty)
     if ls.size == 0 or ts.size == 0:
-        ei = np.array([], dtype=np.int64)
-        return Crossings(ei, ei, empty, empty, empty, empty, empty, empty, empty, empty,
-                         empty, empty, empty, ei, ei, empty, empty)
+        return none
+    radius = 0.5 * (_seg_len(x, y, ls) + _seg_len(x, y, ts)) * 1.0001
+    ls = _near_ties(x, y, ls, ts, radius)
+    if ls.size == 0:
+        return none
     lm = np.column_stack([(x[ls] + x[ls + 1]) / 2, (y[ls] + y[ls + 1]) / 2])
     tm = np.column_stack([(x[ts] + x[ts + 1]) / 2, (y[ts] + y[ts + 1]) / 2])
-    llen = np.hypot(x[ls + 1] - x[ls], y[ls + 1] - y[ls])
-    tlen = np.hypot(x[ts + 1] - x[ts], y[ts + 1] - y[ts])
-    radius = 0.5 * (llen.max() + tlen.max()) * 1.0001
     tt = cKDTree(tm)
     near = cKDTree(lm).sparse_distance_matrix(tt, radius, output_type="ndarray")
+    # in a fixed order (the trees' order depends on which segments they hold)
+    near = near[np.lexsort((near["j"], near["i"]))]
     ai = near["i"].astype(np.int64)
     bi = near["j"].astype(np.int64)
     a, b = ls[ai], ts[bi]
@@ -206,9 +257,9 @@ def find_crossings(geom: SurveyGeometry, value: np.ndarray, height_m: np.ndarray
     cy = y[a] + t * (y[a + 1] - y[a])
     lv = value[a] + t * (value[a + 1] - value[a])
     tv = value[b] + u * (value[b + 1] - value[b])
-    grad = along_gradient(geom, value)
-    gl = grad[a] + t * (grad[a + 1] - grad[a])
-    gt = grad[b] + u * (grad[b + 1] - grad[b])
+    ga, ga1, gb, gb1 = (along_gradient(geom, value, index=k) for k in (a, a + 1, b, b + 1))
+    gl = ga + t * (ga1 - ga)
+    gt = gb + u * (gb1 - gb)
     g = np.hypot(np.nan_to_num(gl), np.nan_to_num(gt))
     if height_m is not None:
         h = np.asarray(height_m, dtype=float)

@@ -14,7 +14,7 @@ solved coarse to fine: a direct solve on a coarse grid, then at each finer level
 conjugate gradients (Jacobi-preconditioned) starting from the coarser solution, so that the
 work grows about linearly with the number of cells.
 
-Cells farther than ``blank_m`` from every sample are NaN (a KD-tree of the samples).
+Cells farther than ``blank_m`` from every sample are NaN (k-d trees of blocks of the samples).
 """
 
 from __future__ import annotations
@@ -35,9 +35,9 @@ from ..errors import FitError, InputError
 
 log = logging.getLogger(__name__)
 
-__all__ = ["DEFAULT_TENSION", "GridSummary", "MEMORY_BYTES_PER_CELL", "check_grid_memory",
-           "default_cell", "estimate_line_spacing", "grid_region", "minimum_curvature",
-           "missing_extra"]
+__all__ = ["BLOCK_SAMPLES", "DEFAULT_TENSION", "GridSummary", "MEMORY_BYTES_PER_CELL",
+           "check_grid_memory", "default_cell", "estimate_line_spacing", "far_from_samples",
+           "grid_region", "minimum_curvature", "missing_extra"]
 
 #: Default tension: GMT's recommendation for potential-field data (``surface -T0.25``).
 DEFAULT_TENSION = 0.25
@@ -50,6 +50,8 @@ DATA_WEIGHT = 100.0
 MEMORY_BYTES_PER_CELL = 2_000
 #: Coarsest level solved directly (nodes).
 _DIRECT_NODES = 6_000
+#: Samples handled at a time where a whole-survey temporary would be the memory peak.
+BLOCK_SAMPLES = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -144,7 +146,7 @@ def _pieces(x: np.ndarray, y: np.ndarray, line: np.ndarray | None) -> np.ndarray
             k *= 2
         if x.size > 2 * k:
             ang = np.arctan2(y[k:] - y[:-k], x[k:] - x[:-k])  # heading of samples i..i+k
-            turn = np.abs(np.angle(np.exp(1j * (ang[k:] - ang[:-k]))))
+            turn = np.abs((ang[k:] - ang[:-k] + np.pi) % (2.0 * np.pi) - np.pi)  # wrapped
             new[k:k + turn.size] |= turn > np.radians(60.0)
     if line is not None:
         new |= np.diff(line) != 0
@@ -370,6 +372,42 @@ def _solve_level(xg: np.ndarray, yg: np.ndarray, xd: np.ndarray, yd: np.ndarray,
     return u.reshape(ny, nx), info
 
 
+def far_from_samples(x_m: np.ndarray, y_m: np.ndarray, xg: np.ndarray, yg: np.ndarray,
+                     distance_m: float) -> np.ndarray:
+    """Nodes farther than ``distance_m`` from every sample (the blanking mask).
+
+    A k-d tree of one block of samples at a time, queried with the nodes not yet found near
+    a sample: the memory is a block's tree and the nodes', not a tree of every sample.
+
+    Parameters
+    ----------
+    x_m, y_m : ndarray
+        Sample positions [m].
+    xg, yg : ndarray
+        Node coordinates [m].
+    distance_m : float
+        Blanking distance [m].
+
+    Returns
+    -------
+    ndarray of bool, shape (len(yg), len(xg))
+        True where no sample is within ``distance_m``.
+    """
+    gyy, gxx = np.meshgrid(yg, xg, indexing="ij")
+    nodes = np.column_stack([gxx.ravel(), gyy.ravel()])
+    del gyy, gxx
+    far = np.ones(nodes.shape[0], dtype=bool)
+    step = 4 * BLOCK_SAMPLES
+    for a in range(0, x_m.size, step):
+        todo = np.flatnonzero(far)
+        if todo.size == 0:
+            break
+        tree = cKDTree(np.column_stack([x_m[a:a + step], y_m[a:a + step]]))
+        dist, _ = tree.query(nodes[todo], k=1, distance_upper_bound=distance_m)
+        far[todo[np.isfinite(dist)]] = False
+    return far.reshape(yg.size, xg.size)
+
+
 def minimum_curvature(
     x_m: np.ndarray, y_m: np.ndarray, values: np.ndarray, *, cell_m: float,
     tension: float = DEFAULT_TENSION, blank_m: float | None = None,
@@ -429,7 +467,9 @@ def minimum_curvature(
 
     x, y, v = (np.asarray(a, dtype=float) for a in (x_m, y_m, values))
     ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(v)
-    x, y, v = x[ok], y[ok], v[ok]
+    if not ok.all():  # (no copy of complete samples)
+        x, y, v = x[ok], y[ok], v[ok]
+    del ok
     if x.size < 3:
         raise InputError(f"only {x.size} sample(s) with a position and a value: need 3 or more")
     if not 0.0 <= tension < 1.0:
@@ -486,11 +526,7 @@ def minimum_curvature(
     grid = u + shift
     n_blank = 0
     if blank_m is not None:
-        tree = cKDTree(np.column_stack([x, y]))
-        gyy, gxx = np.meshgrid(yg, xg, indexing="ij")
-        dist, _ = tree.query(np.column_stack([gxx.ravel(), gyy.ravel()]), k=1,
-                             distance_upper_bound=float(blank_m))
-        far = ~np.isfinite(dist).reshape(grid.shape)
+        far = far_from_samples(x, y, xg, yg, float(blank_m))
         grid[far] = np.nan
         n_blank = int(far.sum())
     good = grid[np.isfinite(grid)]

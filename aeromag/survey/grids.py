@@ -31,11 +31,14 @@ from .transforms import Transform, apply_transform
 
 log = logging.getLogger(__name__)
 
-__all__ = ["BLANK_LINE_SPACINGS", "GRID_VALUE_COLUMNS", "GridResult", "check_projected_crs",
-           "grid", "grid_dataset", "survey_positions", "value_column"]
+__all__ = ["BLANK_LINE_SPACINGS", "GRID_COLUMNS", "GRID_VALUE_COLUMNS", "GridResult",
+           "check_projected_crs", "grid", "grid_dataset", "survey_positions", "value_column"]
 
 #: The value columns ``grid`` takes by default, in order of preference (interface.md).
 GRID_VALUE_COLUMNS: tuple[str, ...] = ("tmi_mlev", "tmi_lev", "tmi")
+#: The columns ``grid`` may use besides the value (positions, line, and for ``rtp``'s field
+#: direction the time and height): what ``aeromag grid`` reads of a log.
+GRID_COLUMNS: tuple[str, ...] = ("x_m", "y_m", "lat", "lon", "line", "time", "alt")
 #: Default blanking distance, in line spacings: keeps the cells between adjacent lines (half a
 #: spacing from both) and one missing line, blanks wider gaps and the outside.
 BLANK_LINE_SPACINGS = 1.5
@@ -279,8 +282,11 @@ def grid(
     if ok.sum() < 3:
         raise InputError(f"{source}: only {int(ok.sum())} sample(s) with a position and a"
                          f" {col} value: nothing to grid")
-    line = data["line"].to_numpy()[ok] if "line" in data.columns else None
-    x, y, v = x[ok], y[ok], v[ok]
+    line = data["line"].to_numpy() if "line" in data.columns else None
+    if not ok.all():  # (no copy of complete samples)
+        x, y, v = x[ok], y[ok], v[ok]
+        line = line[ok] if line is not None else None
+    del ok
     spacing = None
     try:
         spacing = estimate_line_spacing(x, y, line)

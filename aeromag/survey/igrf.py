@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._core.igrf import IGRF_YEARS, igrf_ned
+from .._core.igrf import IGRF_YEARS, igrf_total
 from ..errors import InputError
 
 __all__ = ["IGRFResult", "igrf_total_intensity", "parse_date", "IGRF_YEARS"]
@@ -95,8 +95,7 @@ def igrf_total_intensity(lat: np.ndarray, lon: np.ndarray, height_m: np.ndarray,
         A time outside IGRF-14 or no finite position.
     """
     t = np.broadcast_to(np.asarray(time_s, dtype=np.float64), np.shape(lat))
-    ned = igrf_ned(lat, lon, height_m, t)
-    f = np.sqrt(np.sum(ned * ned, axis=1))
+    f = igrf_total(lat, lon, height_m, t)
     tt = t[np.isfinite(f)]
     d0 = _dt.datetime.fromtimestamp(float(tt.min()), _dt.UTC).date()
     d1 = _dt.datetime.fromtimestamp(float(tt.max()), _dt.UTC).date()

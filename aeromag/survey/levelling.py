@@ -152,20 +152,23 @@ class LevellingResult:
             Correction [nT] (constant beyond the end knots).
         """
         out = np.full(piece.size, np.nan)
-        order = np.argsort(piece, kind="stable")
-        ps = piece[order]
-        cuts = np.flatnonzero(np.diff(ps)) + 1
-        for grp in np.split(order, cuts):
-            k = int(piece[grp[0]])
+        if piece.size == 0:
+            return out
+        # Runs of one piece (a piece is one run in a survey's geometry): slices, no sort
+        # and no index arrays of every sample.
+        cuts = np.flatnonzero(np.diff(piece)) + 1
+        starts, ends = np.r_[0, cuts], np.r_[cuts, piece.size]
+        for a, b in zip(starts.tolist(), ends.tolist(), strict=True):
+            k = int(piece[a])
             if k < 0:
                 continue
             kn, val = self.knots_m[k], self.values_nT[k]
             if kn.size == 0:
-                out[grp] = 0.0
+                out[a:b] = 0.0
             elif kn.size == 1:
-                out[grp] = val[0]
+                out[a:b] = val[0]
             else:
-                out[grp] = np.interp(along_m[grp], kn, val)
+                out[a:b] = np.interp(along_m[a:b], kn, val)
         return out
 
 

@@ -23,7 +23,14 @@ from ..io import atomic_path, json_path_for, read_log, write_json
 from ..io.grids import check_grid_path, write_grid
 from ..io.outputs import check_outputs
 from ..survey.gridding import DEFAULT_TENSION
-from ..survey.grids import GridResult, grid, survey_positions
+from ..survey.grids import (
+    GRID_COLUMNS,
+    GRID_VALUE_COLUMNS,
+    GridResult,
+    grid,
+    survey_positions,
+    value_column,
+)
 from ..survey.transforms import parse_transforms
 
 log = logging.getLogger(__name__)
@@ -209,9 +216,27 @@ def grid_file(
             progress(done, n_steps, step)
 
     report_step(0, "reading")
-    df = read_log(src, columns=dict(columns) if columns else None, required=(), fmt=fmt,
-                  min_rows=3)
+    # Only the columns the grid uses: a levelled log has 15 or more (1e7 samples: 3.5 GB
+    # read whole); the value candidates not taken are dropped once the value is chosen.
+    # lat, lon, alt only when they may serve: no CRS known for x_m/y_m (no level report
+    # beside the log, no --crs), a re-projection asked, or rtp's field direction.
     beside = _crs_beside(src)
+    geo = beside is None or crs is not None or any(t.kind == "rtp" for t in steps)
+    wanted = (value,) if value is not None else GRID_VALUE_COLUMNS
+    cmap = dict(columns) if columns else None
+    lean = [c for c in GRID_COLUMNS if geo or c not in ("lat", "lon", "alt")]
+    df = read_log(src, columns=cmap, required=(), fmt=fmt, min_rows=3,
+                  usecols=[*lean, *wanted])
+    if not any(c in df.columns for c in wanted):  # the refusal names every column of the log
+        df = read_log(src, columns=cmap, required=(), fmt=fmt, min_rows=3)
+    elif not geo and not {"x_m", "y_m"} <= set(df.columns):  # positions from lat/lon, then
+        df = read_log(src, columns=cmap, required=(), fmt=fmt, min_rows=3,
+                      usecols=[*GRID_COLUMNS, *wanted])
+    if value is None and any(c in df.columns for c in wanted):
+        chosen = value_column(list(df.columns), None, str(src))
+        for c in GRID_VALUE_COLUMNS:
+            if c != chosen and c in df.columns:
+                del df[c]
     if beside is not None:
         df.attrs["crs"] = beside
     direction, dir_info = (None, None)

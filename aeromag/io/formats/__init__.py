@@ -137,7 +137,8 @@ def _read_hdf5(path: Path) -> pd.DataFrame:
 _TEXT = ("allow_truncated",)
 register(Format("csv", (".csv", ".txt"), read=read_csv, write=write_csv,
                 options=(*_TEXT, "usecols", "dtypes")))
-register(Format("parquet", (".parquet", ".pq"), read=read_parquet, write=write_parquet))
+register(Format("parquet", (".parquet", ".pq"), read=read_parquet, write=write_parquet,
+                options=("usecols",)))
 register(Format("xyz", (".xyz",), read=_read_xyz, write=write_xyz, options=_TEXT))
 register(Format("hdf5", (".h5", ".hdf5"), read=_read_hdf5))
 register(Format("csv_compressed", (".xz", ".gz", ".bz2"), read=read_compressed_csv))
