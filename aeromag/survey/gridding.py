@@ -132,22 +132,34 @@ def _pieces(x: np.ndarray, y: np.ndarray, line: np.ndarray | None) -> np.ndarray
     differences): a slow UAV logging 0.5 m steps with 1 m of GNSS noise would otherwise see
     a "turn" at every other sample.
     """
-    dx, dy = np.diff(x), np.diff(y)
-    step = np.hypot(dx, dy)
-    med = float(np.median(step)) if step.size else 0.0
-    new = step > 5.0 * max(med, 1e-9)
-    if x.size > 2:
+    n = x.size
+    # the median step, the noise and the baseline from a window of at most BLOCK_SAMPLES
+    # samples in the middle of the log (one GNSS, one speed: no whole-log temporaries)
+    w0 = max(0, n // 2 - BLOCK_SAMPLES // 2)
+    xw, yw = x[w0:w0 + BLOCK_SAMPLES], y[w0:w0 + BLOCK_SAMPLES]
+    med = float(np.median(np.hypot(np.diff(xw), np.diff(yw)))) if n > 1 else 0.0
+    k = 1
+    if xw.size > 2:
         # Rayleigh median of the second differences of noise sigma per axis: sigma sqrt(6) 1.1774
-        d2 = np.hypot(np.diff(x, 2), np.diff(y, 2))
-        sigma = float(np.median(d2)) / (np.sqrt(6.0) * 1.1774)
-        k = 1  # doubled until the median baseline is 10 sigma (the steps include the noise)
-        while (2 * k < x.size // 4 and float(np.median(np.hypot(x[k:] - x[:-k], y[k:] - y[:-k])))
+        sigma = float(np.median(np.hypot(np.diff(xw, 2), np.diff(yw, 2)))) / (np.sqrt(6.0)
+                                                                              * 1.1774)
+        # doubled until the median baseline is 10 sigma (the steps include the noise)
+        while (2 * k < xw.size // 4 and float(np.median(np.hypot(xw[k:] - xw[:-k],
+                                                                 yw[k:] - yw[:-k])))
                < 10.0 * sigma):
             k *= 2
-        if x.size > 2 * k:
-            ang = np.arctan2(y[k:] - y[:-k], x[k:] - x[:-k])  # heading of samples i..i+k
+    new = np.zeros(max(n - 1, 0), dtype=bool)
+    for a in range(0, max(n - 1, 0), BLOCK_SAMPLES):  # in blocks that overlap by 2k samples
+        b = min(a + BLOCK_SAMPLES, n - 1)
+        new[a:b] = np.hypot(np.diff(x[a:b + 1]), np.diff(y[a:b + 1])) > 5.0 * max(med, 1e-9)
+        lo, hi = max(a - k, 0), min(b + k + 1, n)
+        xs, ys = x[lo:hi], y[lo:hi]
+        if xs.size > 2 * k:
+            ang = np.arctan2(ys[k:] - ys[:-k], xs[k:] - xs[:-k])  # heading of samples i..i+k
             turn = np.abs((ang[k:] - ang[:-k] + np.pi) % (2.0 * np.pi) - np.pi)  # wrapped
-            new[k:k + turn.size] |= turn > np.radians(60.0)
+            # turn[i] compares the headings at lo+i and lo+i+k: it marks step lo+i+k
+            idx = lo + k + np.flatnonzero(turn > np.radians(60.0))
+            new[idx[(idx >= a) & (idx < b)]] = True
     if line is not None:
         new |= np.diff(line) != 0
     return np.concatenate([[0], np.flatnonzero(new) + 1])
