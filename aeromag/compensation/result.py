@@ -103,6 +103,11 @@ class CompensationResult:
     segment: np.ndarray | None = field(default=None, repr=False)
     fs_hz: float | None = None
 
+    def __post_init__(self) -> None:
+        """A report given as the dict of a JSON file is read as one (:meth:`from_dict`)."""
+        if isinstance(self.report, dict):
+            self.report = CompensationReport.from_dict(self.report)
+
     def _summary(self) -> list[tuple[str, str]]:
         """(label, value) pairs of the short description (``repr`` and notebooks)."""
         rep = self.report
