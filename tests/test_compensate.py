@@ -102,7 +102,7 @@ def test_without_mag_column_the_fluxgate_magnitude_is_the_total_field(flight):
 def test_windows_when_there_is_no_line_column(flight):
     df, _ = flight
     res = compensate(df.drop(columns=["line"]), CompensationConfig(segment_seconds=100))
-    assert len(res.report.to_dict()["segments"]) == 12
+    assert len(res.report.segments) == 12
 
 
 def test_too_few_segments_fitted_without_screening(flight):
@@ -118,8 +118,8 @@ def test_short_segments_reported_not_silently_dropped(flight):
     d = df.copy()
     d.loc[100:120, "line"] = 99  # 2 s: far too short
     res = compensate(d)
-    s99 = [s for s in res.report.to_dict()["segments"] if s["id"] == 99][0]
-    assert s99["kept"] is False and s99["reason"].startswith("too short to fit: ")
+    s99 = res.report.segment(99)
+    assert s99.kept is False and s99.reason.startswith("too short to fit: ")
 
 
 def test_constant_fluxgate_is_a_fit_error(flight):

@@ -126,8 +126,8 @@ def test_per_segment_residuals_agree_with_the_model_file_and_do_not_bleed():
     res = compensate(df)
     m = compute_qc(res, fit=False).metrics.to_dict()
     by_seg = m["residual_std_by_segment_nT"]
-    for s in res.report.to_dict()["segments"]:
-        assert by_seg[str(s["id"])] == pytest.approx(s["residual_std"], rel=1e-6), s["id"]
+    for s in res.report.segments:
+        assert by_seg[str(s.id)] == pytest.approx(s.residual_std, rel=1e-6), s.id
     assert 3 in res.report.screening.dropped
     assert by_seg["2"] < 0.02 and by_seg["4"] < 0.02  # the neighbours of the fault
     assert m["residual_std_nT"] < 0.02 < 0.1 < m["all_data"]["residual_std_nT"]
@@ -173,8 +173,8 @@ def test_out_json_qc_block_is_compute_qc_of_mag_minus_mag_tl():
     for k in ("improvement_ratio", "residual_std_nT", "std_before_nT", "n_samples"):
         assert got[k] == getattr(res.report.metrics, k), k
     assert got["per_piece_rms"]["definition"].startswith("rms of mag and of mag - mag_tl")
-    for e in res.report.to_dict()["segments"]:
-        assert e["residual_std"] == got["residual_std_by_segment_nT"][str(e["id"])]
+    for e in res.report.segments:
+        assert e.residual_std == got["residual_std_by_segment_nT"][str(e.id)]
     with pytest.raises(TypeError):
         quality_metrics(res.data, res.report, comp_bp=np.zeros(len(res.data)))
 
