@@ -65,10 +65,10 @@ def main() -> None:
                               else am.calibrate(df, cfg))
             times[label].append(time.perf_counter() - t0)
     for label, res in results.items():
-        held = res.report.get("extended", {}).get("held_out", {})
+        held = (res.report.extended or {}).get("held_out", {})
         print(f"{label}: best {min(times[label]):.2f} s, median "
               f"{np.median(times[label]):.2f} s of {a.repeat}; residual std "
-              f"{res.report['metrics']['residual_std_nT']:.4f} nT"
+              f"{res.metrics.residual_std_nT:.4f} nT"
               + (f"; held-out {held['residual_std_nT']:.4f} nT, TL only "
                  f"{held['tl_only_residual_std_nT']:.4f} nT" if held else ""))
     times = {k: float(np.median(v)) for k, v in times.items()}

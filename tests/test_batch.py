@@ -11,6 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from aeromag.cli import app
+from aeromag.compensation import CompensationMetrics
 from aeromag.compensation.config import CompensationConfig
 from aeromag.errors import InputError
 from aeromag.io import write_csv
@@ -18,6 +19,8 @@ from aeromag.workflows.batch import expand_inputs, run_batch
 from aeromag.workflows.compensate import calibrate_file, compensate_file
 
 from .conftest import hand_flight
+
+_m = CompensationMetrics.from_dict  # a metrics block as a report file holds it
 
 
 def _report(path: Path) -> dict:
@@ -422,13 +425,13 @@ def test_batch_strict_fails_each_warned_log_and_the_others_go_on(mixed, tmp_path
 def test_metric_warnings():
     from aeromag.workflows.batch import metric_warnings
 
-    assert metric_warnings({"improvement_ratio": 10.0, "residual_std_nT": 0.2}) == []
-    assert "< 1" in metric_warnings({"improvement_ratio": 0.5, "residual_std_nT": 0.2})[0]
-    assert "implausibly small" in metric_warnings({"improvement_ratio": 3,
-                                                   "residual_std_nT": 0.0})[0]
-    assert "implausible" in metric_warnings({"improvement_ratio": 3,
-                                             "residual_std_nT": 500.0})[0]
-    assert "no residual" in metric_warnings({"improvement_ratio": None})[0]
+    assert metric_warnings(_m({"improvement_ratio": 10.0, "residual_std_nT": 0.2})) == []
+    assert "< 1" in metric_warnings(_m({"improvement_ratio": 0.5, "residual_std_nT": 0.2}))[0]
+    assert "implausibly small" in metric_warnings(_m({"improvement_ratio": 3,
+                                                   "residual_std_nT": 0.0}))[0]
+    assert "implausible" in metric_warnings(_m({"improvement_ratio": 3,
+                                             "residual_std_nT": 500.0}))[0]
+    assert "no residual" in metric_warnings(_m({"improvement_ratio": None}))[0]
 
 
 def _descendants(pid: int) -> set[int]:

@@ -19,12 +19,12 @@ def test_calibrate_then_apply_on_survey(seed):
     survey, truth = simulate_survey(seed=seed + 50)
     model = fit_model(cal).model
     res = compensate(survey, model=model)
-    assert res.report["metrics"]["improvement_ratio"] >= 10
+    assert res.report.metrics.improvement_ratio >= 10
     err = (res.data["mag_comp"] - survey["truth_mag_clean"]).to_numpy()
     line = survey["line"].to_numpy()
     err = err - pd.Series(err).groupby(line).transform("mean").to_numpy()
     # The floor: the sensor's white noise through the same final low-pass ("filter leakage").
-    fs = res.report["sampling_rate_hz"]
+    fs = res.report.sampling_rate_hz
     sos = signal.butter(4, 0.9, fs=fs, output="sos")
     floor = np.std(signal.sosfiltfilt(
         sos, np.random.default_rng(0).normal(0, truth["noise_nT"], 200_000)))

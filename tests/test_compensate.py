@@ -23,11 +23,11 @@ from .conftest import COEF16, hand_flight
 def test_clean_flight_recovers_coefficients_and_keeps_every_segment(seed):
     df, h = hand_flight(seed=seed)
     res = compensate(df)
-    coef = np.asarray(res.report["coef"])
+    coef = np.asarray(res.report.coef)
     # The strongly constrained terms to a fraction of a nT, all terms within 1 nT.
     assert np.max(np.abs(coef - COEF16)) < 1.0
-    assert res.report["screening"]["enabled"] and res.report["screening"]["dropped"] == []
-    assert res.report["metrics"]["improvement_ratio"] > 100
+    assert res.report.screening.enabled and res.report.screening.dropped == []
+    assert res.report.metrics.improvement_ratio > 100
     # mag_tl matches the true interference up to a constant level.
     d = res.data["mag_tl"].to_numpy() - h
     assert np.std(d - d.mean()) < 0.05
@@ -42,7 +42,7 @@ def test_output_columns_and_report_keys_follow_the_interface(flight):
         assert c in out.columns
     assert len(out) == len(df)
     assert out["segment_kept"].dtype == bool
-    r = res.report
+    r = res.report.to_dict()  # the JSON contract (interface.md keys)
     assert r["terms"] == list(TERMS_16) and len(r["coef"]) == 16
     for s in r["segments"]:
         assert {"id", "n", "kept", "scores", "residual_std", "condition_number"} <= set(s)
@@ -85,32 +85,32 @@ def test_time_gaps_split_stretches_and_gaps_do_not_break_the_fit():
     cut = df.drop(index=range(3000, 3400)).reset_index(drop=True)  # a turn cut out: 40 s gap
     cut.loc[5000:5003, "mag"] = np.nan  # a short NaN gap, interpolated
     res = compensate(cut)
-    assert res.report["metrics"]["improvement_ratio"] > 50
+    assert res.report.metrics.improvement_ratio > 50
     # Interpolated for the filters, but a row without mag has no mag_comp (review 15, 2).
     assert np.flatnonzero(~np.isfinite(res.data["mag_comp"])).tolist() == [5000, 5001, 5002,
                                                                            5003]
-    assert res.report["metrics"]["n_rows_without_mag"] == 4
+    assert res.report.metrics.n_rows_without_mag == 4
 
 
 def test_without_mag_column_the_fluxgate_magnitude_is_the_total_field(flight):
     df, _ = flight
     res = compensate(df.drop(columns=["mag"]), CompensationConfig(mag_from_fluxgate=True))
-    assert res.report["mag_from_fluxgate"] is True
+    assert res.report.mag_from_fluxgate is True
     assert "mag" not in res.data.columns and np.isfinite(res.data["mag_comp"]).all()
 
 
 def test_windows_when_there_is_no_line_column(flight):
     df, _ = flight
     res = compensate(df.drop(columns=["line"]), CompensationConfig(segment_seconds=100))
-    assert len(res.report["segments"]) == 12
+    assert len(res.report.segments) == 12
 
 
 def test_too_few_segments_fitted_without_screening(flight):
     df, _ = flight
     one = df.assign(line=0)
     res = compensate(one)
-    assert res.report["screening"]["enabled"] is False
-    assert "without screening" in " ".join(res.report["screening"]["notes"])
+    assert res.report.screening.enabled is False
+    assert "without screening" in " ".join(res.report.screening.notes)
 
 
 def test_short_segments_reported_not_silently_dropped(flight):
@@ -118,8 +118,8 @@ def test_short_segments_reported_not_silently_dropped(flight):
     d = df.copy()
     d.loc[100:120, "line"] = 99  # 2 s: far too short
     res = compensate(d)
-    s99 = [s for s in res.report["segments"] if s["id"] == 99][0]
-    assert s99["kept"] is False and s99["reason"].startswith("too short to fit: ")
+    s99 = res.report.segment(99)
+    assert s99.kept is False and s99.reason.startswith("too short to fit: ")
 
 
 def test_constant_fluxgate_is_a_fit_error(flight):
@@ -148,7 +148,7 @@ def test_calibrate_then_apply_files(tmp_path, flight):
     out = pd.read_csv(tmp_path / "out.csv")
     assert (tmp_path / "out.json").exists()
     assert set(out["segment_kept"].astype(str)) == {"True"}  # written true/false
-    assert res.report["metrics"]["improvement_ratio"] > 50
+    assert res.report.metrics.improvement_ratio > 50
     err = out["mag_tl"].to_numpy() - h2
     assert np.std(err - err.mean()) < 0.05
 
@@ -156,9 +156,9 @@ def test_calibrate_then_apply_files(tmp_path, flight):
 def test_model_with_other_terms_round_trips(tmp_path, flight):
     df, _ = flight
     res = compensate(df, CompensationConfig(terms="9"))
-    assert len(res.report["coef"]) == 9
-    m = TLModel.from_dict(res.report)
-    assert m.terms == tuple(res.report["terms"])
+    assert len(res.report.coef) == 9
+    m = TLModel.from_dict(res.report.to_dict())
+    assert m.terms == tuple(res.report.terms)
 
 
 def test_implausible_units_warn_but_never_convert(flight, caplog):
@@ -174,8 +174,8 @@ def test_high_rate_quiet_sensor_loses_no_clean_segment():
     """1 kHz: in-band residuals of 0.001 nT differ by large ratios that no survey can see."""
     df, h = hand_flight(seed=3, n=300_000, fs=1000.0, seg_s=25)
     res = compensate(df)
-    assert res.report["screening"]["dropped"] == []
-    assert res.report["metrics"]["improvement_ratio"] > 1000
+    assert res.report.screening.dropped == []
+    assert res.report.metrics.improvement_ratio > 1000
     d = res.data["mag_tl"].to_numpy() - h
     assert np.std(d - d.mean()) < 0.02
 

@@ -58,7 +58,7 @@ def sim():
 
 
 def _held(res) -> dict:
-    return res.report["extended"]["held_out"]
+    return res.report.extended["held_out"]
 
 
 def test_simulator_extras_reach_the_noise_floor(sim):
@@ -73,7 +73,7 @@ def test_simulator_extras_reach_the_noise_floor(sim):
     d = res.model.to_dict()
     assert [e["name"] for e in d["extended"]["extras"]] == list(EXTRAS)
     assert d["extended"]["reference"] is None
-    assert d["terms"] == res.report["terms"] and len(d["coef"]) == 16
+    assert d["terms"] == res.report.terms and len(d["coef"]) == 16
 
 
 def test_simulator_extras_do_not_hurt_without_currents(sim):
@@ -185,7 +185,7 @@ def test_mlp_kept_only_where_it_beats_linear(caplog):
     cfg = CompensationConfig(extras=("i_a", "i_b", "i_c"), reference="ref", estimator="mlp",
                              fom=False, segment_seconds=60)
     res = calibrate(df, cfg, source="indep")
-    rec = res.report["extended"]["mlp_training"]
+    rec = res.report.extended["mlp_training"]
     assert rec["kept"] and rec["mlp_std_nT"] < 0.9 * rec["linear_std_nT"]
     d = json.loads(json.dumps(res.model.to_dict()))  # portable: plain lists only
     assert isinstance(d["extended"]["mlp"]["weights"][0][0], list)
@@ -197,7 +197,7 @@ def test_mlp_kept_only_where_it_beats_linear(caplog):
     df2, _, _, _ = _independent_flight(3)
     with caplog.at_level(logging.WARNING):
         res2 = calibrate(df2, cfg, source="indep")
-    assert not res2.report["extended"]["mlp_training"]["kept"]
+    assert not res2.report.extended["mlp_training"]["kept"]
     assert res2.model.extended.mlp is None
     assert "linear model is used" in caplog.text
 
@@ -221,7 +221,7 @@ def test_constant_and_empty_extras_dropped_with_warning(sim, caplog):
     assert "--extra const is constant" in caplog.text
     assert "--extra empty is empty" in caplog.text
     assert res.model.extended.extras == ("cur_1",)
-    assert res.report["extended"]["dropped_extras"] == ["const", "empty"]
+    assert res.report.extended["dropped_extras"] == ["const", "empty"]
 
 
 def test_reference_with_gaps_rows_left_out(sim, caplog):
@@ -231,7 +231,7 @@ def test_reference_with_gaps_rows_left_out(sim, caplog):
     with caplog.at_level(logging.WARNING):
         res = calibrate(df, CompensationConfig(reference="ref", fom=False), source="sim")
     assert "401 of 6000 rows have no value in ref: left out of the fit" in caplog.text
-    assert res.report["extended"]["rows_left_out"] == 401
+    assert res.report.extended["rows_left_out"] == 401
     true = np.asarray(truth["coef"])
     assert np.abs(res.model.coef - true).max() < 0.01 * np.abs(true).max()
 
@@ -296,8 +296,8 @@ def test_cli_subprocess_extra_and_report(sim, tmp_path):
 def test_reports_without_the_options_unchanged(sim):
     cur, _, _, _ = sim
     res = calibrate(cur, CompensationConfig(fom=False), source="sim")
-    assert "extended" not in res.report
-    assert not {"reference", "extras", "estimator"} & set(res.report["config"])
+    assert "extended" not in res.report.to_dict()
+    assert not {"reference", "extras", "estimator"} & set(res.report.config)
     assert "extended" not in res.model.to_dict()
 
 

@@ -73,7 +73,7 @@ def test_defaults_and_shrink_are_not_refused(survey):
     assert changed_options(cfg) == {"screen", "shrink"}
     assert unused_options(cfg) == []
     res = am.compensate(survey, cfg)
-    assert res.report["screening"]["shrink"] == 0.0
+    assert res.report.screening.shrink == 0.0
 
 
 def test_applying_a_model_refuses_fit_options(survey, model):
@@ -90,7 +90,7 @@ def test_applying_a_model_refuses_fit_options(survey, model):
 def test_applying_a_model_keeps_what_the_application_uses(survey, model):
     cfg = CompensationConfig(lowpass_hz=0.5, segment_seconds=30.0, max_interference=0.3)
     out = am.compensate(survey, cfg, model=model)
-    assert out.report["model_source"] != "fitted"
+    assert out.report.model_source != "fitted"
 
 
 def test_lowpass_with_filter_output_false_is_refused(survey):

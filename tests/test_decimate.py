@@ -160,12 +160,12 @@ def high_rate_fits(request):
 def test_high_rate_fit_is_decimated_and_reported(high_rate_fits):
     (rate, band, q), _, _, dec, full = high_rate_fits
     assert decimation_factor(rate, band) == q
-    assert dec.report["fit"]["decimation_factor"] == q
-    assert full.report["fit"]["decimation_factor"] == 1
-    assert dec.report["config"]["decimate"] is True
-    assert full.report["config"]["decimate"] is False
+    assert dec.report.fit.decimation_factor == q
+    assert full.report.fit.decimation_factor == 1
+    assert dec.report.config["decimate"] is True
+    assert full.report.config["decimate"] is False
     # The fit used the decimated samples; the model was applied to every original one.
-    assert dec.report["fit"]["n_samples"] < full.report["fit"]["n_samples"] / (q * 0.9)
+    assert dec.report.fit.n_samples < full.report.fit.n_samples / (q * 0.9)
     assert len(dec.data) == len(full.data)
     assert np.isfinite(dec.data["mag_tl"]).all()
 
@@ -196,10 +196,10 @@ def test_high_rate_residuals_unchanged_within_noise(high_rate_fits):
     # 1 kHz over seeds 10-15, either way) is no further from the truth than that noise allows.
     lvl = {k: abs(float(np.mean(e))) for k, e in err.items()}
     assert lvl["dec"] <= lvl["full"] + 0.1 and max(lvl.values()) < 0.5, lvl
-    rd = dec.report["metrics"]["residual_std_nT"]
-    rf = full.report["metrics"]["residual_std_nT"]
+    rd = dec.report.metrics.residual_std_nT
+    rf = full.report.metrics.residual_std_nT
     assert rd <= 1.1 * rf + 1e-4, (rd, rf)
-    assert dec.report["metrics"]["improvement_ratio"] > 100
+    assert dec.report.metrics.improvement_ratio > 100
 
 
 def test_ten_hertz_fit_is_never_decimated():
@@ -295,8 +295,8 @@ def test_out_of_band_attitude_is_fitted_decimated_as_at_full_rate(step_deg, vib_
         dec = compensate(df, CompensationConfig())
     assert not [r for r in caplog.records if r.levelname == "WARNING"]
     full = compensate(df, CompensationConfig(decimate=False))
-    assert dec.report["fit"]["decimation_factor"] == 13
-    assert dec.report["screening"]["dropped"] == []
+    assert dec.report.fit.decimation_factor == 13
+    assert dec.report.screening.dropped == []
     c_dec, c_full = np.asarray(dec.model.coef), np.asarray(full.model.coef)
     err_dec = float(np.sqrt(np.mean((c_dec - truth) ** 2)))
     err_full = float(np.sqrt(np.mean((c_full - truth) ** 2)))
@@ -306,7 +306,7 @@ def test_out_of_band_attitude_is_fitted_decimated_as_at_full_rate(step_deg, vib_
     assert float(np.sqrt(np.mean((c_dec - c_full) ** 2))) < 0.02
     d = dec.data["mag_tl"].to_numpy() - h
     assert np.std(d - d.mean()) < 0.03
-    assert dec.report["metrics"]["improvement_ratio"] > 1000
+    assert dec.report.metrics.improvement_ratio > 1000
 
 
 def test_built_rows_decimate_as_the_whole_stretch():

@@ -74,13 +74,13 @@ def faulted():
     """Two simulated boxes; segments 3 and 4 (box 0's E pitch and E roll) a noise burst."""
     df, _ = simulate_calibration(seed=4, n_boxes=2, faults={3: "noise_burst", 4: "noise_burst"})
     res = compensate(df)
-    assert res.report["screening"]["dropped"] == [3, 4]
+    assert res.report.screening.dropped == [3, 4]
     return res
 
 
 def test_kept_fom_only_from_the_wholly_kept_box(faulted):
     q = compute_qc(faulted, fit=False)
-    fom = q.metrics["fom"]
+    fom = q.metrics.fom
     b0, b1 = fom["boxes"]
     assert b0["n_maneuvers_kept"] == 10 and sorted(b0["dropped"]) == ["E pitch", "E roll"]
     # the kept FOM is box 1's 12-manoeuvre sum, not the mean with box 0's 10-manoeuvre one
@@ -93,7 +93,7 @@ def test_kept_fom_only_from_the_wholly_kept_box(faulted):
     assert b0["fom_kept_after_nT"] is None
     why = "box 0: 2 of its 12 manoeuvres in dropped segments"
     assert b0["kept_reason"] == why and why in fom["kept_reason"]
-    assert fom["kept_reason"] in q.metrics["notes"]
+    assert fom["kept_reason"] in q.metrics.notes
     # the page shows the reason in the FOM section
     page = render_html(q.metrics, faulted.report, {})
     sec = page.split("<h2>Figure of Merit</h2>")[1].split("<h2>")[0]

@@ -22,7 +22,7 @@ def test_the_pca_legend_is_outside_the_axes_and_hides_no_segment():
     legend = ax.get_legend().get_window_extent()
     axes = ax.get_window_extent()
     assert not legend.overlaps(axes), (legend, axes)
-    sc = np.array([s["scores"][:2] for s in res.report["segments"]], dtype=float)
+    sc = np.array([s.scores[:2] for s in res.report.segments], dtype=float)
     pts = ax.transData.transform(sc)
     inside = [legend.contains(x, y) for x, y in pts]
     assert not any(inside)

@@ -19,8 +19,11 @@ import pytest
 from typer.testing import CliRunner
 
 from aeromag.cli import app
+from aeromag.compensation import CompensationMetrics
 
 from .conftest import hand_flight
+
+_m = CompensationMetrics.from_dict  # a metrics block as a report file holds it
 
 runner = CliRunner()
 
@@ -59,7 +62,7 @@ def test_an_online_fit_that_makes_things_worse_is_a_recorded_warning(logs, tmp_p
     # The words of the batch fit's checks (one implementation), with the online advice
     # (forgetting=, terms=) spelt as the command line's flags.
     assert warned == [flag_message(w) for w in
-                      metric_warnings(rep["metrics"], source=log, fitted=True, online=True)]
+                      metric_warnings(_m(rep["metrics"]), source=log, fitted=True, online=True)]
     assert "--forgetting 0.9999" in warned[0]
     assert "improvement ratio" in r.output  # and on the terminal
 

@@ -64,7 +64,7 @@ def test_online_metrics_are_the_batch_definition_on_mag_minus_mag_tl(outs, name)
     out, rep = res[name]
     data, t, mag, tl = _from_csv(out)
     cfg = CompensationConfig()
-    want = contract_metrics(t, mag, tl, segment_labels(data), kept_mask(data), cfg)
+    want = contract_metrics(t, mag, tl, segment_labels(data), kept_mask(data), cfg).to_dict()
     got = rep["metrics"]
     for k in FIGURES:
         assert got[k] == pytest.approx(want[k], rel=1e-12, abs=0), k
@@ -82,7 +82,7 @@ def test_online_metrics_are_not_of_the_lowpassed_mag_comp(outs):
     cfg = CompensationConfig()
     st = find_stretches(t, np.isfinite(comp) & np.isfinite(mag), cfg.max_gap_s)
     lowpassed = compensation_metrics(mag, comp, t, st, cfg)
-    assert lowpassed["improvement_ratio"] > 1.03 * rep["metrics"]["improvement_ratio"]
+    assert lowpassed.improvement_ratio > 1.03 * rep["metrics"]["improvement_ratio"]
 
 
 def test_after_warmup_is_named_and_reproducible(outs):
@@ -95,7 +95,7 @@ def test_after_warmup_is_named_and_reproducible(outs):
     after = mag - tl
     post = t >= t[np.isfinite(after)][0] + aw["warmup_s"]
     st = find_stretches(t, np.isfinite(after), CompensationConfig().max_gap_s)
-    w = compensation_metrics(mag, after, t, st, CompensationConfig(), kept=post)
+    w = compensation_metrics(mag, after, t, st, CompensationConfig(), kept=post).to_dict()
     for k in ("improvement_ratio", "residual_std_nT", "std_before_nT", "n_samples"):
         assert aw[k] == pytest.approx(w[k], rel=1e-12), k
     # the warm-up is what holds the whole-flight figure down on this flight

@@ -153,7 +153,7 @@ def test_figures_draw_the_whole_array_envelopes(res) -> None:
 def test_term_figure_draws_the_contributions_and_their_std(res) -> None:
     data = _long(res.data)
     data.loc[data.index[100:130], "flux_x"] = np.nan  # no contribution there
-    terms, coef = res.report["terms"], res.report["coef"]
+    terms, coef = res.report.terms, res.report.coef
     parts = pc.term_contributions(data, terms, coef)
     got = _lines(pc.plot_term_contributions(data, res.report))
     t = data["time"].to_numpy()

@@ -50,17 +50,17 @@ def test_draws_into_given_axes(res):
 
 def test_term_contributions_sum_to_mag_tl(res):
     r, _ = res
-    parts = pc.term_contributions(r.data, r.report["terms"], r.report["coef"])
+    parts = pc.term_contributions(r.data, r.report.terms, r.report.coef)
     assert list(parts.columns) == ["permanent", "induced", "eddy"]
     assert ((parts.sum(axis=1) - r.data["mag_tl"]).abs().max()) < 1e-9
     # Block by block (derivatives at block ends from their neighbours), from float32 columns.
-    small = pc.term_contributions(r.data, r.report["terms"], r.report["coef"], block=97)
+    small = pc.term_contributions(r.data, r.report.terms, r.report.coef, block=97)
     np.testing.assert_allclose(small.to_numpy(), parts.to_numpy(), rtol=0, atol=1e-9)
     d32 = r.data.astype({c: np.float32 for c in ("flux_x", "flux_y", "flux_z")})
-    p32 = pc.term_contributions(d32, r.report["terms"], r.report["coef"], block=97)
+    p32 = pc.term_contributions(d32, r.report.terms, r.report.coef, block=97)
     want = pc.term_contributions(d32.astype({c: np.float64 for c in ("flux_x", "flux_y",
                                                                        "flux_z")}),
-                                 r.report["terms"], r.report["coef"])
+                                 r.report.terms, r.report.coef)
     np.testing.assert_allclose(p32.to_numpy(), want.to_numpy(), rtol=0, atol=1e-9)
 
 

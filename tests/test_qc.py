@@ -33,7 +33,7 @@ def cal_result():
 def test_fom_matches_truth_and_drops(cal_result):
     res, _ = cal_result
     q = compute_qc(res)
-    fom = q.metrics["fom"]
+    fom = q.metrics.fom
     assert fom["complete_boxes"] == [0]
     assert fom["n_maneuvers"] == 12
     assert abs(fom["fom_before_nT"] - fom["fom_truth_nT"]) < 0.1 * fom["fom_truth_nT"]
@@ -46,14 +46,14 @@ def test_fom_matches_truth_and_drops(cal_result):
 
 def test_metrics_block(cal_result):
     res, _ = cal_result
-    m = quality_metrics(res.data, res.report)
+    m = quality_metrics(res.data, res.report).to_dict()
     assert m["improvement_ratio"] > 100 and m["all_data"]["improvement_ratio"] > 100
     assert m["residual_std_nT"] < 0.02
     assert set(m["residual_std_by_heading_nT"]) == {"N", "E", "S", "W"}
     assert len(m["residual_std_by_segment_nT"]) == 12
     fit = m["fit"]
     assert fit["condition_number_scaled"] == pytest.approx(
-        res.report["fit"]["condition_number_scaled"], rel=0.05)
+        res.report.fit.condition_number_scaled, rel=0.05)
     assert len(fit["vif"]) == 16 and min(fit["vif"].values()) >= 1 - 1e-9
     assert fit["cv_residual_std_nT"] >= fit["fit_residual_std_nT"]
     assert fit["cv_residual_std_nT"] < 0.1  # nT: the model generalises across segments
@@ -100,7 +100,7 @@ def test_no_maneuvers_no_fom():
     df = pd.DataFrame({"time": t, "mag": 50000 + rng.normal(0, 0.1, t.size),
                        "mag_comp": 50000 + rng.normal(0, 0.05, t.size)})
     q = compute_qc(CompensationResult(df, None, {}))
-    assert q.metrics["fom"]["applicable"] is False and q.notes
+    assert q.metrics.fom["applicable"] is False and q.notes
 
 
 def test_fourth_difference_noise_blocked_equals_direct():
@@ -124,11 +124,11 @@ def test_per_segment_residuals_agree_with_the_model_file_and_do_not_bleed():
     neighbours; qc's per-segment residuals are the model file's; the headline is kept data."""
     df, _ = simulate_calibration(seed=4, n_boxes=1, faults={3: "noise_burst"})
     res = compensate(df)
-    m = compute_qc(res, fit=False).metrics
+    m = compute_qc(res, fit=False).metrics.to_dict()
     by_seg = m["residual_std_by_segment_nT"]
-    for s in res.report["segments"]:
-        assert by_seg[str(s["id"])] == pytest.approx(s["residual_std"], rel=1e-6), s["id"]
-    assert 3 in res.report["screening"]["dropped"]
+    for s in res.report.segments:
+        assert by_seg[str(s.id)] == pytest.approx(s.residual_std, rel=1e-6), s.id
+    assert 3 in res.report.screening.dropped
     assert by_seg["2"] < 0.02 and by_seg["4"] < 0.02  # the neighbours of the fault
     assert m["residual_std_nT"] < 0.02 < 0.1 < m["all_data"]["residual_std_nT"]
     assert m["improvement_ratio"] > 10 * m["all_data"]["improvement_ratio"]
@@ -148,11 +148,11 @@ def test_fom_only_for_complete_boxes():
     from aeromag.synthetic import simulate_survey
 
     sv, _ = simulate_survey(seed=1)
-    fom = compute_qc(compensate(sv), fit=False).metrics["fom"]
+    fom = compute_qc(compensate(sv), fit=False).metrics.fom
     assert fom["applicable"] is False and fom["fom_after_nT"] is None
     assert "not applicable" in fom["reason"]
     # Not asked for (compensate without --fom): not applicable, not absent.
-    fom = compute_qc(res, fit=False, fom=False).metrics["fom"]
+    fom = compute_qc(res, fit=False, fom=False).metrics.fom
     assert fom["applicable"] is False and "not computed" in fom["reason"]
 
 
@@ -166,15 +166,15 @@ def test_out_json_qc_block_is_compute_qc_of_mag_minus_mag_tl():
     model = wf_calibrate(cal).model
     sv, _ = simulate_calibration(seed=6, n_boxes=1)
     res = wf_compensate(sv, model=model)
-    got = res.report["qc"]
+    got = res.report.to_dict()["qc"]
     want = compute_qc(res, fit=False, fom=False).metrics
-    assert got == want
-    assert got["definition"] == res.report["metrics"]["definition"]
+    assert got == want.to_dict()
+    assert got["definition"] == res.report.metrics.definition
     for k in ("improvement_ratio", "residual_std_nT", "std_before_nT", "n_samples"):
-        assert got[k] == res.report["metrics"][k], k
+        assert got[k] == getattr(res.report.metrics, k), k
     assert got["per_piece_rms"]["definition"].startswith("rms of mag and of mag - mag_tl")
-    for e in res.report["segments"]:
-        assert e["residual_std"] == got["residual_std_by_segment_nT"][str(e["id"])]
+    for e in res.report.segments:
+        assert e.residual_std == got["residual_std_by_segment_nT"][str(e.id)]
     with pytest.raises(TypeError):
         quality_metrics(res.data, res.report, comp_bp=np.zeros(len(res.data)))
 

@@ -7,6 +7,7 @@ computing them again, and :func:`segment_labels` reads an integer column as one 
 
 from __future__ import annotations
 
+import dataclasses
 import tracemalloc
 
 import numpy as np
@@ -25,7 +26,7 @@ def rebuilt():
     """A compensated calibration flight whose report lacks the fit block (QC rebuilds it)."""
     df, _ = simulate_calibration(seed=3, n_boxes=8)
     res = compensate(df)
-    report = {k: v for k, v in res.report.items() if k != "fit"}
+    report = dataclasses.replace(res.report, fit=None)
     return CompensationResult(res.data, res.model, report, config=res.config)
 
 

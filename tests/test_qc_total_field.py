@@ -12,6 +12,7 @@ import warnings
 import numpy as np
 import pytest
 
+from aeromag.compensation import CompensationReport
 from aeromag.compensation.config import CompensationConfig
 from aeromag.compensation.pipeline import run_compensation as compensate
 from aeromag.qc import compute_qc, kept_mask, segment_labels
@@ -28,7 +29,7 @@ def fluxgate_result():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = compensate(df, CompensationConfig(mag_from_fluxgate=True), source="flux.csv")
-    assert res.report["mag_from_fluxgate"] is True
+    assert res.report.mag_from_fluxgate is True
     return res
 
 
@@ -42,7 +43,7 @@ def test_qc_per_piece_residuals_are_of_the_fluxgate_magnitude(fluxgate_result):
     tl = data["mag_tl"].to_numpy(dtype=np.float64)
     want = piece_residuals(t, bt, tl, segment_labels(data), kept_mask(data), cfg.band_hz,
                            cfg.order, trim_s=cfg.trim_s, max_gap_s=cfg.max_gap_s)
-    got = qc.metrics["per_piece_rms"]
+    got = qc.metrics.per_piece_rms
     assert got["kept"]["per_piece_rms_after_nT"] == pytest.approx(
         want.kept["residual_std_nT"], rel=1e-12)
     assert got["kept"]["per_piece_rms_before_nT"] == pytest.approx(
@@ -50,7 +51,7 @@ def test_qc_per_piece_residuals_are_of_the_fluxgate_magnitude(fluxgate_result):
     assert got["all"]["per_piece_rms_ratio"] == pytest.approx(
         want.all["improvement_ratio"], rel=1e-12)
     for k, v in want.by_segment.items():
-        assert qc.metrics["residual_std_by_segment_nT"][str(k)] == pytest.approx(v, rel=1e-12)
+        assert qc.metrics.residual_std_by_segment_nT[str(k)] == pytest.approx(v, rel=1e-12)
     # ... and not those of the unused 'mag' column (the slow drift is out of band, the
     # residual mag - mag_tl then holds the fluxgate-vs-scalar interference difference).
     wrong = piece_residuals(t, data["mag"].to_numpy(dtype=np.float64), tl, segment_labels(data),
@@ -66,12 +67,12 @@ def test_prepared_total_field_follows_the_report():
     d = pd.DataFrame({"time": np.arange(5.0), "mag": [1.0, np.nan, 3.0, 4.0, 5.0],
                       "flux_x": [3.0] * 5, "flux_y": [4.0] * 5, "flux_z": [0.0] * 5})
     cfg = CompensationConfig(max_interp_s=2.0)
-    assert not fluxgate_is_total_field(d, {})
-    assert fluxgate_is_total_field(d, {"mag_from_fluxgate": True})
-    assert fluxgate_is_total_field(d.drop(columns=["mag"]), {})
-    np.testing.assert_array_equal(prepared_total_field(d, {"mag_from_fluxgate": True}, cfg),
-                                  np.full(5, 5.0))
-    np.testing.assert_array_equal(prepared_total_field(d, {}, cfg), [1.0, 2.0, 3.0, 4.0, 5.0])
+    plain, flux = CompensationReport(), CompensationReport(mag_from_fluxgate=True)
+    assert not fluxgate_is_total_field(d, plain)
+    assert fluxgate_is_total_field(d, flux)
+    assert fluxgate_is_total_field(d.drop(columns=["mag"]), plain)
+    np.testing.assert_array_equal(prepared_total_field(d, flux, cfg), np.full(5, 5.0))
+    np.testing.assert_array_equal(prepared_total_field(d, plain, cfg), [1.0, 2.0, 3.0, 4.0, 5.0])
 
 
 def test_qc_fom_is_of_the_fluxgate_magnitude(fluxgate_result):

@@ -18,6 +18,7 @@ import pytest
 from typer.testing import CliRunner
 
 from aeromag.cli import app
+from aeromag.compensation import CompensationMetrics
 from aeromag.workflows.report import load_compensated, render_html
 from aeromag.workflows.report_check import (
     REL_TOL,
@@ -74,12 +75,12 @@ def test_unmodified_outputs_reproduce_out_json_without_warning(outs, caplog):
     for name in names:
         res, cfg = load_compensated(d / f"{name}.csv")
         rep = headline_from_data(res, cfg).report
-        check = rep["headline_check"]
+        check = rep.headline_check
         assert check["compared"] and check["agree"], (name, check)
         assert check["warning"] is None
-        rec = rep["recorded_metrics"]
-        assert rep["metrics"]["n_samples"] == rec["n_samples"], name
-        assert rep["metrics"]["all_n_samples"] == rec["all_n_samples"], name
+        rec = rep.recorded_metrics
+        assert rep.metrics.n_samples == rec.n_samples, name
+        assert rep.metrics.all_n_samples == rec.all_n_samples, name
         tol = 1e-12 if name != "cal_fluxgate" else 1e-3  # float32 fluxgate in the reader
         assert check["max_relative_difference"] <= tol, (name, check["max_relative_difference"])
     assert "disagrees" not in caplog.text
@@ -113,18 +114,18 @@ def test_cut_lines_headline_the_remaining_data(outs):
     csv = _copy(d, "survey_model", "cut", lambda x: x[~x["line"].isin([2, 3, 4])])
     res, cfg = load_compensated(csv)
     rep = headline_from_data(res, cfg).report
-    rec = rep["recorded_metrics"]
+    rec = rep.recorded_metrics
     kept_rows = int(res.data["segment_kept"].astype(bool).sum())
-    assert rep["metrics"]["n_samples"] < rec["n_samples"]
-    assert rep["metrics"]["n_samples"] <= kept_rows
+    assert rep.metrics.n_samples < rec.n_samples
+    assert rep.metrics.n_samples <= kept_rows
     # the same as compensating only the remaining rows' numbers: OUT.json's are of all lines
-    assert rep["metrics"]["improvement_ratio"] != rec["improvement_ratio"]
-    assert "n_samples" in rep["headline_check"]["warning"]
+    assert rep.metrics.improvement_ratio != rec.improvement_ratio
+    assert "n_samples" in rep.headline_check["warning"]
     out = d / "rep_cut"
     _cli("report", str(csv), "-o", str(out))
     qc = json.loads((out / "qc.json").read_text())
-    assert qc["n_samples"] == rep["metrics"]["n_samples"]
-    assert qc["improvement_ratio"] == rep["metrics"]["improvement_ratio"]
+    assert qc["n_samples"] == rep.metrics.n_samples
+    assert qc["improvement_ratio"] == rep.metrics.improvement_ratio
 
 
 def test_report_without_mag_tl_says_run_compensate(outs):
@@ -141,13 +142,16 @@ def test_compare_headline_tolerance_and_counts():
                              "all_improvement_ratio", "all_residual_std_nT",
                              "all_std_before_nT")}
     base |= {"n_samples": 100, "all_n_samples": 120}
-    near = dict(base, improvement_ratio=2.0 * (1 + REL_TOL / 2))
-    assert compare_headline(near, base)["agree"] is True
-    far = dict(base, improvement_ratio=2.0 * (1 + 3 * REL_TOL))
-    assert compare_headline(far, base)["agree"] is False
-    assert compare_headline(dict(base, n_samples=99), base)["agree"] is False
-    assert compare_headline(far, base, online=True)["agree"] is False  # online: 1e-6 too
-    assert compare_headline(base, None)["compared"] is False
+    def m(**kw):
+        return CompensationMetrics(**(base | kw))
+
+    near = m(improvement_ratio=2.0 * (1 + REL_TOL / 2))
+    assert compare_headline(near, m())["agree"] is True
+    far = m(improvement_ratio=2.0 * (1 + 3 * REL_TOL))
+    assert compare_headline(far, m())["agree"] is False
+    assert compare_headline(m(n_samples=99), m())["agree"] is False
+    assert compare_headline(far, m(), online=True)["agree"] is False  # online: 1e-6 too
+    assert compare_headline(m(), None)["compared"] is False
 
 
 def test_fom_headline_is_kept_first():

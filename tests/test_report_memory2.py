@@ -191,7 +191,7 @@ def test_fit_diagnostics_prepares_no_heading_and_same_result(compensated, monkey
     data = compensated.data.copy()
     for c in ("heading", "pitch", "roll", "flux_x", "flux_y", "flux_z"):
         data[c] = data[c].astype(np.float32)  # as the report reads them
-    cfg, terms = compensated.config, tuple(compensated.report["terms"])
+    cfg, terms = compensated.config, tuple(compensated.report.terms)
     seg = segment_labels(data)
     seen: list[list[str]] = []
     orig_prepare = dg.prepare

@@ -64,6 +64,6 @@ def test_plot_functions_take_the_result_and_return_figures(cal, tmp_path):
         fig = getattr(am.plot, name)(res)
         assert isinstance(fig, Figure), name
         assert fig._repr_png_().startswith(b"\x89PNG"), name  # shows itself in Jupyter
-    assert am.compute_qc(res).metrics["improvement_ratio"] > 1
+    assert am.compute_qc(res).metrics.improvement_ratio > 1
     page = am.write_report(res, tmp_path / "r")
     assert page.exists()

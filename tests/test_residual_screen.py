@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from aeromag.cli import app
+from aeromag.compensation import CompensationReport, SegmentRow
 from aeromag.compensation.report import flag_residual_outliers
 
 DATA = Path(__file__).resolve().parents[1] / "data_samples"
@@ -67,8 +68,8 @@ def test_a_clean_flight_flags_nothing(tmp_path):
 
 
 def _report(res):
-    return {"source": "x.csv",
-            "segments": [{"id": i, "residual_std": r} for i, r in enumerate(res)]}
+    return CompensationReport(source="x.csv", segments=[SegmentRow(i, residual_std=r)
+                                                        for i, r in enumerate(res)])
 
 
 @settings(max_examples=60, deadline=None, derandomize=True)
@@ -89,7 +90,7 @@ def test_the_rule_is_robust_and_scale_free(base, scale, bad, factor):
 def test_too_few_or_unknown_residuals_are_not_screened():
     rep = _report([0.05, None, 5.0])
     assert flag_residual_outliers(rep) == []
-    assert "not screened" in rep["residual_screen"]["note"]
-    assert not any(s["residual_flagged"] for s in rep["segments"])
+    assert "not screened" in rep.residual_screen.note
+    assert not any(s.residual_flagged for s in rep.segments)
     rep = _report([0.05, 0.05, 0.05, np.nan, 0.5])
     assert flag_residual_outliers(rep) == [4]

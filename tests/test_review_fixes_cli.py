@@ -19,8 +19,11 @@ import pytest
 from typer.testing import CliRunner
 
 from aeromag.cli import app
+from aeromag.compensation import CompensationMetrics
 from aeromag.compensation.checks import metric_warnings
 from aeromag.errors import InputError
+
+_m = CompensationMetrics.from_dict  # a metrics block as a report file holds it
 
 runner = CliRunner()
 SAMPLES = Path(__file__).resolve().parents[1] / "data_samples"
@@ -37,8 +40,8 @@ def test_compensate_file_fitted_on_itself_warns_without_a_box(tmp_path, caplog):
     out = tmp_path / "out.csv"
     with caplog.at_level(logging.WARNING, logger="aeromag"):
         res = compensate_file(SAMPLES / "survey.csv", out)  # no self_check=: the default
-    assert "self_calibration" in res.report
-    assert res.report["self_calibration"]["calibration_box"] is False
+    assert res.report.self_calibration is not None
+    assert res.report.self_calibration["calibration_box"] is False
     warned = [r.getMessage() for r in caplog.records if "without a calibration box" in
               r.getMessage()]
     assert warned and "flattering" in warned[0] and "model=MODEL" in warned[0]
@@ -54,7 +57,7 @@ def test_compensate_file_with_a_model_is_not_self_checked(tmp_path, caplog):
     caplog.clear()
     with caplog.at_level(logging.WARNING, logger="aeromag"):
         res = compensate_file(SAMPLES / "survey.csv", tmp_path / "out.csv", model=model)
-    assert "self_calibration" not in res.report
+    assert res.report.self_calibration is None
     assert not any("calibration box" in r.getMessage() for r in caplog.records)
 
 
@@ -173,14 +176,14 @@ def test_bad_unit_names_the_parameter_and_the_flag(tmp_path):
 
 # --------------------------------------------------------------------------- 4. wording
 def test_improvement_ratio_just_below_one_reads_below_one():
-    (w,) = metric_warnings({"improvement_ratio": 0.9996, "residual_std_nT": 0.1}, fitted=True)
+    (w,) = metric_warnings(_m({"improvement_ratio": 0.9996, "residual_std_nT": 0.1}), fitted=True)
     assert "improvement ratio 0.9996 < 1" in w
-    (w,) = metric_warnings({"improvement_ratio": 0.5, "residual_std_nT": 0.1})
+    (w,) = metric_warnings(_m({"improvement_ratio": 0.5, "residual_std_nT": 0.1}))
     assert "improvement ratio 0.5 < 1" in w
 
 
 def test_online_ratio_below_one_gives_the_online_advice():
-    m = {"improvement_ratio": 0.9, "residual_std_nT": 0.1}
+    m = CompensationMetrics(improvement_ratio=0.9, residual_std_nT=0.1)
     (w,) = metric_warnings(m, fitted=True, online=True)
     assert "calibrate on a flight with maneuvers" not in w
     assert "online fit" in w and "forgetting=" in w and "terms=" in w
@@ -188,7 +191,7 @@ def test_online_ratio_below_one_gives_the_online_advice():
 
     cli = flag_message(w)
     assert "--forgetting 0.9999" in cli and "--terms 9" in cli
-    (w,) = metric_warnings({"improvement_ratio": 0.9, "residual_std_nT": 0.1}, fitted=True)
+    (w,) = metric_warnings(_m({"improvement_ratio": 0.9, "residual_std_nT": 0.1}), fitted=True)
     assert "calibrate on a flight with maneuvers" in w  # the batch fit keeps its advice
 
 

@@ -73,7 +73,7 @@ def test_screening_recall_and_precision_over_seeds(screened_runs):
     for _, truth, res, _, matter in screened_runs:
         faulty = {f["segment"] for f in truth["faults"]}
         important = {s for s, r in matter.items() if r > 1.25}
-        dropped = set(res.report["screening"]["dropped"])
+        dropped = set(res.report.screening.dropped)
         tp += len(important & dropped)
         fn += len(important - dropped)
         flagged += len(dropped)
@@ -94,7 +94,7 @@ def test_clean_segments_closer_to_truth_than_without_screening(screened_runs):
 def test_clean_flight_loses_no_segment():
     for seed in (7, 8):
         df, _ = simulate_calibration(seed=seed, n_boxes=2)
-        assert compensate(df).report["screening"]["dropped"] == []
+        assert compensate(df).report.screening.dropped == []
 
 
 def test_fluxgate_offsets_matter_far_less_than_scalar_faults(screened_runs):
@@ -142,20 +142,20 @@ def test_a_clean_segment_dropped_beside_a_fault_is_readmitted():
     df, truth = simulate_calibration(seed=7, rate_hz=10, faults={4: "onboard_source"})
     faults = [f["segment"] for f in truth["faults"]]
     rep = compensate(df, CompensationConfig(noise_factor=0.0)).report
-    assert rep["screening"]["dropped"] == [4] == faults
-    assert rep["screening"]["readmitted"] == [16]
-    seg = {s["id"]: s for s in rep["segments"]}
-    assert seg[16]["kept"] and seg[16]["readmitted"] and seg[16]["pca_outlier"]
+    assert rep.screening.dropped == [4] == faults
+    assert rep.screening.readmitted == [16]
+    seg = rep.segment(16)
+    assert seg.kept and seg.readmitted and seg.pca_outlier
     rep = compensate(df).report
-    assert rep["screening"]["dropped"] == [4] and rep["screening"]["readmitted"] == []
+    assert rep.screening.dropped == [4] and rep.screening.readmitted == []
 
 
 def test_readmission_never_brings_back_a_fault():
     """Every faulty segment of every kind on several seeds: none is re-admitted."""
     for seed in (1, 6, 11, 13):
         df, truth = simulate_calibration(seed=seed, rate_hz=10, faults=0.2)
-        rep = compensate(df).report["screening"]
-        assert not set(rep["readmitted"]) & {f["segment"] for f in truth["faults"]}, seed
+        rep = compensate(df).report.screening
+        assert not set(rep.readmitted) & {f["segment"] for f in truth["faults"]}, seed
 
 
 def test_fault_free_surveys_lose_no_line_to_geology():
@@ -166,7 +166,7 @@ def test_fault_free_surveys_lose_no_line_to_geology():
 
     for seed in range(1, 9):
         df, _ = simulate_survey(seed=seed, rate_hz=10)
-        assert compensate(df).report["screening"]["dropped"] == [], seed
+        assert compensate(df).report.screening.dropped == [], seed
 
 
 def test_a_fault_masked_in_the_score_plot_is_still_dropped():
@@ -175,4 +175,4 @@ def test_a_fault_masked_in_the_score_plot_is_still_dropped():
     from aeromag.synthetic.survey import simulate_survey
 
     df, truth = simulate_survey(seed=9, rate_hz=10, faults={1: "noise_burst"})
-    assert compensate(df).report["screening"]["dropped"] == [1]
+    assert compensate(df).report.screening.dropped == [1]

@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from aeromag.compensation import CompensationReport
 from aeromag.compensation.config import CompensationConfig
 from aeromag.workflows.compensate import compensate
 
@@ -92,9 +93,8 @@ def box_flight(seed: int, *, noise_nT: float = 0.02, fault_line: int | None = No
     })
 
 
-def _headline(rep: dict) -> tuple[float, float]:
-    m = rep["metrics"]
-    return m["kept_improvement_ratio"], m["all_improvement_ratio"]
+def _headline(rep: CompensationReport) -> tuple[float, float]:
+    return rep.metrics.kept_improvement_ratio, rep.metrics.all_improvement_ratio
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
@@ -106,9 +106,9 @@ def test_clean_box_keeps_every_line(seed):
     """
     df = box_flight(seed)
     before = compensate(df, CompensationConfig(noise_factor=0.0)).report
-    assert before["screening"]["dropped"] == [5, 11]
+    assert before.screening.dropped == [5, 11]
     rep = compensate(df).report
-    assert rep["screening"]["dropped"] == []
+    assert rep.screening.dropped == []
     kept, every = _headline(rep)
     assert kept == pytest.approx(every)
 
@@ -117,7 +117,7 @@ def test_clean_box_keeps_every_line(seed):
 def test_box_with_an_interference_burst_drops_that_line_only(seed, line, amp):
     """A 1-3 nT interference burst on one line is a fault, far above the noise floor."""
     rep = compensate(box_flight(seed, fault_line=line, fault_nT=amp)).report
-    assert rep["screening"]["dropped"] == [line]
+    assert rep.screening.dropped == [line]
     kept, every = _headline(rep)
     assert kept > 5 * every
 

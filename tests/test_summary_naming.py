@@ -16,6 +16,7 @@ import pytest
 from typer.testing import CliRunner
 
 from aeromag.cli import app
+from aeromag.compensation import CompensationReport, SegmentRow
 from aeromag.compensation.report import dropped_summary, segment_name
 
 SAMPLES = Path(__file__).resolve().parents[1] / "data_samples"
@@ -139,13 +140,14 @@ def test_dropped_summary_phrases():
             {"id": 3, "kept": False, "line": 3, "name": "line 3"},
             {"id": 7, "kept": False, "reason": "too short to fit", "too_short": True,
              "start_time": 120.0, "end_time": 185.31, "name": "segment 7 (120.0–185.3 s)"}]
-    assert dropped_summary({"segments": segs}) == (
+    assert dropped_summary(CompensationReport.from_dict({"segments": segs})) == (
         "dropped 2 segments: line 2, line 3; 1 segment not fitted (too short):"
         " segment 7 (120.0–185.3 s)")
-    assert dropped_summary({"segments": segs[:1]}) == ""
+    assert dropped_summary(CompensationReport.from_dict({"segments": segs[:1]})) == ""
     # Reports written before the names: the phrase is built from the entries.
     old = [{"id": 9, "kept": False, "reason": "too short to fit"}]
-    assert dropped_summary({"segments": old}) == "1 segment not fitted (too short): segment 9"
+    assert (dropped_summary(CompensationReport.from_dict({"segments": old}))
+            == "1 segment not fitted (too short): segment 9")
     e = {"id": 9, "line": 9, "start_time": 1.0, "end_time": 2.0}
-    assert segment_name(e) == "line 9"
-    assert segment_name(e, lines=False) == "segment 9 (1.0–2.0 s)"
+    assert segment_name(SegmentRow.from_dict(e)) == "line 9"
+    assert segment_name(SegmentRow.from_dict(e), lines=False) == "segment 9 (1.0–2.0 s)"

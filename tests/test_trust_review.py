@@ -20,8 +20,11 @@ import pytest
 from typer.testing import CliRunner
 
 from aeromag.cli import app
+from aeromag.compensation import CompensationMetrics, SegmentRow
 
 from .conftest import hand_flight
+
+_m = CompensationMetrics.from_dict  # a metrics block as a report file holds it
 
 runner = CliRunner()
 
@@ -86,15 +89,15 @@ def test_a_model_that_makes_the_data_worse_is_a_warning_and_strict_fails(files, 
 def test_metric_checks_name_the_file_and_the_advice():
     from aeromag.compensation.checks import metric_warnings
 
-    assert metric_warnings({"improvement_ratio": 3.0, "residual_std_nT": 0.2}) == []
-    fitted = metric_warnings({"improvement_ratio": 0.5, "residual_std_nT": 0.2},
+    assert metric_warnings(_m({"improvement_ratio": 3.0, "residual_std_nT": 0.2})) == []
+    fitted = metric_warnings(_m({"improvement_ratio": 0.5, "residual_std_nT": 0.2}),
                              source="a.csv", fitted=True)
-    applied = metric_warnings({"improvement_ratio": 0.5, "residual_std_nT": 0.2},
+    applied = metric_warnings(_m({"improvement_ratio": 0.5, "residual_std_nT": 0.2}),
                               source="a.csv")
     assert fitted[0].startswith("a.csv: the fitted model") and "calibrate" in fitted[0]
     assert applied[0].startswith("a.csv: the model") and "aircraft" in applied[0]
-    assert "--" not in " ".join(metric_warnings({"improvement_ratio": 2,
-                                                 "residual_std_nT": 500.0}))
+    assert "--" not in " ".join(metric_warnings(_m({"improvement_ratio": 2,
+                                                 "residual_std_nT": 500.0})))
 
 
 def test_mag_comp_is_empty_where_mag_is_missing(files, tmp_path):
@@ -157,7 +160,7 @@ def test_drop_reasons_can_be_recomputed_from_the_report(tmp_path):
 def test_segments_of_an_epoch_log_are_named_in_utc():
     from aeromag.compensation.report import format_time, segment_name, time_span
 
-    e = {"id": 4, "kept": False, "start_time": 1700000119.0, "end_time": 1700000149.9}
+    e = SegmentRow(4, kept=False, start_time=1700000119.0, end_time=1700000149.9)
     assert segment_name(e, lines=False) == "segment 4 (22:15:19–22:15:49 UTC)"
     assert format_time(1700000119.0) == "22:15:19"
     # Log time that is no epoch: as the log has it, in seconds (as the HTML tables).

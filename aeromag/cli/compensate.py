@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 
@@ -10,6 +11,9 @@ from ..errors import InputError
 from ._app import column_options, setup_logging, strict_warnings, user_errors
 from ._options import Options, command, config_errors
 from ._progress import progress_bar
+
+if TYPE_CHECKING:
+    from ..compensation.report_types import CompensationReport
 from .online import dispatch as _online_dispatch  # registers --online and --forgetting
 
 
@@ -95,27 +99,28 @@ def _plot(res: object, plot: Path | None, cfg: object) -> Path | None:
     return write_report(res, plot, config=cfg)
 
 
-def _summary(report: dict, out: Path, out_json: Path | None) -> None:
+def _summary(report: CompensationReport, out: Path, out_json: Path | None) -> None:
     from ..compensation.report import dropped_summary
+    from ..compensation.report_types import CompensationMetrics
 
-    m = report.get("metrics", {})
-    segs = report.get("segments", [])
-    kept = sum(1 for s in segs if s.get("kept"))
+    m = report.metrics or CompensationMetrics()
+    segs = report.segments
+    kept = sum(1 for s in segs if s.kept)
     line = (f"wrote {out}" + (f" and {out_json}" if out_json else "")
             + f": {kept}/{len(segs)} segments kept")
     if dropped_summary(report):
         line += f" ({dropped_summary(report)})"
-    ir = m.get("improvement_ratio")
-    rs = m.get("residual_std_nT")
+    ir = m.improvement_ratio
+    rs = m.residual_std_nT
     if ir is not None and rs is not None:
         line += f"; improvement ratio {ir:.2f}, residual std {rs:.4f} nT"
-        air = m.get("all_improvement_ratio")
+        air = m.all_improvement_ratio
         if dropped_summary(report) and air is not None:
-            line += (f" on kept segments ({air:.2f} and {m['all_residual_std_nT']:.4f} nT over"
+            line += (f" on kept segments ({air:.2f} and {m.all_residual_std_nT:.4f} nT over"
                      " all)")
-        if report.get("self_calibration"):
+        if report.self_calibration:
             line += "; in-sample (fitted on this log)"
-    no_mag = m.get("n_rows_without_mag")
+    no_mag = m.n_rows_without_mag
     if no_mag:
         line += f"; {no_mag} row{'s' if no_mag != 1 else ''} without mag: mag_comp left empty"
     typer.echo(line)

@@ -19,6 +19,7 @@ from .fit import check_interference
 from .metrics import band_metrics
 from .model import TLModel
 from .prepare import Prepared, prepare
+from .report_types import CompensationMetrics
 
 log = logging.getLogger(__name__)
 
@@ -27,7 +28,7 @@ log = logging.getLogger(__name__)
 def apply_model(
     df: pd.DataFrame, model: TLModel, cfg: CompensationConfig | None = None, *,
     kept_segments: np.ndarray | None = None, source: str | None = None,
-) -> tuple[pd.DataFrame, dict[str, Any]]:
+) -> tuple[pd.DataFrame, CompensationMetrics]:
     """Apply a TL model: add ``mag_tl``, ``mag_comp``, ``segment``, ``segment_kept``.
 
     ``mag_tl`` is the model on the unfiltered design matrix (never re-centred, so it does not
@@ -51,7 +52,7 @@ def apply_model(
     -------
     data : DataFrame
         A copy of ``df`` with the four added columns.
-    metrics : dict
+    metrics : CompensationMetrics
         ``improvement_ratio``, ``residual_std_nT`` and friends (band-passed, see interface.md).
     """
     out, metrics, _ = _apply(df, model, cfg or CompensationConfig(), prep=None,
@@ -62,7 +63,7 @@ def apply_model(
 def _apply(
     df: pd.DataFrame, model: TLModel, cfg: CompensationConfig, *, prep: Prepared | None,
     kept_segments: np.ndarray | None, source: str | None, release_flux: bool = False,
-) -> tuple[pd.DataFrame, dict[str, Any], np.ndarray]:
+) -> tuple[pd.DataFrame, CompensationMetrics, np.ndarray]:
     """:func:`apply_model`, also returning the band-passed ``mag_comp`` the metrics used.
 
     The band-passed ``mag_comp`` (edges trimmed to NaN) is reused by the per-segment residuals
@@ -122,7 +123,7 @@ def _apply(
         # field has no compensated one (mag_comp = mag - mag_tl).
         comp_out = np.array(comp_out, dtype=np.float64, copy=True)
         comp_out[no_mag] = np.nan
-    metrics[MISSING_MAG_KEY] = 0 if no_mag is None else int(no_mag.sum())
+    metrics.n_rows_without_mag = 0 if no_mag is None else int(no_mag.sum())
     missing = seg < 0
     added = {"mag_tl": mag_tl, "mag_comp": comp_out,
              "segment": pd.arrays.IntegerArray(np.where(missing, 0, seg) if missing.any()
@@ -160,10 +161,6 @@ def extended_part(df: pd.DataFrame, model: TLModel, prep: Prepared,
         return design_matrix(prep.flux, prep.time, fit_terms, stretch=st)
 
     return model.extended.predict(df, tl_design, prep.source)
-
-
-#: Key of the report's ``metrics`` counting the rows without a measured total field.
-MISSING_MAG_KEY = "n_rows_without_mag"
 
 
 def missing_total_field(df: pd.DataFrame, mag_from_flux: bool) -> np.ndarray | None:
@@ -246,7 +243,7 @@ def isolate_dropped(stretch: np.ndarray, segment: np.ndarray, kept: np.ndarray) 
     return np.where(st >= 0, lab, -1)
 
 
-def check_plausible(data: pd.DataFrame, metrics: dict[str, Any], prep: Prepared,
+def check_plausible(data: pd.DataFrame, metrics: CompensationMetrics, prep: Prepared,
                      cfg: CompensationConfig, *, fitted: bool) -> None:
     """Refuse (fitted) or warn about (saved model) a non-physical compensation.
 

@@ -12,6 +12,8 @@ import logging
 import math
 from typing import Any
 
+from .report_types import CompensationMetrics
+
 log = logging.getLogger(__name__)
 
 __all__ = ["IMPLAUSIBLE_RESIDUAL_NT", "check_metrics", "metric_warnings"]
@@ -21,13 +23,13 @@ __all__ = ["IMPLAUSIBLE_RESIDUAL_NT", "check_metrics", "metric_warnings"]
 IMPLAUSIBLE_RESIDUAL_NT = 50.0
 
 
-def metric_warnings(metrics: dict[str, Any], *, source: str | None = None,
+def metric_warnings(metrics: CompensationMetrics, *, source: str | None = None,
                     fitted: bool = False, online: bool = False) -> list[str]:
     """What is wrong with a compensation's headline metrics (empty when nothing).
 
     Parameters
     ----------
-    metrics : dict
+    metrics : CompensationMetrics
         The report's ``metrics`` (``improvement_ratio`` [-], ``residual_std_nT`` [nT]).
     source : str, optional
         File name that starts every message.
@@ -45,7 +47,7 @@ def metric_warnings(metrics: dict[str, Any], *, source: str | None = None,
         missing, zero, or above :data:`IMPLAUSIBLE_RESIDUAL_NT`.
     """
     out = []
-    ratio, resid = metrics.get("improvement_ratio"), metrics.get("residual_std_nT")
+    ratio, resid = metrics.improvement_ratio, metrics.residual_std_nT
     if _finite(ratio) and ratio < 1.0:
         shown = _below_one(float(ratio))
         if online:
@@ -76,7 +78,7 @@ def metric_warnings(metrics: dict[str, Any], *, source: str | None = None,
     return out
 
 
-def check_metrics(metrics: dict[str, Any], *, source: str | None = None,
+def check_metrics(metrics: CompensationMetrics, *, source: str | None = None,
                   fitted: bool = False, online: bool = False) -> list[str]:
     """Log every finding of :func:`metric_warnings` as a warning; return them.
 

@@ -255,4 +255,4 @@ class TollesLawsonRegressor(RegressorMixin, BaseEstimator):
         cfg = self._config()
         stretch = find_stretches(t, np.isfinite(yv), cfg.max_gap_s)
         return float(compensation_metrics(yv, yv - self.predict(X), t, stretch,
-                                          cfg)["improvement_ratio"])
+                                          cfg).improvement_ratio)

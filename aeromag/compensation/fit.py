@@ -235,9 +235,10 @@ def fit_result(prep: Prepared, cfg: CompensationConfig, *, fit: FitOutcome | Non
     fit = fit if fit is not None else fit_outcome(prep, cfg)
     report = fit_report(fit)
     if extended is not None:
-        report["extended"] = extended.to_dict()
-    model = TLModel(fit.terms, fit.coef, meta={k: v for k, v in report.items()
+        report.extended = extended.to_dict()
+    doc = report.to_dict()  # the model file's metadata, and the segments as a table
+    model = TLModel(fit.terms, fit.coef, meta={k: v for k, v in doc.items()
                                                if k not in ("terms", "coef", "scale_nT",
                                                             "extended")}, extended=extended)
     return CompensationResult(None, model, report, fit.screening.screen,
-                              pd.DataFrame(report["segments"]), fit=fit)
+                              pd.DataFrame(doc["segments"]), fit=fit)

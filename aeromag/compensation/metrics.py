@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -25,10 +27,147 @@ from .config import CompensationConfig
 log = logging.getLogger(__name__)
 
 
+def split_fields(cls: type, d: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Split a JSON block into the keyword arguments of dataclass ``cls`` and the other keys.
+
+    Parameters
+    ----------
+    cls : type
+        A dataclass (its ``extra`` and ``nulls`` fields are not keys of the block).
+    d : dict
+        The block as read from JSON.
+
+    Returns
+    -------
+    known, other : dict
+    """
+    names = {f.name for f in dataclasses.fields(cls)} - {"extra", "nulls"}
+    return ({k: v for k, v in d.items() if k in names},
+            {k: v for k, v in d.items() if k not in names})
+
+
+def block_dict(obj: Any, skip: tuple[str, ...] = ()) -> dict[str, Any]:
+    """A flat JSON block from a dataclass: its fields in order (but ``skip``), then ``extra``.
+
+    Parameters
+    ----------
+    obj : dataclass instance
+        With an ``extra`` dict of the keys it does not know.
+    skip : tuple of str
+        Fields left out.
+
+    Returns
+    -------
+    dict
+    """
+    d = {f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)
+         if f.name != "extra" and f.name not in skip}
+    d.update(obj.extra)
+    return d
+
+
+def block_from_dict(cls: type, d: dict[str, Any] | None) -> Any:
+    """:func:`block_dict` read back: ``cls`` from a JSON block (None for none).
+
+    Parameters
+    ----------
+    cls : type
+        A dataclass with an ``extra`` field and defaults for every other one.
+    d : dict or None
+        The block.
+
+    Returns
+    -------
+    object or None
+        A ``cls``, its unknown keys in ``extra``.
+    """
+    if not d:
+        return None
+    kw, extra = split_fields(cls, d)
+    return cls(**kw, extra=extra)
+
+
+@dataclass
+class CompensationMetrics:
+    """The headline metrics of a compensation (the report's ``metrics`` block).
+
+    Every figure is taken on band-passed fields (zero-phase Butterworth in ``band_hz``, per
+    continuous stretch, each dropped segment on its own, filter edges trimmed); see
+    ``definition`` and :func:`aeromag.compensation.metrics.compensation_metrics`.
+
+    Attributes
+    ----------
+    definition : str
+        How the figures are computed, in words.
+    n_samples : int
+        Samples of the kept segments the headline is taken over.
+    std_before_nT, residual_std_nT : float
+        Over the kept segments: std of band-passed ``mag`` and of ``mag - mag_tl`` [nT].
+    improvement_ratio : float
+        ``std_before_nT / residual_std_nT`` [-] (NaN without a residual).
+    kept_std_before_nT, kept_residual_std_nT, kept_improvement_ratio : float
+        The same, under their explicit names [nT, nT, -].
+    all_n_samples, all_std_before_nT, all_residual_std_nT, all_improvement_ratio
+        The same over all segments [-, nT, nT, -].
+    band_hz : list of float
+        The fitting band [Hz].
+    n_rows_without_mag : int or None
+        Rows without a measured total field (their ``mag_comp`` is NaN); None when not counted.
+    extra : dict
+        Other keys of a metrics block read from a file or added by a workflow (the online
+        run's ``coverage``, ``after_warmup``), written after the others.
+    """
+
+    definition: str | None = None
+    n_samples: int | None = None
+    std_before_nT: float | None = None
+    residual_std_nT: float | None = None
+    improvement_ratio: float | None = None
+    kept_std_before_nT: float | None = None
+    kept_residual_std_nT: float | None = None
+    kept_improvement_ratio: float | None = None
+    all_n_samples: int | None = None
+    all_std_before_nT: float | None = None
+    all_residual_std_nT: float | None = None
+    all_improvement_ratio: float | None = None
+    band_hz: list[float] | None = None
+    n_rows_without_mag: int | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON ``metrics`` block (``n_rows_without_mag`` only when counted).
+
+        Returns
+        -------
+        dict
+        """
+        d = block_dict(self, skip=() if self.n_rows_without_mag is not None
+                       else ("n_rows_without_mag",))
+        if self.band_hz is not None:
+            d["band_hz"] = list(self.band_hz)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any] | None) -> CompensationMetrics | None:
+        """A metrics block read from a JSON file (None for none; missing figures are None).
+
+        Parameters
+        ----------
+        d : dict or None
+            The ``metrics`` block.
+
+        Returns
+        -------
+        CompensationMetrics or None
+        """
+        return block_from_dict(cls, d)
+
+
+
 def compensation_metrics(
     mag: np.ndarray, mag_comp: np.ndarray, time_s: np.ndarray, stretch: np.ndarray,
     cfg: CompensationConfig, kept: np.ndarray | None = None,
-) -> dict[str, Any]:
+) -> CompensationMetrics:
     """Improvement ratio and residual std on band-passed fields (interface.md metrics).
 
     Parameters
@@ -46,7 +185,7 @@ def compensation_metrics(
 
     Returns
     -------
-    dict
+    CompensationMetrics
         See :func:`metrics_dict`: ``improvement_ratio`` (std band-passed ``mag`` / std
         band-passed ``mag_comp``), ``residual_std_nT``, ``std_before_nT``, ``n_samples``, over
         the kept segments, and ``all_*`` over all samples.  Pass ``mag - mag_tl`` (unfiltered)
@@ -60,7 +199,7 @@ def band_metrics(
     cfg: CompensationConfig, kept: np.ndarray | None = None, fs_hz: float | None = None,
     stretch_bp: np.ndarray | None = None, mag_bp: np.ndarray | None = None,
     source: str = "<log>",
-) -> tuple[dict[str, Any], np.ndarray]:
+) -> tuple[CompensationMetrics, np.ndarray]:
     """:func:`compensation_metrics` and the band-passed ``mag_comp`` it used (NaN outside).
 
     ``stretch_bp`` and ``mag_bp``, when given, are the stretches of finite ``mag_comp`` and
@@ -141,7 +280,7 @@ def require_samples(n_used: int, fs_hz: float, band_hz: tuple[float, float], sou
 
 def metrics_dict(n_samples: int, before: float, after: float,
                  kept: tuple[float, float] | None, band_hz: tuple[float, float], *,
-                 n_kept: int | None = None) -> dict[str, Any]:
+                 n_kept: int | None = None) -> CompensationMetrics:
     """The ``metrics`` block from band-passed standard deviations (in memory and chunked).
 
     Parameters
@@ -159,7 +298,7 @@ def metrics_dict(n_samples: int, before: float, after: float,
 
     Returns
     -------
-    dict
+    CompensationMetrics
         ``definition``; the headline over the kept segments: ``n_samples``,
         ``std_before_nT``, ``residual_std_nT``, ``improvement_ratio`` (before / after), also
         as ``kept_*``; beside them the same over all segments (``all_*``); ``band_hz``.
@@ -168,21 +307,21 @@ def metrics_dict(n_samples: int, before: float, after: float,
         return b / a if a > 0 else float("nan")
 
     kb, ka = kept if kept is not None else (before, after)
-    return {
-        "definition": DEFINITION,
-        "n_samples": int(n_samples if n_kept is None else n_kept),
-        "std_before_nT": kb,
-        "residual_std_nT": ka,
-        "improvement_ratio": ratio(kb, ka),
-        "kept_std_before_nT": kb,
-        "kept_residual_std_nT": ka,
-        "kept_improvement_ratio": ratio(kb, ka),
-        "all_n_samples": int(n_samples),
-        "all_std_before_nT": before,
-        "all_residual_std_nT": after,
-        "all_improvement_ratio": ratio(before, after),
-        "band_hz": list(band_hz),
-    }
+    return CompensationMetrics(
+        definition=DEFINITION,
+        n_samples=int(n_samples if n_kept is None else n_kept),
+        std_before_nT=kb,
+        residual_std_nT=ka,
+        improvement_ratio=ratio(kb, ka),
+        kept_std_before_nT=kb,
+        kept_residual_std_nT=ka,
+        kept_improvement_ratio=ratio(kb, ka),
+        all_n_samples=int(n_samples),
+        all_std_before_nT=before,
+        all_residual_std_nT=after,
+        all_improvement_ratio=ratio(before, after),
+        band_hz=list(band_hz),
+    )
 
 
 #: Rows per block of :func:`residual_metrics` (whole stretches are added to a block until it
@@ -304,7 +443,7 @@ def residual_metrics(
     stops: np.ndarray, cfg: CompensationConfig, kept: np.ndarray, *, fs_hz: float,
     visit: Callable[[int, int, np.ndarray, np.ndarray], None] | None = None,
     source: str = "<log>", block_rows: int = BLOCK_ROWS,
-) -> dict[str, Any]:
+) -> CompensationMetrics:
     """:func:`compensation_metrics` of ``mag`` and ``mag - mag_tl``, in blocks of stretches.
 
     The same figures, bit for bit, as ``compensation_metrics(mag, mag - mag_tl, t, stretch,
@@ -340,7 +479,7 @@ def residual_metrics(
 
     Returns
     -------
-    dict
+    CompensationMetrics
         :func:`metrics_dict`, as :func:`compensation_metrics` returns it.
 
     Raises

@@ -67,7 +67,7 @@ def run_compensation(
     Returns
     -------
     CompensationResult
-        ``data`` holds the output table, ``report`` the JSON report (without ``qc``).
+        ``data`` holds the output table, ``report`` the report (without ``qc``).
 
     Raises
     ------
@@ -84,14 +84,12 @@ def run_compensation(
     if model is None:
         inputs = extended_inputs_for(df, cfg, prep.source)
         fit = fit_result(prep, cfg) if inputs is None else extended_result(prep, cfg, inputs)
-        kept_ids = np.array([s["id"] for s in fit.report["segments"] if s["kept"]], dtype=np.int64)
+        kept_ids = np.array(fit.report.kept_ids(), dtype=np.int64)
         data, metrics, comp_bp = _apply(df, fit.model, cfg, prep=prep, kept_segments=kept_ids,
                                         source=source, release_flux=True)
         check_plausible(data, metrics, prep, cfg, fitted=True)
-        report = dict(fit.report)
-        report["metrics"] = metrics
-        report["model_source"] = "fitted"
-        fit.model.meta["metrics"] = metrics
+        report = dataclasses.replace(fit.report, metrics=metrics, model_source="fitted")
+        fit.model.meta["metrics"] = metrics.to_dict()
         return CompensationResult(data, fit.model, report, fit.screen, fit.segment_table,
                                   fit=fit.fit, config=cfg, comp_bp_nT=comp_bp,
                                   segment=prep.segment, fs_hz=prep.fs)
@@ -109,7 +107,7 @@ def run_compensation(
                                        dict(zip(seg_ids.tolist(), counts.tolist(), strict=True)),
                                        metrics))
     if model.extended is not None:
-        report["extended"] = model.extended.to_dict()
+        report.extended = model.extended.to_dict()
     return CompensationResult(data, model, report, None, None, config=cfg, comp_bp_nT=comp_bp,
                               segment=prep.segment, fs_hz=prep.fs)
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -12,6 +11,7 @@ from .config import CompensationConfig
 from .model import TLModel
 from .normal import SegmentStats
 from .prepare import Prepared
+from .report_types import CompensationMetrics, CompensationReport
 from .screening import ScreeningOutcome, ScreenResult
 
 
@@ -73,12 +73,12 @@ class CompensationResult:
         The input log plus ``mag_tl``, ``mag_comp``, ``segment``, ``segment_kept``.
     model : TLModel
         The model applied (fitted here or loaded).
-    report : dict
-        The JSON report (interface.md keys and more).
+    report : CompensationReport
+        The report (``report.to_dict()`` is the JSON of interface.md).
     screen : ScreenResult or None
         The last PCA screening (None when not screened).
     segment_table : DataFrame or None
-        The report's ``segments`` as a table (fits only).
+        The report's ``segments`` as a table, one column per JSON key (fits only).
     fit : FitOutcome or None
         Everything the fit decided and measured (None when a saved model was applied).
     config : CompensationConfig or None
@@ -94,7 +94,7 @@ class CompensationResult:
 
     data: pd.DataFrame | None
     model: TLModel
-    report: dict[str, Any]
+    report: CompensationReport
     screen: ScreenResult | None = None
     segment_table: pd.DataFrame | None = field(default=None, repr=False)
     fit: FitOutcome | None = field(default=None, repr=False)
@@ -103,22 +103,27 @@ class CompensationResult:
     segment: np.ndarray | None = field(default=None, repr=False)
     fs_hz: float | None = None
 
+    def __post_init__(self) -> None:
+        """A report given as the dict of a JSON file is read as one (:meth:`from_dict`)."""
+        if isinstance(self.report, dict):
+            self.report = CompensationReport.from_dict(self.report)
+
     def _summary(self) -> list[tuple[str, str]]:
         """(label, value) pairs of the short description (``repr`` and notebooks)."""
-        rep = self.report or {}
-        segs = rep.get("segments") or []
-        kept = sum(1 for s in segs if s.get("kept"))
+        rep = self.report
+        segs = rep.segments
+        kept = sum(1 for s in segs if s.kept)
         m = self.metrics
-        rows = [("source", str(rep.get("source", "?"))),
+        rows = [("source", str(rep.source)),
                 ("rows", "?" if self.data is None else str(len(self.data))),
                 ("model", "fitted on this log" if self.fit is not None
-                 else str(rep.get("model_source", "given"))),
+                 else str(rep.model_source or "given")),
                 ("terms", str(len(self.model.terms))),
                 ("kept", f"{kept}/{len(segs)} segments")]
         for key in ("improvement_ratio", "residual_std_nT"):
-            if m.get(key) is not None:
-                rows.append((key, f"{m[key]:.4g}"))
-        for w in rep.get("warnings") or []:
+            if m is not None and getattr(m, key) is not None:
+                rows.append((key, f"{getattr(m, key):.4g}"))
+        for w in rep.warnings or []:
             rows.append(("warning", str(w.get("message", w)) if isinstance(w, dict) else str(w)))
         return rows
 
@@ -140,6 +145,6 @@ class CompensationResult:
         return f"<table><caption>{type(self).__name__}</caption>{cells}</table>"
 
     @property
-    def metrics(self) -> dict[str, Any]:
-        """The report's ``metrics`` block (empty for a fit without data)."""
-        return self.report.get("metrics") or {}
+    def metrics(self) -> CompensationMetrics | None:
+        """The report's headline metrics (None for a fit without data)."""
+        return self.report.metrics

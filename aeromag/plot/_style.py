@@ -29,6 +29,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from .._core.runs import run_bounds
+from ..compensation.report_types import CompensationReport
 from ..conventions import EPOCH_DISPLAY_S
 from ..errors import InputError
 
@@ -539,10 +540,16 @@ def _valid_runs(y: np.ndarray, st: np.ndarray | None) -> np.ndarray:
     return runs
 
 
-def _report(obj: Any) -> dict[str, Any]:
-    """The report of a :class:`~aeromag.compensation.result.CompensationResult`, or ``obj``."""
+def _report(obj: Any) -> CompensationReport:
+    """The report of a :class:`~aeromag.compensation.result.CompensationResult`, or ``obj``.
+
+    A dict (a report or model file as read from JSON) is read with
+    :meth:`CompensationReport.from_dict`; anything else gives an empty report.
+    """
     rep = getattr(obj, "report", obj)
-    return rep if isinstance(rep, dict) else {}
+    if isinstance(rep, CompensationReport):
+        return rep
+    return CompensationReport.from_dict(rep if isinstance(rep, dict) else {})
 
 
 def _data(obj: Any) -> pd.DataFrame:

@@ -35,6 +35,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.patches import Ellipse
 
+from ..compensation.report_types import CompensationReport
 from ..errors import InputError
 from ._series import (
     NanStd,
@@ -78,12 +79,14 @@ __all__ = ["DPI", "QCFigure", "envelope", "figure_png", "new_figure", "plot_expl
 log = logging.getLogger(__name__)
 
 
-def _segments_frame(report: dict[str, Any]) -> pd.DataFrame:
-    segs = [s for s in report.get("segments", []) if s.get("scores") is not None]
+def _segments_frame(report: CompensationReport) -> pd.DataFrame:
+    segs = [s for s in report.segments if s.scores is not None]
     if not segs:
         raise InputError("the report has no PCA scores (screening was off or a saved model was"
                          " applied): no score plot")
-    return pd.DataFrame(segs)
+    return pd.DataFrame({"id": [s.id for s in segs], "scores": [s.scores for s in segs],
+                         "kept": [s.kept for s in segs],
+                         "pca_outlier": [s.pca_outlier for s in segs]})
 
 
 # --------------------------------------------------------------------------- PCA
@@ -101,9 +104,9 @@ def plot_pca_scores(
 
     Parameters
     ----------
-    report : dict or CompensationResult
-        Compensation report (or the result holding it) with ``segments[*].scores``/``kept``
-        and ``screening``.
+    report : CompensationReport, CompensationResult or dict
+        Compensation report (or the result holding it, or the report as read from its JSON
+        file) with the segments' ``scores``/``kept`` and ``screening``.
     ax : Axes, optional
         Where to draw.
     path : path-like, optional
@@ -117,14 +120,14 @@ def plot_pca_scores(
     """
     report = _report(report)
     seg = _segments_frame(report)
-    scr = report.get("screening") or {}
+    scr = report.screening
     own = ax is None
     fig, ax = target(ax, (6.0, 5.0))
     sc = np.array([np.r_[s, 0.0][:2] if len(s) < 2 else s[:2] for s in seg["scores"]],
                   dtype=float)
     kept = seg["kept"].to_numpy(dtype=bool)
-    outl = seg["pca_outlier"].fillna(False).to_numpy(dtype=bool) if "pca_outlier" in seg \
-        else ~kept
+    outl = (seg["pca_outlier"].fillna(False).to_numpy(dtype=bool)
+            if seg["pca_outlier"].notna().any() else ~kept)
     ax.scatter(sc[kept & ~outl, 0], sc[kept & ~outl, 1], s=28, c="C0", label="kept",
                zorder=3)
     if (kept & outl).any():
@@ -140,9 +143,9 @@ def plot_pca_scores(
         for i in order:
             ax.annotate(str(seg["id"].iloc[i]), sc[i], textcoords="offset points",
                         xytext=(4, 4), fontsize=8)
-    loc = np.asarray(scr.get("location") or [], dtype=float)
-    cov = np.asarray(scr.get("covariance") or [], dtype=float)
-    cut = scr.get("cutoff")
+    loc = np.asarray(scr.location or [], dtype=float)
+    cov = np.asarray(scr.covariance or [], dtype=float)
+    cut = scr.cutoff
     if loc.size and cut is not None:
         if loc.size >= 2:
             c2 = cov[:2, :2]
@@ -157,7 +160,7 @@ def plot_pca_scores(
             for j, x in enumerate((loc[0] - half, loc[0] + half)):
                 ax.axvline(x, color="k", ls="--", lw=1.2,
                            label="decision boundary" if j == 0 else None)
-    evr = scr.get("explained_variance_ratio") or []
+    evr = scr.explained_variance_ratio or []
     lab = [f"PC{i + 1}" + (f" ({100 * evr[i]:.0f} %)" if i < len(evr) else "") for i in (0, 1)]
     ax.set_xlabel(lab[0])
     ax.set_ylabel(lab[1])
@@ -181,8 +184,9 @@ def plot_explained_variance(
 
     Parameters
     ----------
-    report : dict or CompensationResult
-        Compensation report (or the result holding it) with ``screening.explained_variance_ratio``.
+    report : CompensationReport, CompensationResult or dict
+        Compensation report (or the result holding it, or the report as read from its JSON
+        file) with ``screening.explained_variance_ratio``.
     ax : Axes, optional
         Where to draw.
     path : path-like, optional
@@ -192,17 +196,17 @@ def plot_explained_variance(
     -------
     Figure
     """
-    scr = _report(report).get("screening") or {}
-    evr = np.asarray(scr.get("explained_variance_ratio") or [], dtype=float)
+    scr = _report(report).screening
+    evr = np.asarray(scr.explained_variance_ratio or [], dtype=float)
     if evr.size == 0:
         raise InputError("the report has no explained-variance ratios (no PCA screening)")
     fig, ax = target(ax, (6.0, 4.0))
     x = np.arange(1, evr.size + 1)
-    ncomp = int(scr.get("n_components", 0))
+    ncomp = int(scr.n_components or 0)
     colors = ["C0" if i < ncomp else "0.7" for i in range(evr.size)]
     ax.bar(x, 100 * evr, color=colors, label="per component")
     ax.plot(x, 100 * np.cumsum(evr), "k.-", label="cumulative")
-    thr = scr.get("pca_variance_threshold")
+    thr = scr.pca_variance_threshold
     if thr is not None:
         ax.axhline(100 * thr, color="C3", ls="--", lw=1, label=f"threshold {100 * thr:.0f} %")
     ax.set_xlabel("principal component")
@@ -292,7 +296,7 @@ def plot_residuals(
         data = _data(time_s)
         before_bp, after_bp = q.residuals.before_bp, q.residuals.after_bp
         kept = kept_mask(data) if kept is None else kept
-        band_hz = tuple(q.metrics["band_hz"]) if band_hz is None else band_hz
+        band_hz = tuple(q.metrics.band_hz) if band_hz is None else band_hz
         time_s = data["time"].to_numpy()
     fig, ax = target(ax, (9.0, 4.0))
     t = np.asarray(time_s, dtype=np.float64)
@@ -351,8 +355,8 @@ def plot_psd(
     Figure
         PSD in nT^2/Hz against frequency [Hz], log-log.
     """
-    if band_hz is None and _report(data).get("band_hz"):
-        band_hz = tuple(_report(data)["band_hz"])
+    if band_hz is None and _report(data).band_hz:
+        band_hz = tuple(_report(data).band_hz)
     data = _data(data)
     fig, ax = target(ax, (7.0, 4.5))
     t = data["time"].to_numpy(dtype=np.float64)
@@ -376,7 +380,8 @@ def plot_psd(
 
 
 def plot_term_contributions(
-    data: Any, report: dict[str, Any] | None = None, *, ax: Axes | None = None,
+    data: Any, report: CompensationReport | dict[str, Any] | None = None, *,
+    ax: Axes | None = None,
     path: PathLike | None = None,
 ) -> Figure:
     """Permanent, induced and eddy contributions to ``mag_tl`` against time.
@@ -388,8 +393,9 @@ def plot_term_contributions(
     ----------
     data : DataFrame or CompensationResult
         Log with ``time`` and the fluxgate.
-    report : dict, optional
-        Report or model dictionary with ``terms`` and ``coef`` (default: the result's).
+    report : CompensationReport or dict, optional
+        Report with ``terms`` and ``coef``, or a report or model file as read from JSON
+        (default: the result's).
     ax : Axes, optional
         Where to draw.
     path : path-like, optional
@@ -405,9 +411,9 @@ def plot_term_contributions(
     data = _data(data)
     if not {"flux_x", "flux_y", "flux_z"} <= set(data.columns):
         raise InputError("the term contributions need flux_x, flux_y, flux_z")
-    if not report.get("terms") or not report.get("coef"):
+    if not report.terms or not report.coef:
         raise InputError("the report has no model (terms, coef)")
-    terms, coef = tuple(report["terms"]), report["coef"]
+    terms, coef = tuple(report.terms), report.coef
     names = list(term_groups(terms))
     fig, ax = target(ax, (9.0, 4.0))
     t = data["time"].to_numpy(dtype=np.float64)
@@ -482,8 +488,8 @@ def plot_fom(
         from ..qc import compute_qc
 
         q = compute_qc(fom, fit=False)
-        if not q.metrics["fom"]["applicable"]:
-            raise InputError(q.metrics["fom"]["reason"])
+        if not q.metrics.fom["applicable"]:
+            raise InputError(q.metrics.fom["reason"])
         fom = q.fom
     if fom is None or len(fom) == 0:
         raise InputError("no manoeuvres: no FOM chart")

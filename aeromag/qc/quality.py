@@ -29,6 +29,7 @@ from .._core.stretches import find_stretches
 from ..compensation.apply import isolate_dropped
 from ..compensation.config import CompensationConfig
 from ..compensation.metrics import compensation_metrics
+from ..compensation.report_types import CompensationMetrics, CompensationReport
 from ..compensation.terms import TERMS_16
 from ..errors import AeromagError, InputError
 from .diagnostics import fit_diagnostics
@@ -39,7 +40,7 @@ from .noise import fourth_difference_noise, grouped_std
 from .residuals import PieceResiduals, piece_residuals
 from .total_field import fluxgate_is_total_field, prepared_total_field
 
-__all__ = ["QCResult", "compute_qc", "headline_metrics", "quality_metrics"]
+__all__ = ["QCMetrics", "QCResult", "compute_qc", "headline_metrics", "quality_metrics"]
 
 log = logging.getLogger(__name__)
 
@@ -72,13 +73,13 @@ def _per_piece(d: dict[str, Any]) -> dict[str, Any]:
             "per_piece_rms_before_nT": d["std_before_nT"], "n_samples": d["n_samples"]}
 
 
-def headline_metrics(comp_metrics: dict[str, Any], per_piece_kept: dict[str, Any],
+def headline_metrics(comp_metrics: CompensationMetrics, per_piece_kept: dict[str, Any],
                      per_piece_all: dict[str, Any], trim_s: float) -> dict[str, Any]:
     """The QC headline: the contract's metrics, with the per-piece rms figures beside them.
 
     Parameters
     ----------
-    comp_metrics : dict
+    comp_metrics : CompensationMetrics
         :func:`aeromag.compensation.metrics.compensation_metrics` of the log (the same block
         as OUT.json ``metrics``).
     per_piece_kept, per_piece_all : dict
@@ -90,7 +91,8 @@ def headline_metrics(comp_metrics: dict[str, Any], per_piece_kept: dict[str, Any
     Returns
     -------
     dict
-        ``definition``, ``improvement_ratio``, ``residual_std_nT``, ``std_before_nT`` [nT],
+        The keyword arguments of :class:`QCMetrics`: ``definition``, ``improvement_ratio``,
+        ``residual_std_nT``, ``std_before_nT`` [nT],
         ``n_samples`` (over the kept segments, exactly the ``metrics`` block's), ``all_data``
         (the same over all segments) and ``per_piece_rms`` (``definition``, ``kept``, ``all``
         with ``per_piece_rms_ratio``, ``per_piece_rms_after_nT``, ``per_piece_rms_before_nT``
@@ -98,20 +100,20 @@ def headline_metrics(comp_metrics: dict[str, Any], per_piece_kept: dict[str, Any
     """
     cm = comp_metrics
     return {
-        "definition": cm["definition"],
-        "improvement_ratio": cm["improvement_ratio"], "residual_std_nT": cm["residual_std_nT"],
-        "std_before_nT": cm["std_before_nT"], "n_samples": cm["n_samples"],
-        "all_data": {"improvement_ratio": cm["all_improvement_ratio"],
-                     "residual_std_nT": cm["all_residual_std_nT"],
-                     "std_before_nT": cm["all_std_before_nT"],
-                     "n_samples": cm["all_n_samples"]},
+        "definition": cm.definition,
+        "improvement_ratio": cm.improvement_ratio, "residual_std_nT": cm.residual_std_nT,
+        "std_before_nT": cm.std_before_nT, "n_samples": cm.n_samples,
+        "all_data": {"improvement_ratio": cm.all_improvement_ratio,
+                     "residual_std_nT": cm.all_residual_std_nT,
+                     "std_before_nT": cm.all_std_before_nT,
+                     "n_samples": cm.all_n_samples},
         "per_piece_rms": {"definition": residual_definition(trim_s),
                           "kept": _per_piece(per_piece_kept), "all": _per_piece(per_piece_all)},
     }
 
 
 def contract_metrics(t: np.ndarray, mag: np.ndarray, tl: np.ndarray, seg: np.ndarray,
-                     kept: np.ndarray, cfg: CompensationConfig) -> dict[str, Any]:
+                     kept: np.ndarray, cfg: CompensationConfig) -> CompensationMetrics:
     """OUT.json's ``metrics`` recomputed from a compensated log (compensation.metrics).
 
     Band-passes ``mag`` and ``mag - mag_tl`` once per continuous stretch of finite samples,
@@ -132,7 +134,7 @@ def contract_metrics(t: np.ndarray, mag: np.ndarray, tl: np.ndarray, seg: np.nda
 
     Returns
     -------
-    dict
+    CompensationMetrics
         :func:`aeromag.compensation.metrics.compensation_metrics`.
     """
     after = mag - tl
@@ -141,14 +143,133 @@ def contract_metrics(t: np.ndarray, mag: np.ndarray, tl: np.ndarray, seg: np.nda
     return compensation_metrics(mag, after, t, st, cfg, kept=kept)
 
 
+#: Keys of ``qc.json`` / the report's ``qc`` block written even when None.
+_QC_ALWAYS = frozenset({"band_hz", "definition", "improvement_ratio", "residual_std_nT",
+                        "std_before_nT", "n_samples", "all_data", "per_piece_rms",
+                        "residual_std_by_segment_nT", "noise", "fom", "notes"})
+
+
+@dataclass
+class QCMetrics:
+    """The quality-control figures of one compensated log (``qc.json``, the report's ``qc``).
+
+    Attributes
+    ----------
+    band_hz : list of float
+        The fitting band [Hz].
+    definition : str
+        How the headline is computed (the compensation metrics' definition).
+    improvement_ratio : float
+        Band-passed std of ``mag`` over that of ``mag - mag_tl``, kept segments [-].
+    residual_std_nT, std_before_nT : float
+        Band-passed std of ``mag - mag_tl`` and of ``mag``, kept segments [nT].
+    n_samples : int
+        Samples of the kept segments the headline is taken over.
+    all_data : dict
+        The same over all segments (``improvement_ratio``, ``residual_std_nT``,
+        ``std_before_nT`` [nT], ``n_samples``).
+    per_piece_rms : dict
+        The per-piece rms diagnostic (``definition``, ``kept``, ``all``; see
+        :func:`headline_metrics`).
+    compensation_metrics : CompensationMetrics or None
+        The compensation's own ``metrics`` block, as recorded.
+    residual_std_by_segment_nT : dict of str to float
+        Band-passed residual std per segment id [nT].
+    noise : dict
+        Band-limited std before/after and fourth-difference noise before/after [nT].
+    residual_std_by_heading_nT : dict or None
+        Band-passed residual std per cardinal heading [nT] (when manoeuvres were detected).
+    maneuvers : dict or None
+        Detection summary (method, legs, manoeuvres, complete boxes, heading offset [deg]).
+    fom : dict or None
+        Figure of Merit block (:func:`aeromag.qc.fom.fom_summary`), or why not applicable.
+    fit : dict or None
+        Fit diagnostics (condition numbers, VIF, leave-one-segment-out CV [nT]).
+    notes : list of str
+        Why something could not be computed.
+    headline_check : dict or None
+        ``aeromag report``'s comparison of the recomputed headline with the recorded one.
+    figures : list of str or None
+        Figures the report wrote.
+    figures_skipped : dict or None
+        Figures it could not draw, and why.
+    segments : list of dict or None
+        The report's per-segment rows (:func:`aeromag.workflows.report.segment_rows`).
+    warnings : list or None
+        What the run warned (filled when ``qc.json`` is written).
+    extra : dict
+        Other keys (written after the others).
+    """
+
+    band_hz: list[float]
+    definition: str | None = None
+    improvement_ratio: float | None = None
+    residual_std_nT: float | None = None
+    std_before_nT: float | None = None
+    n_samples: int | None = None
+    all_data: dict[str, Any] | None = None
+    per_piece_rms: dict[str, Any] | None = None
+    compensation_metrics: CompensationMetrics | None = None
+    residual_std_by_segment_nT: dict[str, float] = field(default_factory=dict)
+    noise: dict[str, Any] | None = None
+    residual_std_by_heading_nT: dict[str, float] | None = None
+    maneuvers: dict[str, Any] | None = None
+    fom: dict[str, Any] | None = None
+    fit: dict[str, Any] | None = None
+    notes: list[str] = field(default_factory=list)
+    headline_check: dict[str, Any] | None = None
+    figures: list[str] | None = None
+    figures_skipped: dict[str, str] | None = None
+    segments: list[dict[str, Any]] | None = None
+    warnings: list[Any] | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON block (optional parts only when present).
+
+        Returns
+        -------
+        dict
+        """
+        d: dict[str, Any] = {}
+        for f in dataclasses.fields(self):
+            if f.name == "extra":
+                continue
+            v = getattr(self, f.name)
+            if v is not None or f.name in _QC_ALWAYS:
+                d[f.name] = v.to_dict() if hasattr(v, "to_dict") else v
+        d["band_hz"] = list(self.band_hz)
+        d.update(self.extra)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> QCMetrics:
+        """A ``qc`` block read from a file.
+
+        Parameters
+        ----------
+        d : dict
+
+        Returns
+        -------
+        QCMetrics
+        """
+        names = {f.name for f in dataclasses.fields(cls)} - {"extra"}
+        kw = {k: v for k, v in d.items() if k in names}
+        kw["band_hz"] = list(kw.get("band_hz") or [])
+        kw["compensation_metrics"] = CompensationMetrics.from_dict(
+            kw.get("compensation_metrics"))
+        return cls(**kw, extra={k: v for k, v in d.items() if k not in names})
+
+
 @dataclass
 class QCResult:
     """Quality-control results of one compensated log.
 
     Attributes
     ----------
-    metrics : dict
-        JSON-ready metrics (see :func:`compute_qc`).
+    metrics : QCMetrics
+        The figures (see :func:`compute_qc`; ``metrics.to_dict()`` is ``qc.json``).
     fom : DataFrame or None
         Per-manoeuvre peak-to-peak table (:func:`aeromag.qc.fom_table`), None when no FOM.
     maneuvers : ManeuverResult or None
@@ -161,7 +282,7 @@ class QCResult:
         The band-passed fields the residual metrics used (per segment piece).
     """
 
-    metrics: dict[str, Any]
+    metrics: QCMetrics
     fom: pd.DataFrame | None
     maneuvers: ManeuverResult | None
     segments: pd.DataFrame
@@ -211,14 +332,14 @@ def compute_qc(
     if isinstance(result, pd.DataFrame):  # the old compute_qc(data, report, cfg) call
         warnings.warn("compute_qc(data, report, cfg) is deprecated: pass the CompensationResult",
                       DeprecationWarning, stacklevel=2)
-        rep = (legacy[0] if legacy else None) or {}
+        rep = _as_report(legacy[0] if legacy else None)
         cfg = config or (legacy[1] if len(legacy) > 1 else None) or config_of(rep)
         return _compute(result, rep, cfg, maneuvers=maneuvers, maneuver_column=maneuver_column,
                         fit=fit, fom_on=fom)
     if legacy:
         raise TypeError("compute_qc(result): too many positional arguments")
     cfg = config if config is not None else getattr(result, "config", None)
-    report = getattr(result, "report", None) or {}
+    report = _as_report(getattr(result, "report", None))
     if cfg is None:
         cfg = config_of(report)
     data = result.data
@@ -240,11 +361,11 @@ def _noise_pair(mag: np.ndarray, tl: np.ndarray | None, comp: np.ndarray, t: np.
 
 
 def _compute(
-    data: pd.DataFrame, report: dict[str, Any], cfg: CompensationConfig, *,
+    data: pd.DataFrame, report: CompensationReport, cfg: CompensationConfig, *,
     maneuvers: ManeuverResult | None, maneuver_column: str | None, fit: bool, fom_on: bool,
 ) -> QCResult:
-    terms = tuple(report.get("terms") or TERMS_16)
-    base_metrics = report.get("metrics") or None
+    terms = tuple(report.terms or TERMS_16)
+    base_metrics = report.metrics
     notes: list[str] = []
     t = data["time"].to_numpy(dtype=np.float64)
     if "mag_comp" not in data.columns:
@@ -261,7 +382,6 @@ def _compute(
     seg = segment_labels(data, copy=False)  # read only here; the fit gets its own copy
     has_tl = "mag_tl" in data.columns
     tl = data["mag_tl"].to_numpy(dtype=np.float64) if has_tl else mag - comp
-    metrics: dict[str, Any] = {"band_hz": list(band)}
     if not has_tl:
         notes.append("no mag_tl column: residuals are band-passed mag_comp (low-passed)")
     fs = sampling_rate(t)  # once: a median over 1e6 steps costs 10-20 ms
@@ -272,8 +392,8 @@ def _compute(
     # filter pool beside the detection, and the diagnostics last, on top of everything the
     # QC keeps: `aeromag report` on 2e6 rows peaked at 756 MB, 678 MB now (the concurrency
     # saved 0.1-0.3 s of wall time).  The metrics are assembled below in their usual order.
-    fitted = report.get("fit") or {}
-    rebuild_fit = bool(fit and not fitted.get("vif")
+    fitted = report.fit
+    rebuild_fit = bool(fit and not (fitted is not None and fitted.vif)
                        and {"flux_x", "flux_y", "flux_z"} <= set(data.columns))
     fit_out: tuple[dict[str, Any], pd.DataFrame] | None = None
     fit_error: AeromagError | None = None
@@ -305,17 +425,18 @@ def _compute(
                              max_gap_s=cfg.max_gap_s, fs_hz=fs)
     # The headline is the compensation's own metrics of this log (OUT.json metrics, computed on
     # its prepared arrays: gaps interpolated, stretches as fitted); recomputed only without them.
-    cm = (base_metrics if base_metrics and "all_improvement_ratio" in base_metrics
-          else contract_metrics(t, mag, tl, seg, kept, cfg))
-    metrics.update(headline_metrics(cm, pieces.kept, pieces.all, pieces.trim_s))
-    if base_metrics:
-        metrics["compensation_metrics"] = base_metrics
+    cm = (base_metrics if base_metrics is not None and base_metrics.all_improvement_ratio
+          is not None else contract_metrics(t, mag, tl, seg, kept, cfg))
+    metrics = QCMetrics(list(band), **headline_metrics(cm, pieces.kept, pieces.all,
+                                                       pieces.trim_s))
+    if base_metrics is not None:
+        metrics.compensation_metrics = base_metrics
     seg_std = pieces.by_segment
     resid_bp = pieces.after_bp
-    band_before = cm["all_std_before_nT"]
-    band_after = cm["all_residual_std_nT"]
-    metrics["residual_std_by_segment_nT"] = {str(k): v for k, v in seg_std.items()}
-    metrics["noise"] = {
+    band_before = cm.all_std_before_nT
+    band_after = cm.all_residual_std_nT
+    metrics.residual_std_by_segment_nT = {str(k): v for k, v in seg_std.items()}
+    metrics.noise = {
         "band_hz": list(band),
         "band_std_before_nT": band_before,
         "band_std_after_nT": band_after,
@@ -331,10 +452,10 @@ def _compute(
     if maneuvers is not None:
         # over the kept segments, like the headline
         hl = np.where(kept, heading_leg, -1)
-        metrics["residual_std_by_heading_nT"] = {
+        metrics.residual_std_by_heading_nT = {
             CARDINALS[k]: v for k, v in grouped_std(resid_bp, hl).items()}
         del hl
-        metrics["maneuvers"] = {
+        metrics.maneuvers = {
             "method": maneuvers.method, "n_legs": len(maneuvers.legs),
             "n_maneuvers": len(maneuvers.table), "complete_boxes": maneuvers.complete_boxes,
             "heading_offset_deg": maneuvers.heading_offset_deg, "notes": maneuvers.notes}
@@ -351,35 +472,36 @@ def _compute(
             fom_block = fom_not_applicable(why)
     elif fom_on:
         fom_block = fom_not_applicable("the manoeuvres could not be detected")
-    metrics["fom"] = fom_block
+    metrics.fom = fom_block
     segs = pd.DataFrame({"segment": list(seg_std), "residual_std_nT": list(seg_std.values())})
     segs["n"] = [pieces.n_by_segment[s] for s in seg_std]
     del t, mag, comp, tl, resid_bp, kept
-    if fit and fitted.get("vif"):  # the fit measured them on its own data
-        metrics["fit"] = {"source": "the fit (model file)", **{
-            k: fitted.get(k) for k in ("condition_number", "condition_number_scaled", "vif",
-                                       "max_vif", "cv_residual_std_nT", "cv_ratio")},
-            "fit_residual_std_nT": fitted.get("residual_std_nT"),
-            "n_segments_kept": fitted.get("n_segments_fitted")}
+    if fit and fitted is not None and fitted.vif:  # the fit measured them on its own data
+        metrics.fit = {"source": "the fit (model file)", **{
+            k: getattr(fitted, k) for k in ("condition_number", "condition_number_scaled",
+                                            "vif", "max_vif", "cv_residual_std_nT",
+                                            "cv_ratio")},
+            "fit_residual_std_nT": fitted.residual_std_nT,
+            "n_segments_kept": fitted.n_segments_fitted}
     elif fit_out is not None:
         diag, cv = fit_out
-        metrics["fit"] = diag
+        metrics.fit = diag
         cv = cv.drop(columns=["n"])
         segs = cv.merge(segs, on="segment", how="outer")
     elif fit_error is not None:
         notes.append(f"fit diagnostics failed: {fit_error}")
-    metrics["notes"] = notes
+    metrics.notes = notes
     for n in notes:
         log.info("qc: %s", n)
     return QCResult(metrics, fom_tab, maneuvers, segs, notes, pieces)
 
 
 def quality_metrics(
-    data: pd.DataFrame, report: dict[str, Any] | None = None,
+    data: pd.DataFrame, report: CompensationReport | dict[str, Any] | None = None,
     cfg: CompensationConfig | None = None, *, detect: bool = True, fit: bool = True,
     maneuver_column: str | None = None, maneuvers: ManeuverResult | None = None,
-) -> dict[str, Any]:
-    """JSON-ready QC metrics of a compensated log given as a table and its report.
+) -> QCMetrics:
+    """QC metrics of a compensated log given as a table and its report.
 
     Prefer :func:`compute_qc` on the :class:`~aeromag.compensate.CompensationResult`.
 
@@ -387,8 +509,8 @@ def quality_metrics(
     ----------
     data : DataFrame
         Compensated log.
-    report : dict, optional
-        Its report.
+    report : CompensationReport or dict, optional
+        Its report (a dict is read as a report file, :meth:`CompensationReport.from_dict`).
     cfg : CompensationConfig, optional
         Configuration (default: the report's ``config`` block).
     detect, fit : bool
@@ -400,25 +522,38 @@ def quality_metrics(
 
     Returns
     -------
-    dict
+    QCMetrics
         See :func:`compute_qc`.
     """
-    rep = report or {}
+    rep = _as_report(report)
     cfg = cfg if cfg is not None else config_of(rep)
     return _compute(data, rep, cfg, maneuvers=maneuvers, maneuver_column=maneuver_column,
                     fit=fit, fom_on=detect).metrics
 
 
-def config_of(report: dict[str, Any]) -> CompensationConfig:
-    """The configuration recorded in an in-memory report (defaults for what it lacks).
+def _as_report(report: CompensationReport | dict[str, Any] | None) -> CompensationReport:
+    """``report``, or a report read from its JSON dict (an empty one for None)."""
+    if isinstance(report, CompensationReport):
+        return report
+    return CompensationReport.from_dict(report or {})
 
-    Only for results that do not carry their configuration; files are read by the report
-    workflow, which builds the typed result.
+
+def config_of(report: CompensationReport) -> CompensationConfig:
+    """The configuration recorded in a report (defaults for what it lacks).
+
+    Parameters
+    ----------
+    report : CompensationReport
+        A report (its ``config`` and ``band_hz``).
+
+    Returns
+    -------
+    CompensationConfig
     """
     names = {f.name for f in dataclasses.fields(CompensationConfig)}
-    kw = {k: v for k, v in (report.get("config") or {}).items() if k in names}
-    if "band_hz" not in kw and report.get("band_hz"):
-        kw["band_hz"] = report["band_hz"]
+    kw = {k: v for k, v in (report.config or {}).items() if k in names}
+    if "band_hz" not in kw and report.band_hz:
+        kw["band_hz"] = report.band_hz
     return CompensationConfig(**kw)
 
 

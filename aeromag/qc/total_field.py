@@ -2,27 +2,26 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 import pandas as pd
 
 from .._core.stretches import interpolate_short_gaps
 from ..compensation.config import CompensationConfig
+from ..compensation.report_types import CompensationReport
 from ..conventions import FLUX_COLUMNS
 from ..errors import InputError
 
 __all__ = ["fluxgate_is_total_field", "prepared_total_field"]
 
 
-def fluxgate_is_total_field(data: pd.DataFrame, report: dict[str, Any]) -> bool:
+def fluxgate_is_total_field(data: pd.DataFrame, report: CompensationReport) -> bool:
     """Whether the compensation took the fluxgate magnitude as the total field.
 
     Parameters
     ----------
     data : DataFrame
         The compensated log.
-    report : dict
+    report : CompensationReport
         Its report (OUT.json: ``mag_from_fluxgate``).
 
     Returns
@@ -30,10 +29,10 @@ def fluxgate_is_total_field(data: pd.DataFrame, report: dict[str, Any]) -> bool:
     bool
         True when the report says so or the log has no ``mag`` column.
     """
-    return bool(report.get("mag_from_fluxgate")) or "mag" not in data.columns
+    return bool(report.mag_from_fluxgate) or "mag" not in data.columns
 
 
-def prepared_total_field(data: pd.DataFrame, report: dict[str, Any],
+def prepared_total_field(data: pd.DataFrame, report: CompensationReport,
                          cfg: CompensationConfig) -> np.ndarray:
     """The total field as the compensation used it (short NaN gaps interpolated).
 
@@ -44,7 +43,7 @@ def prepared_total_field(data: pd.DataFrame, report: dict[str, Any],
     ----------
     data : DataFrame
         The compensated log (``time``, ``mag`` or ``flux_x/y/z`` [nT]).
-    report : dict
+    report : CompensationReport
         Its report (``mag_from_fluxgate``).
     cfg : CompensationConfig
         ``max_interp_s``: the longest NaN gap the compensation interpolated [s].

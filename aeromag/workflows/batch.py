@@ -49,6 +49,7 @@ from ..compensation.checks import (  # noqa: F401 - importable from here too
     IMPLAUSIBLE_RESIDUAL_NT,
     metric_warnings,
 )
+from ..compensation.report_types import CompensationMetrics, CompensationReport
 from ..errors import AeromagError, InputError
 from .batch_engines import run_dask, run_local
 from .batch_inputs import (  # noqa: F401 - FINGERPRINT_SUFFIX ... importable from here too
@@ -221,15 +222,15 @@ def process_file(job: dict[str, Any]) -> dict[str, Any]:
         # This file's CSV and JSON together, or neither (a strict warning discards both).
         with output_set(separate=True), strict_log_warnings(strict):
             report = _compensate_one(job, inp, names, res)
-            m = report.get("metrics", {})
+            m = report.metrics or CompensationMetrics()
             # The metric checks the single-file commands log (recorded in the report, so
             # the same words are found once); a report made without them is checked here.
-            found = [str(w) for w in report.get("warnings") or []] + metric_warnings(
-                m, source=str(inp), fitted=report.get("model_source") == "fitted")
+            found = [str(w) for w in report.warnings or []] + metric_warnings(
+                m, source=str(inp), fitted=report.model_source == "fitted")
             if strict and found:
                 raise StrictWarningError(found[0])
-        res["improvement_ratio"] = m.get("improvement_ratio")
-        res["residual_std_nT"] = m.get("residual_std_nT")
+        res["improvement_ratio"] = m.improvement_ratio
+        res["residual_std_nT"] = m.residual_std_nT
         res["outputs"] += [str(names["comp"]), str(json_path_for(names["comp"]))]
         warnings += found
     except StrictWarningError as exc:
@@ -278,7 +279,7 @@ def process_file(job: dict[str, Any]) -> dict[str, Any]:
 
 
 def _compensate_one(job: dict[str, Any], inp: Path, names: dict[str, Path],
-                    res: dict[str, Any]) -> dict[str, Any]:
+                    res: dict[str, Any]) -> CompensationReport:
     """Run the compensation of one file (chunked with a model when asked); its report."""
     from .compensate import compensate_file
 
@@ -288,7 +289,7 @@ def _compensate_one(job: dict[str, Any], inp: Path, names: dict[str, Path],
         report = apply_model_chunked(inp, names["comp"], job["model"], job["cfg"],
                                      chunk_rows=job["chunk_rows"], columns=job["columns"],
                                      units=job["units"], fmt=job["fmt"])
-        res["n_rows"] = int(report.get("n_rows", 0)) or None
+        res["n_rows"] = int(report.n_rows or 0) or None
         return report
     # self_check: a log fitted on itself is checked for a calibration box, as 'aeromag
     # compensate' does (without one its level is undetermined and its headline in-sample).

@@ -29,7 +29,6 @@ import math
 import os
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -37,7 +36,7 @@ import pandas as pd
 from .._core.filters import butter_sos, filter_stretches, min_filter_length, trim_mask
 from .._core.moments import StreamingMoments
 from .._core.stretches import find_stretches, interpolate_short_gaps
-from ..compensation.apply import MISSING_MAG_KEY, missing_total_field
+from ..compensation.apply import missing_total_field
 from ..compensation.checks import check_metrics
 from ..compensation.config import CompensationConfig
 from ..compensation.metrics import metrics_dict, require_samples
@@ -48,6 +47,7 @@ from ..compensation.prepare import (
     total_field_from_fluxgate,
 )
 from ..compensation.report import AppliedRun, applied_report
+from ..compensation.report_types import CompensationMetrics, CompensationReport
 from ..errors import InputError
 from ..io import (
     FLUX_COLUMNS,
@@ -57,14 +57,14 @@ from ..io import (
     json_path_for,
     plain_number,
     write_arrow_csv,
-    write_json,
 )
 from ..io.formats import output_format
 from ..io.log import duplicates_warning
 from ..io.messages import check_input_file
 from ..io.stream import duplicate_rows, iter_log_batches, locate_row
+from ..qc.quality import QCMetrics
 from ..qc.residuals import piece_labels
-from .compensate import check_outputs
+from .compensate import check_outputs, write_report_json
 
 log = logging.getLogger(__name__)
 
@@ -144,7 +144,7 @@ def apply_model_chunked(
     model: TLModel | str | os.PathLike[str], cfg: CompensationConfig | None = None, *,
     chunk_rows: int = DEFAULT_CHUNK_ROWS, columns: dict[str, str] | None = None,
     units: dict[str, str] | None = None, fmt: str | None = None,
-) -> dict[str, Any]:
+) -> CompensationReport:
     """Apply a saved model chunk by chunk; write ``OUT.csv`` and ``OUT.json`` atomically.
 
     Parameters
@@ -166,7 +166,7 @@ def apply_model_chunked(
 
     Returns
     -------
-    dict
+    CompensationReport
         The report written to ``OUT.json`` (interface.md keys, plus ``n_rows`` and
         ``chunked``: chunk and overlap rows).
     """
@@ -423,16 +423,16 @@ def apply_model_chunked(
                 write_arrow_csv(table, fh, "needed")
         fh.flush()
         metrics = _metrics(m_use, m_kept, cfg, fs, source)
-        metrics[MISSING_MAG_KEY] = n_no_mag
+        metrics.n_rows_without_mag = n_no_mag
         check_metrics(metrics, source=source)
         residual = {i: float(np.sqrt(s[1] / s[0])) for i, s in seg_stats.items()}
         qc = _qc_block(metrics, residual, q_sums if seg_n else {**q_sums, "seg": q_sums["all"]},
                        d4_before, d4_after, cfg, qc_trim)
         report = applied_report(AppliedRun(
             source, model, cfg, fs, {int(i): int(n) for i, n in seg_n.items()}, metrics,
-            residual, qc, {"n_rows": n_rows, "chunked": {"chunk_rows": int(chunk_rows),
-                                                         "overlap_rows": int(overlap)}}))
-        write_json(report, json_path_for(out_csv))
+            residual, qc, n_rows=n_rows, chunked={"chunk_rows": int(chunk_rows),
+                                                  "overlap_rows": int(overlap)}))
+        write_report_json(report, json_path_for(out_csv))
     return report
 
 
@@ -453,10 +453,10 @@ def _fourth_differences(x: np.ndarray, t: np.ndarray, max_gap_s: float, a: int, 
     return d4[same]
 
 
-def _qc_block(metrics: dict[str, Any], residual: dict[int, float],
+def _qc_block(metrics: CompensationMetrics, residual: dict[int, float],
               sums: dict[str, np.ndarray], d4_before: StreamingMoments,
               d4_after: StreamingMoments, cfg: CompensationConfig, trim_s: float
-              ) -> dict[str, Any]:
+              ) -> QCMetrics:
     """The report's ``qc`` block, as :func:`aeromag.qc.compute_qc` gives it for a saved model."""
     from ..qc import FOURTH_DIFF_NORM
     from ..qc.fom import fom_not_applicable
@@ -467,21 +467,21 @@ def _qc_block(metrics: dict[str, Any], residual: dict[int, float],
         return float(m.std()[0] / FOURTH_DIFF_NORM) if m.n else float("nan")
 
     every, kept = rms_summary(*sums["all"]), rms_summary(*sums["seg"])
-    return {
-        "band_hz": list(cfg.band_hz),
+    return QCMetrics(
+        list(cfg.band_hz),
         **headline_metrics(metrics, kept, every, trim_s),  # the headline is OUT.json metrics
-        "compensation_metrics": metrics,
-        "residual_std_by_segment_nT": {str(k): v for k, v in sorted(residual.items())},
-        "noise": {
+        compensation_metrics=metrics,
+        residual_std_by_segment_nT={str(k): v for k, v in sorted(residual.items())},
+        noise={
             "band_hz": list(cfg.band_hz),
-            "band_std_before_nT": metrics["all_std_before_nT"],
-            "band_std_after_nT": metrics["all_residual_std_nT"],
+            "band_std_before_nT": metrics.all_std_before_nT,
+            "band_std_after_nT": metrics.all_residual_std_nT,
             "fourth_difference_before_nT": noise(d4_before),
             "fourth_difference_after_nT": noise(d4_after),
         },
-        "fom": fom_not_applicable(QC_SKIPPED_FOM),
-        "notes": [QC_SKIPPED_NOTE],
-    }
+        fom=fom_not_applicable(QC_SKIPPED_FOM),
+        notes=[QC_SKIPPED_NOTE],
+    )
 
 
 def _median_from_counts(counts: dict[float, int]) -> float:
@@ -495,7 +495,7 @@ def _median_from_counts(counts: dict[float, int]) -> float:
 
 
 def _metrics(use: StreamingMoments, kept: StreamingMoments, cfg: CompensationConfig,
-             fs_hz: float, source: str) -> dict[str, Any]:
+             fs_hz: float, source: str) -> CompensationMetrics:
     """The metrics of :func:`aeromag.compensation.metrics.compensation_metrics` from moments."""
     require_samples(use.n, fs_hz, cfg.band_hz, source)
     before, after = (float(x) for x in use.std())

@@ -24,6 +24,7 @@ from ..compensation import pipeline as _pipeline
 from ..compensation.config import CompensationConfig
 from ..compensation.model import TLModel
 from ..compensation.report import flag_residual_outliers
+from ..compensation.report_types import CompensationReport
 from ..compensation.result import CompensationResult
 from ..conventions import FLUX_COLUMNS
 from ..errors import InputError
@@ -42,7 +43,7 @@ log = logging.getLogger(__name__)
 
 
 __all__ = ["CompensationRun", "calibrate", "calibrate_file", "check_outputs", "compensate",
-           "compensate_file", "write_outputs"]
+           "compensate_file", "write_outputs", "write_report_json"]
 
 
 def compensate(
@@ -158,19 +159,20 @@ def calibrate(
     with _one_blas_thread():
         res = _run(_pipeline.calibrate(df, cfg, source=source))
         if segmentation is not None:
-            res.report["segmentation"] = segmentation
+            res.report.segmentation = segmentation
             res.model.meta["segmentation"] = segmentation
         _add_qc(res)
     # As compensate warns when it fits a log without a box: the same check, the same warning.
     box = _self_calibration(df, cfg, source or "<log>", calibrating=True)
     box.pop("metrics", None)  # the in-sample note is compensate's (a log fitted on itself)
-    res.report["calibration_box"] = box
+    res.report.calibration_box = box
     if segmentation is not None and res.data is not None and "line" in res.data.columns:
         # The detected legs were the fit's 'line' column, but they are no flight lines:
         # segments are named by id and time span, never "line 9" (issue 15).
         from ..compensation.report import name_segments
 
-        name_segments(res.report["segments"], lines=False)
+        name_segments(res.report.segments, lines=False)
+        res.model.meta["segments"] = [s.to_dict() for s in res.report.segments]
         res.data = res.data.drop(columns="line")
     return res
 
@@ -239,7 +241,7 @@ class CompensationRun(CompensationResult):
         """Power spectral density before and after compensation."""
         from ..plot import compensation as pc
 
-        kw.setdefault("band_hz", tuple(self.report["band_hz"]))
+        kw.setdefault("band_hz", tuple(self.report.band_hz))
         return pc.plot_psd(self._data(), **kw)
 
     def plot_term_contributions(self, **kw: Any) -> Any:
@@ -253,7 +255,7 @@ class CompensationRun(CompensationResult):
         from ..plot import compensation as pc
         from ..qc import fom_table
 
-        table = fom_table(self._data(), band_hz=tuple(self.report["band_hz"]))
+        table = fom_table(self._data(), band_hz=tuple(self.report.band_hz))
         return pc.plot_fom(table, **kw)
 
     def plot_map(self, **kw: Any) -> Any:
@@ -290,16 +292,16 @@ def _add_qc(res: CompensationResult, maneuvers: Any = None) -> None:
 
     :func:`aeromag.qc.compute_qc` (band-passed ``mag - mag_tl`` per segment piece, as the
     report computes it); the FOM only when ``cfg.fom``; the fit diagnostics are in
-    ``report["fit"]`` already.  ``maneuvers``: already detected on this log.
+    ``report.fit`` already.  ``maneuvers``: already detected on this log.
     """
     from ..qc import compute_qc
 
-    res.report["qc"] = compute_qc(res, fit=False, fom=bool(res.config.fom),
-                                  maneuvers=maneuvers).metrics
+    res.report.qc = compute_qc(res, fit=False, fom=bool(res.config.fom),
+                               maneuvers=maneuvers).metrics
     if res.fit is None:
-        by_seg = res.report["qc"].get("residual_std_by_segment_nT") or {}
-        for e in res.report["segments"]:
-            e["residual_std"] = by_seg.get(str(e["id"]))
+        by_seg = res.report.qc.residual_std_by_segment_nT or {}
+        for e in res.report.segments:
+            e.residual_std = by_seg.get(str(e.id))
         flag_residual_outliers(res.report)
 
 
@@ -352,7 +354,7 @@ def compensate_file(
         log.info("%s: read %d rows in %.2f s", path, len(df), t1 - t0)
         res = compensate(df, cfg, model=model, source=str(path))
         if model is None and self_check:
-            res.report["self_calibration"] = _self_calibration(df, cfg, str(path))
+            res.report.self_calibration = _self_calibration(df, cfg, str(path))
         t2 = time.perf_counter()
         log.info("%s: %s in %.2f s", path, "model applied" if model is not None else
                  "fitted, screened and applied", t2 - t1)
@@ -362,9 +364,11 @@ def compensate_file(
         return res
 
 
-def write_outputs(data: pd.DataFrame, report: dict[str, Any], out_csv: Path, *,
+def write_outputs(data: pd.DataFrame, report: CompensationReport, out_csv: Path, *,
                   passthrough: dict[str, Any] | None = None) -> None:
     """Write the output log and its JSON report; both appear or neither does.
+
+    The report's ``warnings`` are those the run logged (:func:`write_report_json`).
 
     ``passthrough`` (``{"path", "columns"}``, set by :func:`aeromag.io.read_log` on a plain
     CSV) says that ``data`` starts with that file's columns, unchanged: their lines are then
@@ -385,7 +389,31 @@ def write_outputs(data: pd.DataFrame, report: dict[str, Any], out_csv: Path, *,
                              passthrough["path"])
         if not done:
             write_table(data, tmp_csv, fmt)
-        write_json(report, out_json)
+        write_report_json(report, out_json)
+
+
+def write_report_json(report: CompensationReport, path: str | os.PathLike[str]) -> Path:
+    """Write a compensation report as JSON (:meth:`CompensationReport.to_dict`), atomically.
+
+    The JSON's ``warnings`` list (what the command logged, :func:`aeromag.io.write_json`) is
+    recorded in ``report.warnings`` too.
+
+    Parameters
+    ----------
+    report : CompensationReport
+        The report.
+    path : path-like
+        Destination.
+
+    Returns
+    -------
+    Path
+        The written path.
+    """
+    doc = report.to_dict()
+    out = write_json(doc, path)
+    report.warnings = doc.get("warnings")
+    return out
 
 
 def calibrate_file(
@@ -423,5 +451,5 @@ def calibrate_file(
             cfg = dataclasses.replace(cfg, fom=True)
         df = read_log(path, columns=columns, units=units, required=("time", *FLUX_COLUMNS), fmt=fmt)
         res = calibrate(df, cfg, source=str(path))
-        write_json(res.report, model_path)
+        write_report_json(res.report, model_path)
         return res

@@ -31,6 +31,7 @@ from ..compensation.fit import check_interference
 from ..compensation.metrics import band_metrics, compensation_metrics
 from ..compensation.online import LATENCY_SAMPLES, NIS_THRESHOLD, OnlineTL, OnlineTLResult
 from ..compensation.prepare import prepare
+from ..compensation.report_types import CompensationMetrics
 from ..errors import FitError, InputError
 from ..io.outputs import output_set
 from ._frame_files import frame_to_files
@@ -59,7 +60,7 @@ COVERAGE_MARKED = ("all_*: every sample of the flight; kept_*: the rows written 
 def online_metrics(time_s: np.ndarray, mag: np.ndarray, mag_tl: np.ndarray,
                    segment: np.ndarray, cfg: CompensationConfig, forgetting: float,
                    source: str = "<log>", kept: np.ndarray | None = None,
-                   ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+                   ) -> tuple[CompensationMetrics, list[dict[str, Any]]]:
     """The online fit's metrics: the batch definition, on ``mag - mag_tl`` as written.
 
     The headline is exactly what ``aeromag report`` recomputes from OUT.csv
@@ -91,9 +92,9 @@ def online_metrics(time_s: np.ndarray, mag: np.ndarray, mag_tl: np.ndarray,
 
     Returns
     -------
-    metrics : dict
-        :func:`aeromag.compensation.metrics.compensation_metrics` (``kept`` rows) plus
-        ``coverage`` (:data:`COVERAGE`) and ``after_warmup`` (``warmup_s`` [s],
+    metrics : CompensationMetrics
+        :func:`aeromag.compensation.metrics.compensation_metrics` (``kept`` rows) plus, in
+        its ``extra``, ``coverage`` (:data:`COVERAGE`) and ``after_warmup`` (``warmup_s`` [s],
         ``n_samples``, ``std_before_nT``, ``residual_std_nT``, ``improvement_ratio``; None
         when no band-passed sample is left after the warm-up).
     segments : list of dict
@@ -106,7 +107,7 @@ def online_metrics(time_s: np.ndarray, mag: np.ndarray, mag_tl: np.ndarray,
     marked = kept is not None and not np.all(kept)
     kept = np.ones(len(t), dtype=bool) if kept is None else np.asarray(kept, dtype=bool)
     metrics, comp_bp = band_metrics(mag, after, t, st, cfg, kept=kept, source=source)
-    metrics["coverage"] = COVERAGE_MARKED if marked else COVERAGE
+    metrics.extra["coverage"] = COVERAGE_MARKED if marked else COVERAGE
     fin_t = t[np.isfinite(after)]
     warmup_s = round(1.0 / (1.0 - forgetting) / sampling_rate(t), 6) if forgetting < 1 else 0.0
     post = t >= fin_t[0] + warmup_s  # (metrics were measured: some sample is finite)
@@ -115,10 +116,10 @@ def online_metrics(time_s: np.ndarray, mag: np.ndarray, mag_tl: np.ndarray,
         w = compensation_metrics(mag, after, t, st, cfg, kept=post)
         block = {"warmup_s": warmup_s, "definition": "the headline's band-passed fields, std"
                  f" over the samples after the first {warmup_s:g} s",
-                 **{k: w[f"kept_{k}"] for k in ("std_before_nT", "residual_std_nT",
-                                                "improvement_ratio")},
-                 "n_samples": w["n_samples"]}
-    metrics["after_warmup"] = block
+                 **{k: getattr(w, f"kept_{k}") for k in ("std_before_nT", "residual_std_nT",
+                                                         "improvement_ratio")},
+                 "n_samples": w.n_samples}
+    metrics.extra["after_warmup"] = block
     segments = []
     for s in np.unique(segment[segment >= 0]):
         m = (segment == s) & np.isfinite(comp_bp)
@@ -280,7 +281,7 @@ def compensate_online_frame(df: pd.DataFrame, cfg: CompensationConfig | None = N
         "coef_lowpass_hz": est.coef_lowpass_hz,
         "band_hz": list(cfg.band_hz),
         "segments": segments,
-        "metrics": {**metrics, "n_skipped": int(res.skipped.sum())},
+        "metrics": {**metrics.to_dict(), "n_skipped": int(res.skipped.sum())},
         "convergence": convergence,
         "history": {"time": t[idx].tolist(), "coef": res.coef_history[idx].tolist()},
     }

@@ -16,7 +16,6 @@ line draws it as a progress bar); nothing here prints.
 from __future__ import annotations
 
 import base64
-import dataclasses
 import html
 import json
 import logging
@@ -31,11 +30,13 @@ import pandas as pd
 from .. import __version__
 from ..compensation.config import CompensationConfig
 from ..compensation.model import TLModel
+from ..compensation.report_types import CompensationReport, ScreeningSummary, SegmentRow
 from ..compensation.result import CompensationResult
 from ..errors import AeromagError, InputError
 from ..io import atomic_path, json_path_for, read_log, write_json
 from ..plot import compensation as pc
 from ..qc import QCResult, compute_qc, kept_mask, segment_labels
+from ..qc.quality import QCMetrics, config_of
 from ._report_html import CSS, extended_html, fmt, fom_rows, headline_words, html_table, html_time
 from .report_check import headline_from_data, headline_record
 
@@ -83,8 +84,8 @@ def _figures(result: CompensationResult, qc: QCResult, band: tuple[float, float]
                                  qc.residuals.after_bp, kept=kept_mask(data), band_hz=band)
 
     def fom() -> Any:
-        if not (qc.metrics.get("fom") or {}).get("applicable"):
-            raise InputError((qc.metrics.get("fom") or {}).get("reason") or "no FOM")
+        if not (qc.metrics.fom or {}).get("applicable"):
+            raise InputError((qc.metrics.fom or {}).get("reason") or "no FOM")
         return pc.plot_fom(qc.fom)
 
     return {
@@ -142,12 +143,13 @@ def write_report(
             progress(step, total, what)
 
     qc = compute_qc(result, config=config, **qc_kw)
-    qc.metrics.update(headline_record(report))
+    for key, value in headline_record(report).items():
+        setattr(qc.metrics, key, value)
     # Only the metrics, the FOM table and the band-passed fields are shown: the per-sample
     # manoeuvre labels go before the figures.
     qc.maneuvers = None
     advance("quality metrics")
-    band = tuple(qc.metrics["band_hz"])
+    band = tuple(qc.metrics.band_hz)
     pngs: dict[str, bytes] = {}
     skipped: dict[str, str] = {}
     for name, draw in _figures(result, qc, band).items():
@@ -162,11 +164,13 @@ def write_report(
     for name, data in pngs.items():
         with atomic_path(out / name) as tmp:
             Path(tmp).write_bytes(data)
-    qc.metrics["figures"] = sorted(pngs)
-    qc.metrics["figures_skipped"] = skipped
-    qc.metrics["segments"] = segment_rows(result, qc)
-    qc.metrics.setdefault("warnings", [])  # a report: write_json fills the list, [] if none
-    write_json(qc.metrics, out / "qc.json")
+    qc.metrics.figures = sorted(pngs)
+    qc.metrics.figures_skipped = skipped
+    qc.metrics.segments = segment_rows(result, qc)
+    doc = qc.metrics.to_dict()
+    doc.setdefault("warnings", [])  # a report: write_json fills the list, [] if none
+    write_json(doc, out / "qc.json")
+    qc.metrics.warnings = doc["warnings"]
     page = render_html(qc.metrics, report, pngs, title=title)
     html_path = out / "report.html"
     with atomic_path(html_path) as tmp:
@@ -196,8 +200,8 @@ def segment_rows(result: CompensationResult, qc: QCResult) -> list[dict[str, Any
     data = result.data
     seg = segment_labels(data)
     t = data["time"].to_numpy(dtype=np.float64)
-    rep = {int(s["id"]): s for s in result.report.get("segments") or [] if "id" in s}
-    by_seg = qc.metrics.get("residual_std_by_segment_nT") or {}
+    rep = {int(s.id): s for s in result.report.segments}
+    by_seg = qc.metrics.residual_std_by_segment_nT or {}
     kept = kept_mask(data)
     line_col = data["line"].to_numpy() if "line" in data.columns else None
     rows = []
@@ -219,16 +223,18 @@ def segment_rows(result: CompensationResult, qc: QCResult) -> list[dict[str, Any
         np.maximum.at(last_at, inv, end)
         counts = np.bincount(inv, weights=end - start + 1, minlength=len(ids)).astype(np.int64)
         for j, sid in enumerate(ids.tolist()):
-            e = rep.get(sid, {})
-            line = e.get("line")
+            e = rep.get(sid)
+            line = e.line if e is not None else None
             if line is None and line_col is not None:
                 line = line_col[first_at[j]]
-            reason = e.get("reason") or e.get("drop_reason") or e.get("why")
+            reason = None
+            if e is not None:  # another tool's report may name the reason otherwise
+                reason = e.reason or e.extra.get("drop_reason") or e.extra.get("why")
             if isinstance(reason, dict):
                 reason = reason.get("text") or json.dumps(reason)
-            if not reason:
-                reason = _why_dropped(e, result.report.get("screening") or {})
-            k = bool(e["kept"]) if "kept" in e else bool(kept[first_at[j]])
+            if not reason and e is not None:
+                reason = _why_dropped(e, result.report.screening)
+            k = bool(e.kept) if e is not None else bool(kept[first_at[j]])
             rows.append({
                 "segment": sid, "line": None if line is None or pd.isna(line) else
                 (int(line) if float(line).is_integer() else float(line)),
@@ -236,17 +242,17 @@ def segment_rows(result: CompensationResult, qc: QCResult) -> list[dict[str, Any
                 "n": int(counts[j]), "kept": k,
                 "reason": None if k else (reason or "dropped by the PCA screening"),
                 "residual_std_nT": by_seg.get(str(sid)),
-                "model_residual_std_nT": e.get("residual_std")})
+                "model_residual_std_nT": e.residual_std if e is not None else None})
     return rows
 
 
-def _why_dropped(seg: dict[str, Any], screening: dict[str, Any]) -> str | None:
+def _why_dropped(seg: SegmentRow, screening: ScreeningSummary) -> str | None:
     """Why the screening dropped a segment, in words and its own numbers (None: unknown)."""
-    d, cut = seg.get("robust_distance"), screening.get("cutoff")
-    res, exc = seg.get("residual_std"), seg.get("residual_excess")
+    d, cut = seg.robust_distance, screening.cutoff
+    res, exc = seg.residual_std, seg.residual_excess
     tail = (f"; residual {res:.3g} nT = {exc:.3g}x the median of kept segments"
             if res is not None and exc is not None else "")
-    if seg.get("pca_outlier") and d is not None and cut is not None:
+    if seg.pca_outlier and d is not None and cut is not None:
         return f"PCA outlier: robust distance\u00b2 {d:.4g} > {cut:.3g}{tail}"
     if tail:
         return f"residual far above the other segments'{tail}"
@@ -318,10 +324,10 @@ def load_compensated(
                          " `aeromag report OUT.csv -o DIR`")
     if "time" not in data.columns:
         raise InputError(f"{src}: missing column 'time'")
-    report: dict[str, Any] = {}
+    doc: dict[str, Any] = {}
     if rj.exists():
         try:
-            report = json.loads(rj.read_text(encoding="utf-8"))
+            doc = json.loads(rj.read_text(encoding="utf-8"))
         except (OSError, ValueError) as exc:
             raise InputError(f"{rj}: not a readable JSON report ({exc}); rerun"
                              " `aeromag compensate`") from None
@@ -329,38 +335,34 @@ def load_compensated(
         raise InputError(f"{rj}: file not found")
     else:
         log.warning("%s: no report beside the log; default configuration assumed", rj)
-    report.setdefault("source", str(src))
+    if not isinstance(doc, dict):
+        raise InputError(f"{rj}: not a JSON report (an object of keys expected); rerun"
+                         " `aeromag compensate`")
+    doc.setdefault("source", str(src))
     data.attrs["report_json"] = str(rj)  # named by the headline check (report_check)
-    config = _config_from(report)
+    report = CompensationReport.from_dict(doc)
+    config = config_of(report)
     model = None
-    if report.get("coef"):
+    if doc.get("coef"):
         try:
-            model = TLModel.from_dict(report, source=str(rj))
+            model = TLModel.from_dict(doc, source=str(rj))
         except AeromagError:
             model = None
     return CompensationResult(data, model, report, config=config), config
 
 
-def _config_from(report: dict[str, Any]) -> CompensationConfig:
-    """The configuration recorded in a report file (defaults for what it lacks)."""
-    names = {f.name for f in dataclasses.fields(CompensationConfig)}
-    kw = {k: v for k, v in (report.get("config") or {}).items() if k in names}
-    if "band_hz" not in kw and report.get("band_hz"):
-        kw["band_hz"] = report["band_hz"]
-    return CompensationConfig(**kw)
-
-
 # --------------------------------------------------------------------------- HTML
-def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[str, Any],
-                *, title: str | None = None) -> str:
+def render_html(metrics: QCMetrics | dict[str, Any], report: CompensationReport | dict[str, Any],
+                figures: dict[str, Any], *, title: str | None = None) -> str:
     """The self-contained HTML page: metrics tables and base64-embedded PNG figures.
 
     Parameters
     ----------
-    metrics : dict
-        QC metrics (:func:`aeromag.qc.compute_qc`), with ``segments`` rows.
-    report : dict
-        The compensation report (source, model, screening).
+    metrics : QCMetrics or dict
+        QC metrics (:func:`aeromag.qc.compute_qc`), with ``segments`` rows (a dict: as
+        ``qc.json`` holds them, :meth:`QCMetrics.from_dict`).
+    report : CompensationReport or dict
+        The compensation report (source, model, screening; a dict: as ``OUT.json`` holds it).
     figures : dict
         Figure file name -> PNG bytes (or the path of a PNG) to embed.
     title : str, optional
@@ -371,30 +373,34 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
     str
         HTML5 document.
     """
-    title = title or f"aeromag compensation report: {report.get('source', '')}"
-    band = metrics["band_hz"]
+    if not isinstance(metrics, QCMetrics):
+        metrics = QCMetrics.from_dict(metrics)
+    if not isinstance(report, CompensationReport):
+        report = CompensationReport.from_dict(report)
+    title = title or f"aeromag compensation report: {report.source}"
+    band = metrics.band_hz
     parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
              f"<title>{html.escape(title)}</title><style>{CSS}</style></head><body>",
              f"<h1>{html.escape(title)}</h1>",
              f"<p class='small'>aeromag {html.escape(__version__)}; fitting band "
              f"{band[0]:g}–{band[1]:g} Hz</p>"]
-    fom = metrics.get("fom") or {}
-    fit = metrics.get("fit") or {}
-    noise = metrics.get("noise") or {}
-    alld = metrics.get("all_data") or {}
-    check = metrics.get("headline_check") or {}
-    rec = metrics.get("compensation_metrics") or {}
+    fom = metrics.fom or {}
+    fit = metrics.fit or {}
+    noise = metrics.noise or {}
+    alld = metrics.all_data or {}
+    check = metrics.headline_check or {}
+    rec = metrics.compensation_metrics
     names = [("improvement ratio (band-passed mag / mag - mag_tl)", "improvement_ratio"),
              ("residual (nT, band-passed mag - mag_tl)", "residual_std_nT"),
              ("before (nT, band-passed mag)", "std_before_nT"),
              ("samples", "n_samples")]
     header = ["metric", "kept segments", "all data"]
-    rows: list[list[Any]] = [[label, metrics.get(k), alld.get(k)] for label, k in names]
+    rows: list[list[Any]] = [[label, getattr(metrics, k), alld.get(k)] for label, k in names]
     if check.get("compared"):
         header.append(f"recorded in {Path(check.get('recorded_in') or 'OUT.json').name}"
                       " (kept / all)")
         for r, (_, k) in zip(rows, names, strict=True):
-            r.append(f"{fmt(rec.get(k))} / {fmt(rec.get('all_' + k))}")
+            r.append(f"{fmt(getattr(rec, k, None))} / {fmt(getattr(rec, 'all_' + k, None))}")
     parts.append("<h2>Summary</h2>")
     if check.get("warning"):
         parts.append(f"<p class='warn' id='headline-warning'>Warning: "
@@ -405,8 +411,8 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
                      f"{html.escape(comp_warning)}</p>")
     parts.append(html_table(rows, header))
     words = headline_words(check)
-    if metrics.get("definition"):
-        words = f"{metrics['definition']}. {words}"
+    if metrics.definition:
+        words = f"{metrics.definition}. {words}"
     parts.append(f"<p class='small'>{html.escape(words)}</p>")
     more = [
         ["4th-difference noise before / after (nT)",
@@ -417,10 +423,10 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
         ["leave-one-segment-out CV residual (nT)", fit.get("cv_residual_std_nT")],
         ["in-sample fit residual (nT)", fit.get("fit_residual_std_nT")],
     ]
-    scr = report.get("screening") or {}
-    if scr.get("n_segments") is not None:
-        more.append(["segments kept / fitted", f"{scr.get('n_kept', '–')} / "
-                     f"{scr.get('n_segments', '–')}"])
+    scr = report.screening
+    if scr.n_segments is not None:
+        more.append(["segments kept / fitted", f"{'–' if scr.n_kept is None else scr.n_kept} / "
+                     f"{scr.n_segments}"])
     parts.append(html_table(more, ["diagnostic", "value"]))
     # FOM: numbers only for complete calibration boxes.
     parts.append("<h2>Figure of Merit</h2>")
@@ -444,23 +450,23 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
                      "</p>")
     # The model that was applied.
     parts.append("<h2>Model applied</h2>")
-    src = report.get("model_source")
+    src = report.model_source
     origin = ("fitted on this log" if src in (None, "fitted") else f"saved model: {src}")
-    fitb = report.get("fit") or {}
-    mrows = [["model", origin], ["terms", len(report.get("terms") or [])],
+    fitb = report.fit
+    mrows = [["model", origin], ["terms", len(report.terms)],
              ["band (Hz)", f"{band[0]:g}–{band[1]:g}"]]
-    if fitb:
-        mrows += [["fit samples", fitb.get("n_samples")],
-                  ["segments fitted", fitb.get("n_segments_fitted")],
-                  ["fit residual (nT)", fitb.get("residual_std_nT")]]
+    if fitb is not None:
+        mrows += [["fit samples", fitb.n_samples],
+                  ["segments fitted", fitb.n_segments_fitted],
+                  ["fit residual (nT)", fitb.residual_std_nT]]
     parts.append(html_table(mrows, ["", "value"]))
-    if report.get("terms") and report.get("coef"):
+    if report.terms and report.coef:
         parts.append(html_table(
-            [[t, c] for t, c in zip(report["terms"], report["coef"], strict=True)],
+            [[t, c] for t, c in zip(report.terms, report.coef, strict=True)],
             ["term", "coefficient (nT; eddy nT·s)"]))
-    parts.append(extended_html(report.get("extended")))
+    parts.append(extended_html(report.extended))
     # Per line.
-    segs = metrics.get("segments") or []
+    segs = metrics.segments or []
     if segs:
         parts.append("<h2>Lines and segments</h2>")
         parts.append(html_table(
@@ -470,15 +476,15 @@ def render_html(metrics: dict[str, Any], report: dict[str, Any], figures: dict[s
             ["segment", "line", "start", "end", "samples", "kept", "residual (nT)",
              "model file residual (nT)", "why dropped"],
             ["dropped" if not s["kept"] else "" for s in segs]))
-    by_h = metrics.get("residual_std_by_heading_nT") or {}
+    by_h = metrics.residual_std_by_heading_nT or {}
     if by_h:
         parts.append("<h2>Residual per heading (nT)</h2>"
                      + html_table([[k, v] for k, v in by_h.items()], ["heading", "residual"]))
     if fit.get("vif"):
         parts.append("<h2>Variance inflation factors</h2>"
                      + html_table([[k, v] for k, v in fit["vif"].items()], ["term", "VIF"]))
-    notes = list(metrics.get("notes") or [])
-    notes += [f"{k} not drawn: {v}" for k, v in (metrics.get("figures_skipped") or {}).items()]
+    notes = list(metrics.notes or [])
+    notes += [f"{k} not drawn: {v}" for k, v in (metrics.figures_skipped or {}).items()]
     if notes:
         parts.append("<h2>Notes</h2><ul>" + "".join(
             f"<li class='note'>{html.escape(n)}</li>" for n in notes) + "</ul>")

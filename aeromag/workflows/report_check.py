@@ -30,6 +30,7 @@ from .._core.filters import lowpass_stretches, sampling_rate
 from ..compensation.apply import missing_total_field
 from ..compensation.config import CompensationConfig
 from ..compensation.metrics import residual_metrics, run_blocks, stretch_runs
+from ..compensation.report_types import CompensationMetrics, CompensationReport
 from ..compensation.result import CompensationResult
 from ..errors import InputError
 from ..qc import kept_mask, segment_labels
@@ -98,17 +99,17 @@ def log_kind(source: str) -> str:
             }.get(suffix, "the log")
 
 
-def compare_headline(computed: dict[str, Any], recorded: dict[str, Any] | None, *,
+def compare_headline(computed: CompensationMetrics, recorded: CompensationMetrics | None, *,
                      online: bool = False, fluxgate: bool = False, source: str = "OUT.csv",
                      recorded_in: str = "OUT.json") -> dict[str, Any]:
     """Compare the headline computed from the log with the one recorded in its report.
 
     Parameters
     ----------
-    computed : dict
-        Metrics block computed from the log (``compensation_metrics``).
-    recorded : dict or None
-        The report's ``metrics`` block (None or without ``all_*``: nothing to compare).
+    computed : CompensationMetrics
+        Metrics computed from the log (``compensation_metrics``).
+    recorded : CompensationMetrics or None
+        The report's ``metrics`` (None or without ``all_*``: nothing to compare).
     online : bool
         The report is of ``compensate --online`` (tolerance :data:`REL_TOL_ONLINE`).
     fluxgate : bool
@@ -128,21 +129,21 @@ def compare_headline(computed: dict[str, Any], recorded: dict[str, Any] | None, 
                            "counts": "equal", "recorded_in": recorded_in, "warning": None,
                            "definition": "the headline is computed from the log's columns;"
                            " the recorded figures are the report's metrics block"}
-    if not recorded or not all(k in recorded for k in _COMPARED + _COUNTS):
+    if recorded is None or any(getattr(recorded, k) is None for k in _COMPARED + _COUNTS):
         out["note"] = f"{recorded_in} has no metrics to compare"
         return out
     diffs: dict[str, Any] = {}
     worst = 0.0
     bad: list[str] = []
     for k in _COMPARED:
-        a, b = computed.get(k), recorded.get(k)
+        a, b = getattr(computed, k), getattr(recorded, k)
         rel = _rel(a, b)
         diffs[k] = {"computed": a, "recorded": b, "relative": rel}
         worst = max(worst, rel)
         if rel > tol:
             bad.append(k)
     for k in _COUNTS:
-        a, b = computed.get(k), recorded.get(k)
+        a, b = getattr(computed, k), getattr(recorded, k)
         diffs[k] = {"computed": a, "recorded": b, "relative": _rel(a, b)}
         if a != b:
             bad.append(k)
@@ -150,10 +151,10 @@ def compare_headline(computed: dict[str, Any], recorded: dict[str, Any] | None, 
     if bad:
         out["warning"] = (
             f"{source}: the headline computed from this log (improvement ratio"
-            f" {_g(computed['improvement_ratio'])}, residual {_g(computed['residual_std_nT'])}"
-            f" nT, {computed['n_samples']} samples) disagrees with {recorded_in}"
-            f" ({_g(recorded['improvement_ratio'])}, {_g(recorded['residual_std_nT'])} nT,"
-            f" {recorded['n_samples']} samples; differing: {', '.join(bad)}; tolerance {tol:g}"
+            f" {_g(computed.improvement_ratio)}, residual {_g(computed.residual_std_nT)}"
+            f" nT, {computed.n_samples} samples) disagrees with {recorded_in}"
+            f" ({_g(recorded.improvement_ratio)}, {_g(recorded.residual_std_nT)} nT,"
+            f" {recorded.n_samples} samples; differing: {', '.join(bad)}; tolerance {tol:g}"
             f" relative, sample counts exact): {LIKELY_CAUSE.format(kind=log_kind(source))}")
     return out
 
@@ -183,13 +184,14 @@ class _MagCompCheck:
     tolerance, so no full-length expected or difference array exists.
     """
 
-    def __init__(self, data: pd.DataFrame, report: dict[str, Any], cfg: CompensationConfig,
-                 time_s: np.ndarray, fs_hz: float, source: str, recorded_in: str) -> None:
-        fluxgate = bool(report.get("mag_from_fluxgate")) or "mag" not in data.columns
+    def __init__(self, data: pd.DataFrame, report: CompensationReport,
+                 cfg: CompensationConfig, time_s: np.ndarray, fs_hz: float, source: str,
+                 recorded_in: str) -> None:
+        fluxgate = bool(report.mag_from_fluxgate) or "mag" not in data.columns
         self.tol = MAG_COMP_TOL_FLUXGATE_NT if fluxgate else MAG_COMP_TOL_NT
         # An --online OUT.json records no configuration: whether mag_comp was low-passed
         # (--no-filter) is then not known, and mag_comp may match either.
-        self.recorded = "filter_output" in (report.get("config") or {})
+        self.recorded = "filter_output" in (report.config or {})
         self.choices = (bool(cfg.filter_output),) if self.recorded else (False, True)
         self.t, self.fs, self.cfg = time_s, fs_hz, cfg
         self.cut = cfg.lowpass_hz if cfg.lowpass_hz is not None else cfg.band_hz[1]
@@ -265,7 +267,7 @@ class _MagCompCheck:
         return out
 
 
-def check_mag_comp(data: pd.DataFrame, comp: np.ndarray, report: dict[str, Any],
+def check_mag_comp(data: pd.DataFrame, comp: np.ndarray, report: CompensationReport,
                    cfg: CompensationConfig, *, source: str = "OUT.csv",
                    recorded_in: str = "OUT.json") -> dict[str, Any]:
     """Compare the log's ``mag_comp`` with what the compensation writes from its columns.
@@ -285,7 +287,7 @@ def check_mag_comp(data: pd.DataFrame, comp: np.ndarray, report: dict[str, Any],
         The compensated log (``time`` [s], ``mag_comp`` [nT], ``segment``, ``segment_kept``).
     comp : ndarray
         ``mag - mag_tl`` per row [nT] (not changed).
-    report : dict
+    report : CompensationReport
         Its report (``mag_from_fluxgate``).
     cfg : CompensationConfig
         Filter settings recorded in the report (``filter_output``, ``lowpass_hz``,
@@ -362,8 +364,8 @@ def headline_from_data(result: CompensationResult,
         The log has no ``mag_tl`` (the headline is of ``mag - mag_tl``), or is too short
         to measure.
     """
-    data, report = result.data, dict(result.report or {})
-    src = str(data.attrs.get("source") or report.get("source") or "<log>")
+    data, report = result.data, result.report
+    src = str(data.attrs.get("source") or report.source or "<log>")
     if "mag_tl" not in data.columns:
         raise InputError(f"{src}: no mag_tl column: the headline metrics are of mag - mag_tl,"
                          " so this log must be the output of `aeromag compensate` as written;"
@@ -393,9 +395,9 @@ def headline_from_data(result: CompensationResult,
         del mag
     comp_check = check.result() if check is not None else None
     del t, tl, kept, starts, stops, check
-    recorded = report.get("metrics") or None
-    fluxgate = bool(report.get("mag_from_fluxgate")) or "mag" not in data.columns
-    check_ = compare_headline(computed, recorded, online=bool(report.get("online")),
+    recorded = report.metrics
+    fluxgate = bool(report.mag_from_fluxgate) or "mag" not in data.columns
+    check_ = compare_headline(computed, recorded, online=bool(report.extra.get("online")),
                               fluxgate=fluxgate, source=src, recorded_in=rj)
     if check_["warning"]:
         log.warning("%s", check_["warning"])
@@ -403,19 +405,17 @@ def headline_from_data(result: CompensationResult,
         check_["mag_comp"] = comp_check
         if comp_check["warning"]:
             log.warning("%s", comp_check["warning"])
-    if recorded:
-        report["recorded_metrics"] = recorded
-    report["metrics"] = computed
-    report["headline_check"] = check_
+    report = dataclasses.replace(report, metrics=computed, headline_check=check_,
+                                 recorded_metrics=recorded or report.recorded_metrics)
     return dataclasses.replace(result, report=report)
 
 
-def headline_record(report: dict[str, Any]) -> dict[str, Any]:
+def headline_record(report: CompensationReport) -> dict[str, Any]:
     """The keys :func:`headline_from_data` adds to ``qc.json`` (empty for other reports).
 
     Parameters
     ----------
-    report : dict
+    report : CompensationReport
         A report returned in :func:`headline_from_data`'s result.
 
     Returns
@@ -425,8 +425,8 @@ def headline_record(report: dict[str, Any]) -> dict[str, Any]:
         (OUT.json's block, as the compensation computed it).
     """
     out: dict[str, Any] = {}
-    if "headline_check" in report:
-        out["headline_check"] = report["headline_check"]
-    if report.get("recorded_metrics"):
-        out["compensation_metrics"] = report["recorded_metrics"]
+    if report.headline_check is not None:
+        out["headline_check"] = report.headline_check
+    if report.recorded_metrics is not None:
+        out["compensation_metrics"] = report.recorded_metrics
     return out
