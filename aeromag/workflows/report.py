@@ -15,7 +15,6 @@ line draws it as a progress bar); nothing here prints.
 
 from __future__ import annotations
 
-import base64
 import html
 import json
 import logging
@@ -37,7 +36,16 @@ from ..io import atomic_path, json_path_for, read_log, write_json
 from ..plot import compensation as pc
 from ..qc import QCResult, compute_qc, kept_mask, segment_labels
 from ..qc.quality import QCMetrics, config_of
-from ._report_html import CSS, extended_html, fmt, fom_rows, headline_words, html_table, html_time
+from ._report_html import (
+    extended_html,
+    figure_html,
+    fmt,
+    fom_rows,
+    headline_words,
+    html_table,
+    html_time,
+    page_head,
+)
 from .report_check import headline_from_data, headline_record
 
 __all__ = ["FIGURES", "report_file", "load_compensated", "render_html", "write_report"]
@@ -379,11 +387,8 @@ def render_html(metrics: QCMetrics | dict[str, Any], report: CompensationReport 
         report = CompensationReport.from_dict(report)
     title = title or f"aeromag compensation report: {report.source}"
     band = metrics.band_hz
-    parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>"
-             f"<title>{html.escape(title)}</title><style>{CSS}</style></head><body>",
-             f"<h1>{html.escape(title)}</h1>",
-             f"<p class='small'>aeromag {html.escape(__version__)}; fitting band "
-             f"{band[0]:g}–{band[1]:g} Hz</p>"]
+    parts = [page_head(title, f"aeromag {__version__}; fitting band "
+                              f"{band[0]:g}–{band[1]:g} Hz")]
     fom = metrics.fom or {}
     fit = metrics.fit or {}
     noise = metrics.noise or {}
@@ -490,11 +495,6 @@ def render_html(metrics: QCMetrics | dict[str, Any], report: CompensationReport 
             f"<li class='note'>{html.escape(n)}</li>" for n in notes) + "</ul>")
     parts.append("<h2>Figures</h2>")
     for name, png in figures.items():
-        data = png if isinstance(png, bytes | bytearray) else Path(png).read_bytes()
-        b64 = base64.b64encode(data).decode("ascii")
-        cap = html.escape(FIGURES.get(name, name))
-        parts.append(f"<figure id='{html.escape(Path(name).stem)}'><img alt='{cap}' "
-                     f"src='data:image/png;base64,{b64}'><figcaption>{cap}</figcaption>"
-                     "</figure>")
+        parts.append(figure_html(name, png, FIGURES.get(name, name)))
     parts.append("</body></html>")
     return "\n".join(parts)
