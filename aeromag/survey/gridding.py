@@ -202,6 +202,15 @@ def estimate_line_spacing(x_m: np.ndarray, y_m: np.ndarray,
     # the lines' direction: their length-weighted mean (doubled angles), not the bin's centre
     # (2.5 degrees off would add x sin 2.5 deg to the across-line offsets)
     ref = float(np.angle(np.sum(length[lines] * np.exp(2j * ang[lines])))) / 2.0
+    # Fragments of turns (a slow multirotor's U-turn, cut by the turn test into pieces of a
+    # few metres, some by chance parallel to the lines) are not lines: a piece shorter than a
+    # tenth of the length-weighted median of the parallel pieces is left out.
+    if lines.sum() >= 2:
+        ln = length[lines]
+        o = np.argsort(ln)
+        cw = np.cumsum(ln[o])
+        wmed = float(ln[o][np.searchsorted(cw, 0.5 * cw[-1])])
+        lines &= length >= 0.1 * wmed
     if lines.sum() < 2:
         raise InputError("cannot estimate the line spacing (fewer than two parallel lines):"
                          " give --cell")
