@@ -32,6 +32,7 @@ from scipy.sparse.linalg import cg, spsolve
 from scipy.spatial import cKDTree
 
 from ..errors import FitError, InputError
+from .geometry import position_noise_m
 
 log = logging.getLogger(__name__)
 
@@ -135,9 +136,7 @@ def _pieces(x: np.ndarray, y: np.ndarray, line: np.ndarray | None) -> np.ndarray
     med = float(np.median(step)) if step.size else 0.0
     new = step > 5.0 * max(med, 1e-9)
     if x.size > 2:
-        # Rayleigh median of the second differences of noise sigma per axis: sigma sqrt(6) 1.1774
-        d2 = np.hypot(np.diff(x, 2), np.diff(y, 2))
-        sigma = float(np.median(d2)) / (np.sqrt(6.0) * 1.1774)
+        sigma = position_noise_m(x, y)
         k = 1  # doubled until the median baseline is 10 sigma (the steps include the noise)
         while (2 * k < x.size // 4 and float(np.median(np.hypot(x[k:] - x[:-k], y[k:] - y[:-k])))
                < 10.0 * sigma):
@@ -229,8 +228,7 @@ def estimate_line_spacing(x_m: np.ndarray, y_m: np.ndarray,
 def default_cell(line_spacing_m: float) -> float:
     """The default cell: a fifth of the line spacing, rounded to 2 significant digits [m]."""
     c = line_spacing_m / 5.0
-    mag = 10.0 ** math.floor(math.log10(c)) / 10.0
-    return float(round(c / mag) * mag)
+    return float(f"{c:.2g}")  # 3.9, not 3.9000000000000004 in GRID.json
 
 
 # --------------------------------------------------------------------------- grid geometry
