@@ -41,8 +41,11 @@ from pyproj import Transformer
 from typer.testing import CliRunner
 
 from aeromag.cli import app
+from aeromag.errors import InputError
+from aeromag.survey.crossings import find_crossings
 from aeromag.survey.geometry import build_geometry
 from aeromag.survey.gridding import estimate_line_spacing
+from aeromag.survey.lag import estimate_lag
 
 EPSG = 32750  # UTM 50S
 LAT0, LON0 = -31.9, 115.9
@@ -119,9 +122,9 @@ def _path(n_lines, spacing, length, tie_along, overrun):
 def simulate_uav(seed=0, *, fs=10.0, speed=5.0, spacing=20.0, length=400.0, n_lines=12,
                  n_ties=3, agl=30.0, lag_s=0.2, gnss_white=0.5, gnss_walk=1.5,
                  diurnal_nT=25.0, shift_nT=3.0, deep=False, direction_deg=30.0, terrain=1.0,
-                 follow_lag_s=2.0):
+                 follow_lag_s=2.0, tie_margin=0.05):
     rng = np.random.default_rng(seed)
-    tie_along = np.linspace(0.05 * length, 0.95 * length, n_ties)
+    tie_along = np.linspace(tie_margin * length, (1 - tie_margin) * length, n_ties)
     pa, label, cls = _path(n_lines, spacing, length, tie_along, overrun=5.0)
     # arc length and speed profile: cruise on straights, 1.5 m/s in turns, 0.3 at corners,
     # acceleration limited to 1.5 m/s^2 (v^2 <= cap^2 + 2 a |s - s_j| for every slow point j)
@@ -252,8 +255,8 @@ def test_straight_parts_leave_the_slow_noisy_turns_out(noisy25):
     true_straight = tr.straight.to_numpy() & lab
     turn = lab & ~true_straight
     assert g.n_pieces == s.n_lines + s.n_ties
-    assert np.mean(g.straight[turn]) < 0.05  # was 0.98: the turns were "straight"
-    assert np.mean(~g.straight[true_straight]) < 0.10  # only the slow run-in and run-out
+    assert np.mean(g.straight[turn]) < 0.25  # was 0.98: the turns were "straight"
+    assert np.mean(~g.straight[true_straight]) < 0.05
     assert abs(g.line_spacing_m - s.spacing_m) < 1.0
 
 
@@ -324,8 +327,35 @@ def test_lag_is_recovered_without_the_height_herringbone():
                      gnss_white=0.0, follow_lag_s=0.0)
     d = s.survey
     g = build_geometry(d.lat.to_numpy(), d.lon.to_numpy(), d.line.to_numpy())
-    from aeromag.survey.lag import estimate_lag
-
     base = np.interp(d.time, s.base.time, s.base.mag)
     est = estimate_lag(g, d.time.to_numpy(), d.mag.to_numpy() - base)
     assert abs(est.lag_s - s.lag_s) < 0.03
+
+
+def test_north_south_lines_slow_and_noisy_keep_every_crossing_and_the_lag_search():
+    # Lines along grid north have directions near 0 and near 180 degrees: their median
+    # direction was anything between, and --lag auto refused ("the opposite-direction lines
+    # do not overlap").  3 m/s at 25 Hz with 1.5 m of white GNSS noise: the straight parts
+    # must still hold every line-tie crossing (ties at the very ends of the lines).
+    s = simulate_uav(seed=7, fs=25.0, spacing=30.0, speed=3.0, length=300.0, n_lines=6,
+                     n_ties=3, direction_deg=0.0, gnss_white=1.5, tie_margin=0.0, deep=True)
+    d = s.survey
+    g = build_geometry(d.lat.to_numpy(), d.lon.to_numpy(), d.line.to_numpy())
+    assert g.lines_direction_deg < 2.0 or g.lines_direction_deg > 178.0
+    assert find_crossings(g, d.mag.to_numpy()).n == s.n_lines * s.n_ties
+    base = np.interp(d.time, s.base.time, s.base.mag)
+    est = estimate_lag(g, d.time.to_numpy(), d.mag.to_numpy() - base)
+    assert est.n_pairs >= 3 and abs(est.lag_s - s.lag_s) < max(2.5 * est.std_s, 0.05)
+
+
+def test_lag_auto_refuses_when_the_lines_do_not_determine_it():
+    # Shallow sources (5-30 m deep, 30 m AGL) under lines 30 m apart flown at 3 m/s: the
+    # field changes more from line to line than a 0.2 s lag (0.6 m) moves it; the misfit is
+    # within 10 % from -2.0 to -0.26 s and the estimate was -1.13 +- 0.13 s, silently applied.
+    s = simulate_uav(seed=7, fs=25.0, spacing=30.0, speed=3.0, length=300.0, n_lines=6,
+                     n_ties=3, direction_deg=0.0, gnss_white=1.5, tie_margin=0.0)
+    d = s.survey
+    g = build_geometry(d.lat.to_numpy(), d.lon.to_numpy(), d.line.to_numpy())
+    base = np.interp(d.time, s.base.time, s.base.mag)
+    with pytest.raises(InputError, match="do not determine the lag"):
+        estimate_lag(g, d.time.to_numpy(), d.mag.to_numpy() - base)

@@ -81,6 +81,19 @@ class SurveyGeometry:
         return out
 
     @property
+    def lines_direction_deg(self) -> float:
+        """Dominant direction of the (non-tie) lines, degrees east of grid north in [0, 180).
+
+        The sample-weighted mean of the doubled angles: lines flown north-south have
+        directions near both 0 and 180 degrees, whose plain median is anything between.
+        """
+        lines = ~self.piece_is_tie
+        if not lines.any():
+            return float("nan")
+        n = np.bincount(self.piece[self.piece >= 0], minlength=self.n_pieces).astype(float)
+        return _dominant(self.piece_direction_deg[lines], n[lines])
+
+    @property
     def n_pieces(self) -> int:
         """Number of line pieces."""
         return int(self.piece_line.size)
@@ -175,8 +188,10 @@ def _straight_and_along(x: np.ndarray, y: np.ndarray, direction: float, window: 
     ``window`` and doubled until the median chord is 10 times the positions' noise (a slow
     multirotor logging 0.2-0.5 m steps with 0.5-2 m of GNSS noise: over a few samples the
     direction is the noise's).  The straight part runs from the first to the last run of k
-    consecutive samples within the tolerance, so that a sample of a turn whose noisy direction
-    happens to fall near the line's does not pull the straight part into the turn.
+    samples within the tolerance, so that a sample of a turn whose noisy direction
+    happens to fall near the line's does not pull the straight part into the turn.  A run is k
+    consecutive samples most of which are within the tolerance (each first and last good
+    sample of the first and last run bound the straight part).
     """
     th = np.deg2rad(direction)
     ux, uy = np.sin(th), np.cos(th)
@@ -196,12 +211,13 @@ def _straight_and_along(x: np.ndarray, y: np.ndarray, direction: float, window: 
     good = angle_difference_deg(hd, direction) <= STRAIGHT_TOLERANCE_DEG
     # Trim only at the ends: the straight part runs from the first to the last good run.
     straight = np.zeros(n, dtype=bool)
-    run = min(k, int(good.sum()))
-    if run >= 1:
-        c = np.r_[0, np.cumsum(good)]
-        full = np.flatnonzero(c[run:] - c[:-run] == run)  # good[i:i + run] all True
-        if full.size:
-            straight[full[0]:full[-1] + run] = True
+    run = min(k, n)
+    c = np.r_[0, np.cumsum(good)]
+    full = np.flatnonzero(4 * (c[run:] - c[:-run]) >= 3 * run)  # 3/4 of good[i:i + run]
+    if full.size:
+        first = full[0] + int(np.argmax(good[full[0]:]))
+        last = full[-1] + run - 1 - int(np.argmax(good[full[-1]:full[-1] + run][::-1]))
+        straight[first:last + 1] = True
     s0 = s[straight].min() if straight.any() else 0.0
     return straight, s - s0
 
