@@ -106,6 +106,7 @@ def plot_stacked_profiles(result: LevelResult, *, column: str = "tmi_lev", n_lin
         raise InputError("the survey has no flight lines to plot")
     th = np.deg2rad(g.lines_direction_deg)
     u = g.x_m * np.sin(th) + g.y_m * np.cos(th)
+    u = u - np.nanmin(u[g.piece >= 0])  # from the survey's edge, not the projection's origin
     v = g.x_m * np.cos(th) - g.y_m * np.sin(th)
     across = np.array([np.nanmean(v[g.piece == k]) for k in lines])
     order = lines[np.argsort(across)]
