@@ -359,3 +359,10 @@ def test_lag_auto_refuses_when_the_lines_do_not_determine_it():
     base = np.interp(d.time, s.base.time, s.base.mag)
     with pytest.raises(InputError, match="do not determine the lag"):
         estimate_lag(g, d.time.to_numpy(), d.mag.to_numpy() - base)
+
+
+def test_grid_help_lists_value_and_crs_once():
+    # the shared level rows also named grid, whose own grid_value / grid_crs rows took the
+    # flags: --help showed both, one of them dead
+    out = runner.invoke(app, ["grid", "--help"], terminal_width=100).output
+    assert out.count("--value") == 1 and out.count("--crs") == 1
