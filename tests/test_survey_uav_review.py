@@ -40,9 +40,11 @@ import pytest
 from pyproj import Transformer
 from typer.testing import CliRunner
 
+import aeromag as am
 from aeromag.cli import app
 from aeromag.errors import InputError
 from aeromag.survey.crossings import find_crossings
+from aeromag.survey.diurnal import BaseRecord
 from aeromag.survey.geometry import build_geometry
 from aeromag.survey.gridding import estimate_line_spacing
 from aeromag.survey.lag import estimate_lag
@@ -366,3 +368,17 @@ def test_grid_help_lists_value_and_crs_once():
     # flags: --help showed both, one of them dead
     out = runner.invoke(app, ["grid", "--help"], terminal_width=100).output
     assert out.count("--value") == 1 and out.count("--crs") == 1
+
+
+def test_decorrugation_runs_along_north_south_lines():
+    # N-S lines have directions near 0 and 180 degrees; their median (about 90) turned the
+    # micro-levelling across the lines, where it found nothing to remove (tmi_mlev == tmi_lev)
+    def corrugation(direction):
+        s = simulate_uav(seed=2, fs=10.0, n_lines=8, length=300.0, direction_deg=direction)
+        base = BaseRecord(s.base.time.to_numpy(), s.base.mag.to_numpy(), "b")
+        r = am.level(s.survey, base=base, lag=0.2, decorrugate=True)
+        d = (r.data["tmi_mlev"] - r.data["tmi_lev"]).to_numpy()
+        return float(np.sqrt(np.nanmean(d ** 2)))
+
+    ns, oblique = corrugation(0.0), corrugation(0.7)
+    assert oblique > 0.01 and ns > 0.5 * oblique
