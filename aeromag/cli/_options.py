@@ -144,11 +144,10 @@ OPTIONS: list[Option] = [
        "aeromag version).", {"batch"}),
     _o("threshold", "--threshold", float, 1.0, "Track alarm threshold, metres (with --plan).",
        {"batch"}, metavar="M"),
-    # survey levelling ('aeromag level'; --value and --crs are shared with 'grid')
+    # survey levelling ('aeromag level'; grid has its own grid_value and grid_crs rows)
     _o("value", "--value", str | None, None,
-       {"level": "The column to level (default: mag_comp when the log has it, else mag).",
-        "grid": "The column to grid (default: tmi_mlev, else tmi_lev, else tmi)."},
-       {"level", "grid"}, metavar="COL"),
+       {"level": "The column to level (default: mag_comp when the log has it, else mag)."},
+       {"level"}, metavar="COL"),
     _o("base", "--base", list[Path] | None, None, "Base-station record: CSV with time (UTC s "
        "since 1970 or ISO 8601) and mag (nT), IAGA-2002 .min/.sec (F, or F from the vector "
        "components), a GEM GSM-19 base file or a Geometrics G-856 dump (with --date); "
@@ -177,7 +176,7 @@ OPTIONS: list[Option] = [
     _o("decorrugate", "--decorrugate", bool, False, "Also micro-level (remove the "
        "line-parallel corrugation that tie-line levelling leaves): tmi_mlev.", {"level"}),
     _o("crs", "--crs", int | None, None, "Projected coordinate system, EPSG code (default: the "
-       "UTM zone of the survey's centre).", {"level", "grid"}, metavar="EPSG"),
+       "UTM zone of the survey's centre).", {"level"}, metavar="EPSG"),
     # filters, terms, segments
     _o("band", "--band", tuple[float, float], (0.1, 0.9),
        "Band-pass applied before fitting, Hz (zero-phase Butterworth).", _COMP,

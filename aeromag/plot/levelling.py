@@ -104,8 +104,9 @@ def plot_stacked_profiles(result: LevelResult, *, column: str = "tmi_lev", n_lin
     lines = np.flatnonzero(~g.piece_is_tie)
     if lines.size == 0:
         raise InputError("the survey has no flight lines to plot")
-    th = np.deg2rad(float(np.median(g.piece_direction_deg[lines])))
+    th = np.deg2rad(g.lines_direction_deg)
     u = g.x_m * np.sin(th) + g.y_m * np.cos(th)
+    u = u - np.nanmin(u[g.piece >= 0])  # from the survey's edge, not the projection's origin
     v = g.x_m * np.cos(th) - g.y_m * np.sin(th)
     across = np.array([np.nanmean(v[g.piece == k]) for k in lines])
     order = lines[np.argsort(across)]

@@ -166,7 +166,7 @@ def decorrugate(geom: SurveyGeometry, value: np.ndarray, *, limit_nT: float,
     lines = np.flatnonzero(~geom.piece_is_tie)
     if not np.isfinite(spacing) or lines.size < 3:
         return DecorrugationResult(corr, limit_nT, np.nan, np.nan, {}, 0.0)
-    th = np.deg2rad(float(np.median(geom.piece_direction_deg[lines])))
+    th = np.deg2rad(geom.lines_direction_deg)  # not a median: N-S lines are at 0 and 180
     u = geom.x_m * np.sin(th) + geom.y_m * np.cos(th)
     v = geom.x_m * np.cos(th) - geom.y_m * np.sin(th)
     sel = (geom.piece >= 0) & ~geom.is_tie & geom.straight & np.isfinite(value)

@@ -32,6 +32,7 @@ from scipy.sparse.linalg import cg, spsolve
 from scipy.spatial import cKDTree
 
 from ..errors import FitError, InputError
+from .geometry import position_noise_m
 
 log = logging.getLogger(__name__)
 
@@ -140,9 +141,7 @@ def _pieces(x: np.ndarray, y: np.ndarray, line: np.ndarray | None) -> np.ndarray
     med = float(np.median(np.hypot(np.diff(xw), np.diff(yw)))) if n > 1 else 0.0
     k = 1
     if xw.size > 2:
-        # Rayleigh median of the second differences of noise sigma per axis: sigma sqrt(6) 1.1774
-        sigma = float(np.median(np.hypot(np.diff(xw, 2), np.diff(yw, 2)))) / (np.sqrt(6.0)
-                                                                              * 1.1774)
+        sigma = position_noise_m(xw, yw)  # the one noise estimate (survey/geometry.py)
         # doubled until the median baseline is 10 sigma (the steps include the noise)
         while (2 * k < xw.size // 4 and float(np.median(np.hypot(xw[k:] - xw[:-k],
                                                                  yw[k:] - yw[:-k])))
@@ -216,6 +215,15 @@ def estimate_line_spacing(x_m: np.ndarray, y_m: np.ndarray,
     # the lines' direction: their length-weighted mean (doubled angles), not the bin's centre
     # (2.5 degrees off would add x sin 2.5 deg to the across-line offsets)
     ref = float(np.angle(np.sum(length[lines] * np.exp(2j * ang[lines])))) / 2.0
+    # Fragments of turns (a slow multirotor's U-turn, cut by the turn test into pieces of a
+    # few metres, some by chance parallel to the lines) are not lines: a piece shorter than a
+    # tenth of the length-weighted median of the parallel pieces is left out.
+    if lines.sum() >= 2:
+        ln = length[lines]
+        o = np.argsort(ln)
+        cw = np.cumsum(ln[o])
+        wmed = float(ln[o][np.searchsorted(cw, 0.5 * cw[-1])])
+        lines &= length >= 0.1 * wmed
     if lines.sum() < 2:
         raise InputError("cannot estimate the line spacing (fewer than two parallel lines):"
                          " give --cell")
@@ -234,8 +242,7 @@ def estimate_line_spacing(x_m: np.ndarray, y_m: np.ndarray,
 def default_cell(line_spacing_m: float) -> float:
     """The default cell: a fifth of the line spacing, rounded to 2 significant digits [m]."""
     c = line_spacing_m / 5.0
-    mag = 10.0 ** math.floor(math.log10(c)) / 10.0
-    return float(round(c / mag) * mag)
+    return float(f"{c:.2g}")  # 3.9, not 3.9000000000000004 in GRID.json
 
 
 # --------------------------------------------------------------------------- grid geometry

@@ -24,7 +24,11 @@ from .geometry import SurveyGeometry
 
 log = logging.getLogger(__name__)
 
-__all__ = ["LagEstimate", "apply_lag", "estimate_lag"]
+__all__ = ["FLAT_HALF_WIDTH_S", "LagEstimate", "apply_lag", "estimate_lag"]
+
+#: ``--lag auto`` refuses when the lags fitting within 10 % of the best span more than twice
+#: this [s] (a UAV survey whose lines are too far apart for its shallow sources: 2 s wide).
+FLAT_HALF_WIDTH_S = 0.5
 
 
 @dataclass
@@ -101,7 +105,7 @@ def _profiles(geom: SurveyGeometry, time_s: np.ndarray, value: np.ndarray
     lines = np.flatnonzero(~geom.piece_is_tie)
     if lines.size == 0:
         return []
-    th = np.deg2rad(float(np.median(geom.piece_direction_deg[lines])))
+    th = np.deg2rad(geom.lines_direction_deg)
     ux, uy = np.sin(th), np.cos(th)
     out = []
     sel = geom.straight & (geom.piece >= 0)
@@ -208,7 +212,21 @@ def estimate_lag(geom: SurveyGeometry, time_s: np.ndarray, value: np.ndarray, *,
             return float(lags[i] + off * step_s)
         return float(lags[i])
 
-    lag = best(c.sum(axis=0))
+    total = c.sum(axis=0)
+    lag = best(total)
+    # How well the lag is determined: the lags whose misfit is within 10 % of the best.  Lines
+    # too far apart for their fields to match (shallow sources under a slow UAV's 20-30 m
+    # lines) give a flat curve whose minimum is anywhere: refused, not applied.
+    i = int(np.argmin(total))
+    near = total <= 1.1 * total[i]
+    lo = i - int(np.argmin(near[i::-1])) if not near[:i + 1].all() else -1  # last one out
+    hi = i + int(np.argmin(near[i:])) if not near[i:].all() else lags.size
+    width = (hi - lo - 2) * step_s
+    if width > 2.0 * FLAT_HALF_WIDTH_S:
+        raise InputError(f"{source}: --lag auto: the opposite-direction lines do not "
+                         f"determine the lag (every lag from {lags[lo + 1]:.2f} to "
+                         f"{lags[hi - 1]:.2f} s fits within 10 %: the field changes more from "
+                         "line to line than a lag moves it); give the lag in seconds (--lag S)")
     n = c.shape[0]
     if n >= 3:
         jack = np.array([best(c.sum(axis=0) - c[i]) for i in range(n)])
