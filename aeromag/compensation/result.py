@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from .._core.summary import summary_line, summary_table
 from .config import CompensationConfig
 from .model import TLModel
 from .normal import SegmentStats
@@ -128,21 +129,12 @@ class CompensationResult:
         return rows
 
     def __repr__(self) -> str:
-        """One line: source, rows, model, segments kept and the headline metrics."""
-        rows = self._summary()
-        parts = [f"{k}={v}" for k, v in rows if k != "warning"]
-        if len(parts) < len(rows):
-            parts.append(f"{len(rows) - len(parts)} warning(s)")
-        return f"{type(self).__name__}({', '.join(parts)})"
+        """One line: the summary's rows, warnings counted."""
+        return summary_line(type(self).__name__, self._summary())
 
     def _repr_html_(self) -> str:
         """A small HTML table of the same summary (Jupyter)."""
-        import html
-
-        cells = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th>"
-                        f"<td style='text-align:left'>{html.escape(v)}</td></tr>"
-                        for k, v in self._summary())
-        return f"<table><caption>{type(self).__name__}</caption>{cells}</table>"
+        return summary_table(type(self).__name__, self._summary())
 
     @property
     def metrics(self) -> CompensationMetrics | None:

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from .._core.summary import summary_line, summary_table
 from ..errors import InputError
 from .crossings import Crossings, find_crossings
 from .decorrugation import DecorrugationResult, decorrugate
@@ -154,21 +155,12 @@ class LevelResult:
         return rows
 
     def __repr__(self) -> str:
-        """One line: samples, lines, lag, misties before and after, warnings."""
-        rows = self.summary_rows()
-        parts = [f"{k}={v}" for k, v in rows if k != "warning"]
-        if len(parts) < len(rows):
-            parts.append(f"{len(rows) - len(parts)} warning(s)")
-        return f"{type(self).__name__}({', '.join(parts)})"
+        """One line: the summary's rows, warnings counted."""
+        return summary_line(type(self).__name__, self.summary_rows())
 
     def _repr_html_(self) -> str:
         """A small HTML table of the same summary (Jupyter)."""
-        import html
-
-        cells = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th>"
-                        f"<td style='text-align:left'>{html.escape(v)}</td></tr>"
-                        for k, v in self.summary_rows())
-        return f"<table><caption>{type(self).__name__}</caption>{cells}</table>"
+        return summary_table(type(self).__name__, self.summary_rows())
 
     def _lines(self) -> list[dict[str, Any]]:
         g = self.geometry
