@@ -7,8 +7,6 @@ itself inline in Jupyter.
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
@@ -16,27 +14,12 @@ from matplotlib.figure import Figure
 from ..errors import InputError
 from ..survey.chain import LevelResult
 from ..survey.levelling import robust_std
-from ._style import new_figure, save_figure
+from ._style import PathLike, finish, target
 
 __all__ = ["plot_mistie_histogram", "plot_stacked_profiles"]
 
-_PathLike = str | os.PathLike[str]
-
-
-def _target(ax: Axes | None, figsize: tuple[float, float]) -> tuple[Figure, Axes]:
-    if ax is None:
-        return new_figure(figsize)
-    return ax.figure, ax  # type: ignore[return-value]
-
-
-def _done(fig: Figure, path: _PathLike | None) -> Figure:
-    if path is not None:
-        save_figure(fig, path)
-    return fig
-
-
 def plot_mistie_histogram(result: LevelResult, *, bins: int = 60, ax: Axes | None = None,
-                          path: _PathLike | None = None) -> Figure:
+                          path: PathLike | None = None) -> Figure:
     """Histogram of the crossings' misties before and after tie-line levelling.
 
     Parameters
@@ -59,7 +42,7 @@ def plot_mistie_histogram(result: LevelResult, *, bins: int = 60, ax: Axes | Non
         raise InputError("the levelled survey has no crossings to plot")
     before = cx.mistie_nT
     after = result.levelling.mistie_lev_nT if result.levelling is not None else before
-    fig, ax = _target(ax, (6.5, 4.0))
+    fig, ax = target(ax, (6.5, 4.0))
     lim = np.nanpercentile(np.abs(before), 99) or 1.0
     edges = np.linspace(-lim, lim, bins + 1)
     for v, name, c in ((before, "before", "0.6"), (after, "after", "C0")):
@@ -70,12 +53,12 @@ def plot_mistie_histogram(result: LevelResult, *, bins: int = 60, ax: Axes | Non
     ax.set_title(f"Misties at {cx.n} crossings")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    return _done(fig, path)
+    return finish(fig, path)
 
 
 def plot_stacked_profiles(result: LevelResult, *, column: str = "tmi_lev", n_lines: int = 12,
                           offset_nT: float | None = None, ax: Axes | None = None,
-                          path: _PathLike | None = None) -> Figure:
+                          path: PathLike | None = None) -> Figure:
     """Profiles of adjacent lines stacked with an offset (levelled vs unlevelled).
 
     Parameters
@@ -115,7 +98,7 @@ def plot_stacked_profiles(result: LevelResult, *, column: str = "tmi_lev", n_lin
     y = d[column].to_numpy(float)
     raw = d["tmi"].to_numpy(float)
     off = offset_nT or max(3.0 * robust_std(y), 1.0)
-    fig, ax = _target(ax, (7.0, 6.0))
+    fig, ax = target(ax, (7.0, 6.0))
     for i, k in enumerate(show):
         sel = (g.piece == k) & g.straight
         o = np.argsort(u[sel])
@@ -128,4 +111,4 @@ def plot_stacked_profiles(result: LevelResult, *, column: str = "tmi_lev", n_lin
     ax.set_ylabel(f"{column} (nT), offset {off:.1f} nT per line")
     ax.set_title(f"Stacked profiles: {column} (blue) over tmi (grey)")
     ax.grid(alpha=0.3)
-    return _done(fig, path)
+    return finish(fig, path)
