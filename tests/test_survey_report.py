@@ -96,3 +96,30 @@ def test_level_result_describes_itself_in_one_line_and_a_table():
     assert "mistie_std_nT=" in text and "dof" in text and "warning" not in text
     page = res._repr_html_()
     assert page.startswith("<table>") and "effective parameters" in page
+
+
+def test_stacked_profiles_take_adjacent_lines_of_one_block():
+    # Two blocks side by side along E-W lines (as Osborne's two networks): lines 1-8 over
+    # x 0-3 km, lines 101-108 over x 4-7 km, across-line positions interleaved. The profiles
+    # must be neighbours across one block, not lines of both stacked by number.
+    rng = np.random.default_rng(4)
+    parts = []
+    for base, x0, y0 in ((1, 0.0, 0.0), (101, 4000.0, 100.0)):
+        for k in range(8):
+            x = np.arange(x0, x0 + 3000.0, 15.0)
+            y = np.full_like(x, y0 + 200.0 * k) + rng.normal(0, 1, x.size)
+            parts.append(pd.DataFrame({"x_m": x, "y_m": y, "line": base + k,
+                                       "mag": 20 * np.sin(x / 700.0) + rng.normal(0, .1, x.size)}))
+    df = pd.concat(parts, ignore_index=True)
+    from pyproj import Transformer
+
+    from aeromag.plot.levelling import plot_stacked_profiles
+
+    tr = Transformer.from_crs(32633, 4326, always_xy=True)
+    lon_, lat_ = tr.transform(df["x_m"].to_numpy() + 500_000.0, df["y_m"].to_numpy() + 5e6)
+    df = df.drop(columns=["x_m", "y_m"]).assign(lat=lat_, lon=lon_, alt=100.0)
+    res = am.level(df, igrf=False, method="none")
+    fig = plot_stacked_profiles(res, n_lines=6)
+    labels = sorted(int(float(t.get_text())) for t in fig.axes[0].texts)
+    assert len(labels) == 6
+    assert all(v < 100 for v in labels) or all(v > 100 for v in labels), labels

@@ -92,9 +92,16 @@ def plot_stacked_profiles(result: LevelResult, *, column: str = "tmi_lev", n_lin
     u = u - np.nanmin(u[g.piece >= 0])  # from the survey's edge, not the projection's origin
     v = g.x_m * np.cos(th) - g.y_m * np.sin(th)
     across = np.array([np.nanmean(v[g.piece == k]) for k in lines])
-    order = lines[np.argsort(across)]
-    mid = order.size // 2
-    show = order[max(0, mid - n_lines // 2): mid - n_lines // 2 + n_lines]
+    lo = np.array([np.nanmin(u[g.piece == k]) for k in lines])
+    hi = np.array([np.nanmax(u[g.piece == k]) for k in lines])
+    # adjacent lines of one block: the pieces overlapping (over half the shorter) the piece
+    # at the middle across the survey, then the n_lines nearest it across (a survey of two
+    # blocks side by side along the lines must not stack lines of both)
+    centre = int(np.argsort(across)[lines.size // 2])
+    overlap = np.minimum(hi, hi[centre]) - np.maximum(lo, lo[centre])
+    same = overlap > 0.5 * np.minimum(hi - lo, hi[centre] - lo[centre])
+    near = np.flatnonzero(same)[np.argsort(np.abs(across[same] - across[centre]))][:n_lines]
+    show = lines[near[np.argsort(across[near])]]
     y = d[column].to_numpy(float)
     raw = d["tmi"].to_numpy(float)
     off = offset_nT or max(3.0 * robust_std(y), 1.0)
