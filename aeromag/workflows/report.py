@@ -293,9 +293,6 @@ def report_file(
     Path
         The HTML page.
     """
-    from .survey_report import refuse_levelled_log
-
-    refuse_levelled_log(out_csv, report_json)
     result, config = load_compensated(out_csv, report_json)
     return write_report(result, out_dir, config=config, progress=progress, **qc_kw)
 
@@ -325,13 +322,6 @@ def load_compensated(
     """
     src = Path(out_csv)
     rj = Path(report_json) if report_json is not None else json_path_for(src)
-    data = read_log(src, usecols=REPORT_COLUMNS, dtypes=REPORT_DTYPES, required=())
-    if "mag_comp" not in data.columns:
-        raise InputError(f"{src}: no mag_comp column: this log is not compensated; run"
-                         f" `aeromag compensate {src} -o OUT.csv` first, then"
-                         " `aeromag report OUT.csv -o DIR`")
-    if "time" not in data.columns:
-        raise InputError(f"{src}: missing column 'time'")
     doc: dict[str, Any] = {}
     if rj.exists():
         try:
@@ -346,6 +336,17 @@ def load_compensated(
     if not isinstance(doc, dict):
         raise InputError(f"{rj}: not a JSON report (an object of keys expected); rerun"
                          " `aeromag compensate`")
+    if "crossovers" in doc and "mistie_std_nT" in doc:  # before reading the log itself
+        raise InputError(f"{src}: a levelled survey ({rj.name} is a levelling report), not a "
+                         "compensated log; its QC page (map, misties, profiles, report.html) "
+                         f"comes from aeromag level SURVEY -o {src.name} --plot DIR")
+    data = read_log(src, usecols=REPORT_COLUMNS, dtypes=REPORT_DTYPES, required=())
+    if "mag_comp" not in data.columns:
+        raise InputError(f"{src}: no mag_comp column: this log is not compensated; run"
+                         f" `aeromag compensate {src} -o OUT.csv` first, then"
+                         " `aeromag report OUT.csv -o DIR`")
+    if "time" not in data.columns:
+        raise InputError(f"{src}: missing column 'time'")
     doc.setdefault("source", str(src))
     data.attrs["report_json"] = str(rj)  # named by the headline check (report_check)
     report = CompensationReport.from_dict(doc)

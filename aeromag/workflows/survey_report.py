@@ -13,9 +13,7 @@ atomically.
 from __future__ import annotations
 
 import html
-import json
 import logging
-import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -24,12 +22,11 @@ import numpy as np
 
 from .. import __version__
 from ..errors import InputError
-from ..io import atomic_path, json_path_for
+from ..io import atomic_path
 from ..survey.chain import LevelResult
 from ._report_html import figure_html, fmt, html_table, html_time, page_head
 
-__all__ = ["SURVEY_FIGURES", "refuse_levelled_log", "render_survey_html",
-           "write_survey_report"]
+__all__ = ["SURVEY_FIGURES", "render_survey_html", "write_survey_report"]
 
 log = logging.getLogger(__name__)
 
@@ -242,31 +239,3 @@ def write_survey_report(res: LevelResult, out_dir: str | Path, *,
     written.append(page)
     return written
 
-
-def refuse_levelled_log(out_csv: str | os.PathLike[str],
-                        report_json: str | os.PathLike[str] | None = None) -> None:
-    """Refuse a levelled survey given to the compensation report, naming the command that fits.
-
-    Parameters
-    ----------
-    out_csv : path-like
-        The log given to ``aeromag report``.
-    report_json : path-like, optional
-        Its report (default OUT.json beside it).
-
-    Raises
-    ------
-    InputError
-        The report is a levelling report (it has ``crossovers`` and ``mistie_std_nT``).
-    """
-    path = Path(report_json) if report_json is not None else json_path_for(Path(out_csv))
-    try:
-        with open(path, encoding="utf-8") as fh:
-            rep = json.load(fh)
-    except (OSError, ValueError):
-        return  # no report, or not JSON: the compensation report says what is wrong
-    if isinstance(rep, dict) and "crossovers" in rep and "mistie_std_nT" in rep:
-        raise InputError(f"{out_csv}: a levelled survey ({path.name} is a levelling report), "
-                         "not a compensated log; its QC page (map, misties, profiles, "
-                         f"report.html) comes from aeromag level SURVEY -o {Path(out_csv).name}"
-                         " --plot DIR")
