@@ -15,7 +15,7 @@ import os
 import time
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 import numpy as np
 import pandas as pd
@@ -27,7 +27,7 @@ from ..compensation.report import flag_residual_outliers
 from ..compensation.report_types import CompensationReport
 from ..compensation.result import CompensationResult
 from ..conventions import FLUX_COLUMNS
-from ..errors import InputError
+from ..errors import AeromagError, InputError
 from ..io import (
     atomic_path,
     check_outputs,
@@ -38,6 +38,9 @@ from ..io import (
 )
 from ..io.formats import output_format, write_table
 from ..io.outputs import output_set
+
+if TYPE_CHECKING:
+    from ..qc.maneuver_result import ManeuverResult
 
 log = logging.getLogger(__name__)
 
@@ -91,24 +94,40 @@ def _one_blas_thread() -> contextlib.AbstractContextManager[Any]:
 _BOX_HEADINGS, _BOX_MANEUVERS = 4, frozenset({"pitch", "roll", "yaw"})
 
 
+#: What :func:`_detect` found: the manoeuvres, or the error that stopped their detection.
+_Detected: TypeAlias = "tuple[ManeuverResult | None, AeromagError | None]"
+
+
+def _detect(df: pd.DataFrame, cfg: CompensationConfig | None, source: str) -> _Detected:
+    """The manoeuvres and heading legs of a log, detected once for every use of one run.
+
+    :func:`aeromag.qc.detect_maneuvers` (about 0.1 s per 1e6 rows) serves the segmentation of a
+    log without lines, the calibration-box check and the QC's FOM; ``calibrate`` ran it three
+    times on the same rows with the same options.
+    """
+    from ..qc import detect_maneuvers
+
+    try:
+        return detect_maneuvers(df, max_gap_s=cfg.max_gap_s if cfg else None, source=source), None
+    except AeromagError as exc:
+        return None, exc
+
+
 def _self_calibration(df: pd.DataFrame, cfg: CompensationConfig | None,
-                      source: str, *, calibrating: bool = False) -> dict[str, Any]:
+                      source: str, *, calibrating: bool = False,
+                      detected: _Detected | None = None) -> dict[str, Any]:
     """Whether a log fitted on itself holds a calibration box; warn when it does not.
 
     A survey's few headings and gusts separate the TL terms only in the band: the
     heading-dependent level of ``mag_tl`` is not determined (the fit is blind to what does
     not vary in the band), yet its in-sample metrics look excellent.  A box is at least
     ``_BOX_HEADINGS`` heading legs with pitch, roll and yaw maneuvers
-    (:func:`aeromag.qc.detect_maneuvers`).
+    (:func:`aeromag.qc.detect_maneuvers`; ``detected``: already run on ``df``).
     """
-    from ..errors import AeromagError
-    from ..qc import detect_maneuvers
-
     out: dict[str, Any] = {"metrics": "in-sample: fitted and measured on the same log, in the"
                            " band; they say nothing about the level outside it"}
-    try:
-        man = detect_maneuvers(df, max_gap_s=cfg.max_gap_s if cfg else None, source=source)
-    except AeromagError as exc:
+    man, exc = detected if detected is not None else _detect(df, cfg, source)
+    if man is None:
         headings, kinds, why = [], [], f"no maneuvers could be detected ({exc})"
     else:
         headings = sorted(set(man.legs["heading"].astype(str))) if len(man.legs) else []
@@ -154,16 +173,17 @@ def calibrate(
     warning.  The report's ``segmentation`` says which.
     """
     segmentation = None
+    detected = _detect(df, cfg, source or str(df.attrs.get("source", "<log>")))
     if "line" not in df.columns:
-        df, segmentation = _segments_from_maneuvers(df, cfg, source)
+        df, segmentation = _segments_from_maneuvers(df, cfg, source, detected)
     with _one_blas_thread():
         res = _run(_pipeline.calibrate(df, cfg, source=source))
         if segmentation is not None:
             res.report.segmentation = segmentation
             res.model.meta["segmentation"] = segmentation
-        _add_qc(res)
+        _add_qc(res, maneuvers=_for_qc(detected[0], df, res))
     # As compensate warns when it fits a log without a box: the same check, the same warning.
-    box = _self_calibration(df, cfg, source or "<log>", calibrating=True)
+    box = _self_calibration(df, cfg, source or "<log>", calibrating=True, detected=detected)
     box.pop("metrics", None)  # the in-sample note is compensate's (a log fitted on itself)
     res.report.calibration_box = box
     if segmentation is not None and res.data is not None and "line" in res.data.columns:
@@ -178,19 +198,13 @@ def calibrate(
 
 
 def _segments_from_maneuvers(df: pd.DataFrame, cfg: CompensationConfig | None,
-                             source: str | None) -> tuple[pd.DataFrame, dict[str, Any]]:
+                             source: str | None, detected: _Detected,
+                             ) -> tuple[pd.DataFrame, dict[str, Any]]:
     """A ``line`` column from the detected maneuvers (or heading legs) of a calibration log."""
-    from ..errors import AeromagError
-    from ..qc import detect_maneuvers
-
     src = source or str(df.attrs.get("source", "<log>"))
     seconds = (cfg or CompensationConfig()).segment_seconds
-    try:
-        man = detect_maneuvers(df, max_gap_s=cfg.max_gap_s if cfg else None, source=src)
-    except AeromagError as exc:
-        man, why = None, str(exc)
-    else:
-        why = "no maneuver or heading leg was found"
+    man, exc = detected
+    why = str(exc) if man is None else "no maneuver or heading leg was found"
     if man is not None and len(man.table):
         line, what = man.labels["maneuver_id"].to_numpy(dtype=float), "detected maneuvers"
     elif man is not None and len(man.legs):
@@ -285,6 +299,20 @@ class CompensationRun(CompensationResult):
 
 def _run(res: CompensationResult) -> CompensationRun:
     return CompensationRun(**{f.name: getattr(res, f.name) for f in fields(CompensationResult)})
+
+
+def _for_qc(man: ManeuverResult | None, df: pd.DataFrame,
+            res: CompensationResult) -> ManeuverResult | None:
+    """``man`` (detected on ``df``) for the QC of ``res``, or None to let the QC detect.
+
+    The QC detects the manoeuvres itself only for the FOM (``cfg.fom``), and on the run's own
+    rows: the detection is handed on only then, and only when those rows are ``df``'s.
+    """
+    data = res.data
+    if (man is None or not res.config.fom or data is None or len(data) != len(df)
+            or not np.array_equal(data["time"].to_numpy(), df["time"].to_numpy())):
+        return None
+    return man
 
 
 def _add_qc(res: CompensationResult, maneuvers: Any = None) -> None:
