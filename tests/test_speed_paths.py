@@ -143,7 +143,7 @@ def test_qc_concurrent_equals_serial(monkeypatch) -> None:
     monkeypatch.setattr(parallel, "THREADS", 1)  # submit() runs inline
     serial = compute_qc(res, fit=False, fom=True).metrics
     assert threaded == serial
-    assert threaded.fom["applicable"]
+    assert threaded.fom.applicable
     broken = res.data[["time", "mag", "mag_comp", "mag_tl"]]  # nothing to detect from
     notes = compute_qc(type(res)(broken, None, {}), fit=False, fom=True).metrics.notes
     assert any(n.startswith("manoeuvre detection failed") for n in notes)
