@@ -42,31 +42,31 @@ def _table(n_boxes: int, dropped: dict[int, int]) -> pd.DataFrame:
 def test_partly_dropped_box_has_no_kept_fom_hand_case():
     """Boxes 0 and 2 wholly kept (12 and 36 nT before), box 1 with 3 dropped: kept FOM 24 nT."""
     s = fom_summary(_table(3, {1: 3}))
-    assert s["applicable"] and s["complete_boxes"] == [0, 1, 2]
-    assert s["fom_before_nT"] == pytest.approx(24.0)  # all data: every box, as before
-    assert s["fom_kept_before_nT"] == pytest.approx((12.0 + 36.0) / 2)  # was (12+18+36)/3
-    assert s["fom_kept_after_nT"] == pytest.approx((1.2 + 3.6) / 2)
-    assert s["kept_applicable"] and s["kept_boxes"] == [0, 2]
-    b1 = s["boxes"][1]
-    assert b1["fom_kept_before_nT"] is None and b1["fom_kept_after_nT"] is None
-    assert b1["kept_reason"] == "box 1: 3 of its 12 manoeuvres in dropped segments"
-    assert b1["fom_before_nT"] == pytest.approx(24.0)  # its all-data FOM stays
-    assert s["boxes"][0]["kept_reason"] is None
-    assert "box 1: 3 of its 12 manoeuvres in dropped segments" in s["kept_reason"]
+    assert s.applicable and s.complete_boxes == [0, 1, 2]
+    assert s.fom_before_nT == pytest.approx(24.0)  # all data: every box, as before
+    assert s.fom_kept_before_nT == pytest.approx((12.0 + 36.0) / 2)  # was (12+18+36)/3
+    assert s.fom_kept_after_nT == pytest.approx((1.2 + 3.6) / 2)
+    assert s.kept_applicable and s.kept_boxes == [0, 2]
+    b1 = s.boxes[1]
+    assert b1.fom_kept_before_nT is None and b1.fom_kept_after_nT is None
+    assert b1.kept_reason == "box 1: 3 of its 12 manoeuvres in dropped segments"
+    assert b1.fom_before_nT == pytest.approx(24.0)  # its all-data FOM stays
+    assert s.boxes[0].kept_reason is None
+    assert "box 1: 3 of its 12 manoeuvres in dropped segments" in s.kept_reason
     # every box wholly kept: no reason, the kept FOM is the all-data FOM
     s = fom_summary(_table(2, {}))
-    assert s["kept_reason"] is None and s["kept_boxes"] == [0, 1]
-    assert s["fom_kept_before_nT"] == s["fom_before_nT"]
+    assert s.kept_reason is None and s.kept_boxes == [0, 1]
+    assert s.fom_kept_before_nT == s.fom_before_nT
 
 
 def test_no_wholly_kept_box_kept_fom_not_applicable_hand_case():
     s = fom_summary(_table(2, {0: 1, 1: 12}))
-    assert s["applicable"] and s["fom_before_nT"] == pytest.approx(18.0)
-    assert s["fom_kept_before_nT"] is None and s["fom_kept_after_nT"] is None
-    assert not s["kept_applicable"] and s["kept_boxes"] == []
-    assert "not applicable" in s["kept_reason"]
-    assert "box 0: 1 of its 12 manoeuvres in dropped segments" in s["kept_reason"]
-    assert "box 1: 12 of its 12 manoeuvres in dropped segments" in s["kept_reason"]
+    assert s.applicable and s.fom_before_nT == pytest.approx(18.0)
+    assert s.fom_kept_before_nT is None and s.fom_kept_after_nT is None
+    assert not s.kept_applicable and s.kept_boxes == []
+    assert "not applicable" in s.kept_reason
+    assert "box 0: 1 of its 12 manoeuvres in dropped segments" in s.kept_reason
+    assert "box 1: 12 of its 12 manoeuvres in dropped segments" in s.kept_reason
 
 
 @pytest.fixture(scope="module")
@@ -81,19 +81,20 @@ def faulted():
 def test_kept_fom_only_from_the_wholly_kept_box(faulted):
     q = compute_qc(faulted, fit=False)
     fom = q.metrics.fom
-    b0, b1 = fom["boxes"]
-    assert b0["n_maneuvers_kept"] == 10 and sorted(b0["dropped"]) == ["E pitch", "E roll"]
+    b0, b1 = fom.boxes
+    assert b0.n_maneuvers_kept == 10 and sorted(b0.dropped) == ["E pitch", "E roll"]
     # the kept FOM is box 1's 12-manoeuvre sum, not the mean with box 0's 10-manoeuvre one
     for c in ("before", "after"):
-        assert fom[f"fom_kept_{c}_nT"] == b1[f"fom_{c}_nT"]
-        assert fom[f"fom_{c}_nT"] == pytest.approx((b0[f"fom_{c}_nT"] + b1[f"fom_{c}_nT"]) / 2)
-    assert fom["complete_boxes"] == [0, 1] and fom["kept_boxes"] == [1]
+        assert getattr(fom, f"fom_kept_{c}_nT") == getattr(b1, f"fom_{c}_nT")
+        assert getattr(fom, f"fom_{c}_nT") == pytest.approx(
+            (getattr(b0, f"fom_{c}_nT") + getattr(b1, f"fom_{c}_nT")) / 2)
+    assert fom.complete_boxes == [0, 1] and fom.kept_boxes == [1]
     kept1 = q.fom[(q.fom["box"] == 1)]
-    assert fom["fom_kept_before_nT"] == pytest.approx(kept1["ptp_before_nT"].sum())
-    assert b0["fom_kept_after_nT"] is None
+    assert fom.fom_kept_before_nT == pytest.approx(kept1["ptp_before_nT"].sum())
+    assert b0.fom_kept_after_nT is None
     why = "box 0: 2 of its 12 manoeuvres in dropped segments"
-    assert b0["kept_reason"] == why and why in fom["kept_reason"]
-    assert fom["kept_reason"] in q.metrics.notes
+    assert b0.kept_reason == why and why in fom.kept_reason
+    assert fom.kept_reason in q.metrics.notes
     # the page shows the reason in the FOM section
     page = render_html(q.metrics, faulted.report, {})
     sec = page.split("<h2>Figure of Merit</h2>")[1].split("<h2>")[0]

@@ -34,14 +34,14 @@ def test_fom_matches_truth_and_drops(cal_result):
     res, _ = cal_result
     q = compute_qc(res)
     fom = q.metrics.fom
-    assert fom["complete_boxes"] == [0]
-    assert fom["n_maneuvers"] == 12
-    assert abs(fom["fom_before_nT"] - fom["fom_truth_nT"]) < 0.1 * fom["fom_truth_nT"]
-    assert fom["fom_after_nT"] < 0.05 * fom["fom_before_nT"]
-    assert len(fom["per_maneuver"]) == 12
+    assert fom.complete_boxes == [0]
+    assert fom.n_maneuvers == 12
+    assert abs(fom.fom_before_nT - fom.fom_truth_nT) < 0.1 * fom.fom_truth_nT
+    assert fom.fom_after_nT < 0.05 * fom.fom_before_nT
+    assert len(fom.per_maneuver) == 12
     # The truth FOM with the true manoeuvre labels agrees with the detected intervals.
     tab = fom_table(res.data, band_hz=(0.1, 0.9), maneuver_column="truth_maneuver")
-    assert fom_summary(tab)["fom_truth_nT"] == pytest.approx(fom["fom_truth_nT"], rel=0.1)
+    assert fom_summary(tab).fom_truth_nT == pytest.approx(fom.fom_truth_nT, rel=0.1)
 
 
 def test_metrics_block(cal_result):
@@ -100,7 +100,7 @@ def test_no_maneuvers_no_fom():
     df = pd.DataFrame({"time": t, "mag": 50000 + rng.normal(0, 0.1, t.size),
                        "mag_comp": 50000 + rng.normal(0, 0.05, t.size)})
     q = compute_qc(CompensationResult(df, None, {}))
-    assert q.metrics.fom["applicable"] is False and q.notes
+    assert q.metrics.fom.applicable is False and q.notes
 
 
 def test_fourth_difference_noise_blocked_equals_direct():
@@ -141,19 +141,19 @@ def test_fom_only_for_complete_boxes():
     q = compute_qc(res, fit=False)
     tab = q.fom[~((q.fom["heading"] == "W") & (q.fom["maneuver"] == "yaw"))]
     s = fom_summary(tab)
-    assert not s["applicable"] and s["fom_after_nT"] is None and s["fom_before_nT"] is None
-    assert "W yaw" in s["reason"] and s["boxes"][0]["missing"] == ["W yaw"]
-    assert s["per_maneuver"] == []
+    assert not s.applicable and s.fom_after_nT is None and s.fom_before_nT is None
+    assert "W yaw" in s.reason and s.boxes[0].missing == ["W yaw"]
+    assert s.per_maneuver == []
     # A survey flight: no manoeuvres, no FOM, and the reason.
     from aeromag.synthetic import simulate_survey
 
     sv, _ = simulate_survey(seed=1)
     fom = compute_qc(compensate(sv), fit=False).metrics.fom
-    assert fom["applicable"] is False and fom["fom_after_nT"] is None
-    assert "not applicable" in fom["reason"]
+    assert fom.applicable is False and fom.fom_after_nT is None
+    assert "not applicable" in fom.reason
     # Not asked for (compensate without --fom): not applicable, not absent.
     fom = compute_qc(res, fit=False, fom=False).metrics.fom
-    assert fom["applicable"] is False and "not computed" in fom["reason"]
+    assert fom.applicable is False and "not computed" in fom.reason
 
 
 def test_out_json_qc_block_is_compute_qc_of_mag_minus_mag_tl():
@@ -207,4 +207,4 @@ def test_fom_after_is_band_passed_mag_minus_mag_tl_not_mag_comp(cal_result):
         assert row["ptp_after_nT"] == pytest.approx(np.nanmax(seg) - np.nanmin(seg), rel=1e-12)
     assert tab["ptp_after_nT"].max() < 5.0  # not the 100 nT of the added mag_comp signal
     s = fom_summary(tab)
-    assert s["fields"]["ptp_after_nT"] == "mag - mag_tl" and "peak-to-peak" in s["definition"]
+    assert s.fields["ptp_after_nT"] == "mag - mag_tl" and "peak-to-peak" in s.definition

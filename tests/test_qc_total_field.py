@@ -44,12 +44,11 @@ def test_qc_per_piece_residuals_are_of_the_fluxgate_magnitude(fluxgate_result):
     want = piece_residuals(t, bt, tl, segment_labels(data), kept_mask(data), cfg.band_hz,
                            cfg.order, trim_s=cfg.trim_s, max_gap_s=cfg.max_gap_s)
     got = qc.metrics.per_piece_rms
-    assert got["kept"]["per_piece_rms_after_nT"] == pytest.approx(
-        want.kept["residual_std_nT"], rel=1e-12)
-    assert got["kept"]["per_piece_rms_before_nT"] == pytest.approx(
-        want.kept["std_before_nT"], rel=1e-12)
-    assert got["all"]["per_piece_rms_ratio"] == pytest.approx(
-        want.all["improvement_ratio"], rel=1e-12)
+    assert got.kept.per_piece_rms_after_nT == pytest.approx(want.kept.residual_std_nT,
+                                                            rel=1e-12)
+    assert got.kept.per_piece_rms_before_nT == pytest.approx(want.kept.std_before_nT,
+                                                             rel=1e-12)
+    assert got.all.per_piece_rms_ratio == pytest.approx(want.all.improvement_ratio, rel=1e-12)
     for k, v in want.by_segment.items():
         assert qc.metrics.residual_std_by_segment_nT[str(k)] == pytest.approx(v, rel=1e-12)
     # ... and not those of the unused 'mag' column (the slow drift is out of band, the
@@ -57,8 +56,7 @@ def test_qc_per_piece_residuals_are_of_the_fluxgate_magnitude(fluxgate_result):
     wrong = piece_residuals(t, data["mag"].to_numpy(dtype=np.float64), tl, segment_labels(data),
                             kept_mask(data), cfg.band_hz, cfg.order, trim_s=cfg.trim_s,
                             max_gap_s=cfg.max_gap_s)
-    assert wrong.kept["residual_std_nT"] != pytest.approx(want.kept["residual_std_nT"],
-                                                          rel=1e-3)
+    assert wrong.kept.residual_std_nT != pytest.approx(want.kept.residual_std_nT, rel=1e-3)
 
 
 def test_prepared_total_field_follows_the_report():

@@ -6,7 +6,8 @@ Given per-segment Gram matrices ``G_j = A_j' A_j``, right-hand sides ``b_j = A_j
 
 * :func:`variance_inflation` - VIF per column, ``diag(R^-1)`` of the unit-diagonal Gram matrix;
 * :func:`loso_cv` - leave-one-segment-out residuals, ``c_j = (G - G_j)^-1 (b - b_j)``;
-* :func:`diagnostics_from_stats` - condition numbers, VIF and pooled CV in one call.
+* :func:`diagnostics_from_stats` - condition numbers, VIF and pooled CV in one call, as a
+  :class:`FitDiagnostics`.
 
 Used by the compensation fit (its report's ``fit`` block) and by :mod:`aeromag.qc`, so both give
 the same numbers.
@@ -14,12 +15,99 @@ the same numbers.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-__all__ = ["diagnostics_from_stats", "loso_cv", "variance_inflation"]
+__all__ = ["FitDiagnostics", "diagnostics_from_stats", "loso_cv", "variance_inflation"]
+
+#: Keys of the diagnostics rebuilt from normal equations, in the order the QC writes them.
+_REBUILT_ORDER = ("terms", "condition_number", "condition_number_scaled", "vif", "max_vif",
+                  "n_segments_kept", "fit_residual_std_nT", "cv_residual_std_nT", "cv_ratio")
+#: ... and of those a fit measured (from its report's ``fit`` block, with their ``source``).
+_RECORDED_ORDER = ("source", "condition_number", "condition_number_scaled", "vif", "max_vif",
+                   "cv_residual_std_nT", "cv_ratio", "fit_residual_std_nT", "n_segments_kept")
+
+
+@dataclass
+class FitDiagnostics:
+    """Condition numbers, VIF and leave-one-segment-out CV of a fit (the QC's ``fit`` block).
+
+    Two kinds, which write their keys in different orders (the order the files have always
+    had): rebuilt from the normal equations (:func:`diagnostics_from_stats`: ``terms`` set,
+    ``source`` None) or as the fit measured them (``source`` names where from, e.g. ``"the
+    fit (model file)"``).  ``vif`` is a mapping with one entry per fitted term.
+
+    Attributes
+    ----------
+    terms : list of str or None
+        The fitted terms (rebuilt diagnostics).
+    condition_number, condition_number_scaled : float or None
+        Condition numbers of the normal equations, raw and with unit-norm columns [-].
+    vif : dict of str to float or None
+        Variance inflation factor per term [-].
+    max_vif : float or None
+        The largest VIF [-].
+    n_segments_kept : int or None
+        Segments the fit used.
+    fit_residual_std_nT : float or None
+        In-sample band-passed residual std of the kept segments [nT].
+    cv_residual_std_nT : float or None
+        Leave-one-segment-out residual std [nT].
+    cv_ratio : float or None
+        ``cv_residual_std_nT / fit_residual_std_nT`` [-].
+    source : str or None
+        Where recorded diagnostics come from (None: rebuilt here).
+    extra : dict
+        Keys this class does not know (written after the others).
+    """
+
+    terms: list[str] | None = None
+    condition_number: float | None = None
+    condition_number_scaled: float | None = None
+    vif: dict[str, float] | None = None
+    max_vif: float | None = None
+    n_segments_kept: int | None = None
+    fit_residual_std_nT: float | None = None
+    cv_residual_std_nT: float | None = None
+    cv_ratio: float | None = None
+    source: str | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON block, in its kind's order (the other kind's ``terms``/``source`` last).
+
+        Returns
+        -------
+        dict
+        """
+        order = _RECORDED_ORDER if self.source is not None else _REBUILT_ORDER
+        d = {k: getattr(self, k) for k in order}
+        for k in ("terms", "source"):
+            if k not in d and getattr(self, k) is not None:
+                d[k] = getattr(self, k)
+        d.update(self.extra)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any] | None) -> FitDiagnostics | None:
+        """A block read from a file (None for none).
+
+        Parameters
+        ----------
+        d : dict or None
+
+        Returns
+        -------
+        FitDiagnostics or None
+        """
+        if not d:
+            return None
+        names = set(_REBUILT_ORDER) | {"source"}
+        return cls(**{k: v for k, v in d.items() if k in names},
+                   extra={k: v for k, v in d.items() if k not in names})
 
 
 def variance_inflation(gram: np.ndarray) -> np.ndarray:
@@ -124,7 +212,7 @@ _LOSO_BLOCK = 512
 
 def diagnostics_from_stats(
     stats: Any, kept: np.ndarray, fit_terms: tuple[str, ...], ridge: float = 0.0,
-) -> tuple[dict[str, Any], pd.DataFrame]:
+) -> tuple[FitDiagnostics, pd.DataFrame]:
     """Condition numbers, VIF and leave-one-segment-out CV from per-segment normal equations.
 
     Parameters
@@ -140,8 +228,10 @@ def diagnostics_from_stats(
 
     Returns
     -------
-    diagnostics : dict
-        See :func:`fit_diagnostics`.
+    diagnostics : FitDiagnostics
+        ``terms``, ``condition_number``, ``condition_number_scaled``, ``vif`` (term -> VIF),
+        ``max_vif``, ``n_segments_kept``, ``fit_residual_std_nT``, ``cv_residual_std_nT``
+        [nT] and ``cv_ratio`` (CV / in-sample, None without an in-sample residual).
     segments : DataFrame
         Output of :func:`loso_cv`.
     """
@@ -159,16 +249,16 @@ def diagnostics_from_stats(
 
     cv = pooled("cv_residual_std_nT")
     fit = pooled("fit_residual_std_nT")
-    diag = {
-        "terms": list(fit_terms),
-        "condition_number": float(np.sqrt(ev[-1] / ev[0])) if ev[0] > 0 else float("inf"),
-        "condition_number_scaled": float(np.sqrt(evs[-1] / evs[0])) if evs[0] > 0
+    diag = FitDiagnostics(
+        terms=list(fit_terms),
+        condition_number=float(np.sqrt(ev[-1] / ev[0])) if ev[0] > 0 else float("inf"),
+        condition_number_scaled=float(np.sqrt(evs[-1] / evs[0])) if evs[0] > 0
         else float("inf"),
-        "vif": {t: float(v) for t, v in zip(fit_terms, vif, strict=True)},
-        "max_vif": float(np.max(vif)),
-        "n_segments_kept": int(kept.sum()),
-        "fit_residual_std_nT": fit,
-        "cv_residual_std_nT": cv,
-        "cv_ratio": cv / fit if fit > 0 else None,
-    }
+        vif={t: float(v) for t, v in zip(fit_terms, vif, strict=True)},
+        max_vif=float(np.max(vif)),
+        n_segments_kept=int(kept.sum()),
+        fit_residual_std_nT=fit,
+        cv_residual_std_nT=cv,
+        cv_ratio=cv / fit if fit > 0 else None,
+    )
     return diag, segs

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from .._core.fit_diagnostics import FitDiagnostics
 from .._core.summary import summary_line, summary_table
 from .config import CompensationConfig
 from .model import TLModel
@@ -36,7 +37,7 @@ class FitOutcome:
         What the screening loop kept.
     cond, cond_scaled : float
         Condition numbers of the final fit.
-    diagnostics : dict
+    diagnostics : FitDiagnostics
         VIF and leave-one-segment-out CV (:mod:`aeromag._core.fit_diagnostics`).
     cv_residual, residual, segment_condition : ndarray
         Per segment: CV residual, in-sample residual [nT], scaled condition number.
@@ -56,7 +57,7 @@ class FitOutcome:
     screening: ScreeningOutcome
     cond: float
     cond_scaled: float
-    diagnostics: dict
+    diagnostics: FitDiagnostics
     cv_residual: np.ndarray
     residual: np.ndarray
     segment_condition: np.ndarray

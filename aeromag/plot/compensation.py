@@ -470,9 +470,12 @@ def plot_fom(
 
     Parameters
     ----------
-    fom : DataFrame or CompensationResult
-        Output of :func:`aeromag.qc.fom_table`, or a compensation of a calibration flight
-        (its FOM is computed; an error says why when it has no complete box).
+    fom : DataFrame, FomSummary, QCResult or CompensationResult
+        Output of :func:`aeromag.qc.fom_table`; the FOM block of a QC (its ``table``; a
+        dict read from ``qc.json``'s ``fom`` is read through
+        :meth:`~aeromag.qc.FomSummary.from_dict`); a QC result (:func:`aeromag.qc.compute_qc`);
+        or a compensation of a calibration flight (its FOM is computed).  An error says why
+        when there is no complete box.
     ax : Axes, optional
         Where to draw.
     path : path-like, optional
@@ -482,14 +485,19 @@ def plot_fom(
     -------
     Figure
     """
+    from ..qc import FomSummary, QCResult, compute_qc
     from ..qc.maneuvers import CARDINALS, MANEUVERS
 
-    if not isinstance(fom, pd.DataFrame) and fom is not None:  # a compensation result
-        from ..qc import compute_qc
-
-        q = compute_qc(fom, fit=False)
-        if not q.metrics.fom["applicable"]:
-            raise InputError(q.metrics.fom["reason"])
+    if isinstance(fom, dict):  # qc.json's fom block: typed at the edge
+        fom = FomSummary.from_dict(fom)
+    if isinstance(fom, FomSummary):
+        if not fom.applicable:
+            raise InputError(fom.reason or "no FOM")
+        fom = pd.DataFrame([r.to_dict() for r in fom.table or []])
+    elif not isinstance(fom, pd.DataFrame) and fom is not None:
+        q = fom if isinstance(fom, QCResult) else compute_qc(fom, fit=False)
+        if q.metrics.fom is None or not q.metrics.fom.applicable:
+            raise InputError(q.metrics.fom.reason if q.metrics.fom is not None else "no FOM")
         fom = q.fom
     if fom is None or len(fom) == 0:
         raise InputError("no manoeuvres: no FOM chart")

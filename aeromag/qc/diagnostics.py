@@ -7,25 +7,29 @@ compensated log (:func:`aeromag.compensate.segment_normal_equations`) and runs t
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 import pandas as pd
 
-from .._core.fit_diagnostics import diagnostics_from_stats, loso_cv, variance_inflation
+from .._core.fit_diagnostics import (
+    FitDiagnostics,
+    diagnostics_from_stats,
+    loso_cv,
+    variance_inflation,
+)
 from ..compensation.config import CompensationConfig
 from ..compensation.normal import segment_normal_equations
 from ..compensation.prepare import prepare
 from ..compensation.terms import TERMS_16
 from .labels import kept_mask, segment_labels
 
-__all__ = ["diagnostics_from_stats", "fit_diagnostics", "loso_cv", "variance_inflation"]
+__all__ = ["FitDiagnostics", "diagnostics_from_stats", "fit_diagnostics", "loso_cv",
+           "variance_inflation"]
 
 
 def fit_diagnostics(
     data: pd.DataFrame, cfg: CompensationConfig, terms: tuple[str, ...] = TERMS_16,
     *, seg: np.ndarray | None = None,
-) -> tuple[dict[str, Any], pd.DataFrame]:
+) -> tuple[FitDiagnostics, pd.DataFrame]:
     """Condition number, VIF and leave-one-segment-out CV of the fit on a compensated log.
 
     The band-passed per-segment normal equations are rebuilt from the log with the
@@ -47,9 +51,10 @@ def fit_diagnostics(
 
     Returns
     -------
-    diagnostics : dict
-        ``condition_number``, ``condition_number_scaled``, ``vif`` (term -> VIF), ``max_vif``,
-        ``cv_residual_std_nT``, ``fit_residual_std_nT``, ``cv_ratio`` (CV / in-sample).
+    diagnostics : FitDiagnostics
+        ``terms``, ``condition_number``, ``condition_number_scaled``, ``vif`` (term -> VIF),
+        ``max_vif``, ``n_segments_kept``, ``cv_residual_std_nT``, ``fit_residual_std_nT``
+        [nT], ``cv_ratio`` (CV / in-sample).
     segments : DataFrame
         Output of :func:`loso_cv`.
     """

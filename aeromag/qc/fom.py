@@ -18,11 +18,12 @@ import pandas as pd
 from .._core.filters import sampling_rate
 from .._core.runs import run_bounds
 from ..errors import InputError
+from .fom_types import FomBox, FomManeuver, FomSummary, FomTableRow
 from .labels import kept_mask, segment_labels
 from .maneuvers import CARDINALS, MANEUVERS, ManeuverResult, detect_maneuvers
 from .noise import band_passed_blocks
 
-__all__ = ["fom_not_applicable", "fom_summary", "fom_table", "not_applicable"]
+__all__ = ["fom_not_applicable", "fom_rows", "fom_summary", "fom_table", "not_applicable"]
 
 
 def fom_table(
@@ -160,7 +161,7 @@ def fom_table(
     return tab
 
 
-def fom_summary(table: pd.DataFrame) -> dict[str, Any]:
+def fom_summary(table: pd.DataFrame) -> FomSummary:
     """Box FOM (sum of the 12 peak-to-peak values) before/after (and truth), complete boxes only.
 
     A FOM is the sum over the 12 manoeuvres of a calibration box (pitch, roll and yaw on each
@@ -174,101 +175,116 @@ def fom_summary(table: pd.DataFrame) -> dict[str, Any]:
 
     Returns
     -------
-    dict
+    FomSummary
         ``applicable`` (a complete box exists), ``reason`` (why not, else None), ``boxes``
-        (per box: ``box``, ``n_maneuvers``, ``complete``, ``missing`` (``"W pitch"``...),
-        ``fom_before_nT``, ``fom_after_nT``... for complete boxes), ``complete_boxes``,
-        ``fom_before_nT``/``fom_after_nT`` (mean over complete boxes, None when none),
-        ``fom_reduction`` (before / after), ``fom_kept_before_nT``/``fom_kept_after_nT``
-        (the same over only the complete boxes whose 12 manoeuvres all lie in kept
-        segments, ``kept_boxes``; None when there is none, ``kept_applicable`` False;
-        ``kept_reason`` names each box left out, e.g. "box 1: 3 of its 12 manoeuvres in
-        dropped segments"; ``kept_definition``; ``n_maneuvers_kept``), ``n_maneuvers`` and
-        ``per_maneuver`` (heading,
-        manoeuvre -> mean peak-to-peak over the complete boxes), ``fields`` (the field each
-        ``ptp_*_nT`` is of) and ``definition`` (the words for it).
+        (per box, :class:`~aeromag.qc.fom_types.FomBox`: ``box``, ``n_maneuvers``,
+        ``complete``, ``missing`` (``"W pitch"``...), ``fom_before_nT``, ``fom_after_nT``...
+        for complete boxes), ``complete_boxes``, ``fom_before_nT``/``fom_after_nT`` (mean
+        over complete boxes [nT], None when none), ``fom_reduction`` (before / after),
+        ``fom_kept_before_nT``/``fom_kept_after_nT`` (the same over only the complete boxes
+        whose 12 manoeuvres all lie in kept segments, ``kept_boxes``; None when there is none,
+        ``kept_applicable`` False; ``kept_reason`` names each box left out, e.g. "box 1: 3 of
+        its 12 manoeuvres in dropped segments"; ``kept_definition``; ``n_maneuvers_kept``),
+        ``n_maneuvers`` and ``per_maneuver`` (heading, manoeuvre -> mean peak-to-peak over the
+        complete boxes, :class:`~aeromag.qc.fom_types.FomManeuver`), ``fields`` (the field
+        each ``ptp_*_nT`` is of) and ``definition`` (the words for it).
     """
     cols = [c for c in ("before", "after", "truth") if f"ptp_{c}_nT" in table.columns]
     boxes = _box_entries(table, cols)
-    complete = [e["box"] for e in boxes if e["complete"]]
-    out: dict[str, Any] = {"applicable": bool(complete), "reason": None, "boxes": boxes,
-                           "complete_boxes": complete, "n_maneuvers": len(table)}
+    complete = [e.box for e in boxes if e.complete]
+    out = FomSummary(applicable=bool(complete), reason=None, boxes=boxes,
+                     complete_boxes=complete, n_maneuvers=len(table))
     fields = table.attrs.get("fields") or {}
     if fields:
-        out["fields"] = {f"ptp_{k}_nT": v for k, v in fields.items()}
-        out["definition"] = (
+        out.fields = {f"ptp_{k}_nT": v for k, v in fields.items()}
+        out.definition = (
             "ptp_X_nT: peak-to-peak [nT] within one manoeuvre of field X band-passed once in"
             " band_hz (zero-phase Butterworth per continuous stretch, each dropped segment on"
             " its own; windows clipped at line boundaries), X as in 'fields'"
             " (after = mag - mag_tl: the residual without the final low-pass); fom_X_nT: their"
             " sum over the 12 manoeuvres of a complete box, averaged over complete boxes")
     for c in cols:
-        vals = [e[f"fom_{c}_nT"] for e in boxes if e["complete"]]
-        out[f"fom_{c}_nT"] = float(np.mean(vals)) if vals else None
+        vals = [getattr(e, f"fom_{c}_nT") for e in boxes if e.complete]
+        out.set(f"fom_{c}_nT", float(np.mean(vals)) if vals else None)
     if "kept" in table.columns:
-        out.update(_kept_fom(boxes, cols))
-        out["n_maneuvers_kept"] = int(table["kept"].sum())
-    fa = out.get("fom_after_nT")
-    fb = out.get("fom_before_nT")
-    out["fom_reduction"] = float(fb / fa) if fa and fb is not None else None
+        _kept_fom(out, cols)
+        out.n_maneuvers_kept = int(table["kept"].sum())
+    fa, fb = out.fom_after_nT, out.fom_before_nT
+    out.fom_reduction = float(fb / fa) if fa and fb is not None else None
     sub = table[table["box"].isin(complete)]
-    out["per_maneuver"] = []
     if len(sub):
         agg = sub.groupby(["heading_leg", "maneuver"])[[f"ptp_{c}_nT" for c in cols]].mean()
-        out["per_maneuver"] = [
-            {"heading": CARDINALS[int(h)], "maneuver": m,
-             **{k: float(v) for k, v in row.items()}}
+        out.per_maneuver = [
+            FomManeuver.from_dict({"heading": CARDINALS[int(h)], "maneuver": m,
+                                   **{k: float(v) for k, v in row.items()}})
             for (h, m), row in agg.iterrows()
         ]
     if not complete:
-        worst = min(boxes, key=lambda e: len(e["missing"])) if boxes else None
-        out["reason"] = not_applicable(
+        worst = min(boxes, key=lambda e: len(e.missing)) if boxes else None
+        out.reason = not_applicable(
             f"no complete calibration box: {len(boxes)} box(es) found, the most complete"
-            f" (box {worst['box']}) lacks {', '.join(worst['missing'])}" if worst else
+            f" (box {worst.box}) lacks {', '.join(worst.missing)}" if worst else
             "no manoeuvre found")
     return out
 
 
-def _kept_fom(boxes: list[dict[str, Any]], cols: list[str]) -> dict[str, Any]:
+def fom_rows(table: pd.DataFrame) -> list[FomTableRow]:
+    """The rows of a FOM table as typed rows (the QC block's ``table``).
+
+    Parameters
+    ----------
+    table : DataFrame
+        Output of :func:`fom_table`.
+
+    Returns
+    -------
+    list of FomTableRow
+        One per manoeuvre, numpy scalars as Python numbers.
+    """
+    return [FomTableRow.from_dict({k: (v.item() if hasattr(v, "item") else v)
+                                   for k, v in rec.items()})
+            for rec in table.to_dict(orient="records")]
+
+
+def _kept_fom(out: FomSummary, cols: list[str]) -> None:
     """The kept FOM: the mean over the complete boxes whose manoeuvres are all kept.
 
     A box with some of its 12 manoeuvres in dropped segments has no kept FOM (the sum of the
     rest is not a sum of 12 peak-to-peak values): its ``fom_kept_X_nT`` become None and its
-    ``kept_reason`` says how many manoeuvres were dropped.  Edits ``boxes`` in place.
+    ``kept_reason`` says how many manoeuvres were dropped.  Edits ``out`` and its boxes in
+    place.
 
     Parameters
     ----------
-    boxes : list of dict
-        Per-box entries of :func:`_box_entries` (with ``n_maneuvers_kept``).
+    out : FomSummary
+        The summary; its boxes are those of :func:`_box_entries` (with ``n_maneuvers_kept``).
     cols : list of str
         The fields (``"before"``, ``"after"``, ``"truth"``).
 
-    Returns
-    -------
-    dict
-        ``fom_kept_X_nT`` [nT] (None when no box is wholly kept), ``kept_applicable``,
-        ``kept_boxes``, ``kept_reason`` (None when every complete box is wholly kept) and
-        ``kept_definition``.
+    Sets ``fom_kept_X_nT`` [nT] (None when no box is wholly kept), ``kept_applicable``,
+    ``kept_boxes``, ``kept_reason`` (None when every complete box is wholly kept) and
+    ``kept_definition``.
     """
     kept, excluded = [], []
-    for e in boxes:
-        e["kept_reason"] = None
-        if not e["complete"]:
+    for e in out.boxes:
+        e.set("kept_reason", None)
+        if not e.complete:
             continue
-        n_dropped = e["n_maneuvers"] - e["n_maneuvers_kept"]
+        n_dropped = e.n_maneuvers - (e.n_maneuvers_kept or 0)
         if n_dropped == 0:
             kept.append(e)
             continue
-        e["kept_reason"] = (f"box {e['box']}: {n_dropped} of its {e['n_maneuvers']} manoeuvres"
-                            " in dropped segments")
-        excluded.append(e["kept_reason"])
+        e.kept_reason = (f"box {e.box}: {n_dropped} of its {e.n_maneuvers} manoeuvres"
+                         " in dropped segments")
+        excluded.append(e.kept_reason)
         for c in cols:
-            e[f"fom_kept_{c}_nT"] = None
-    kept_boxes = [e["box"] for e in kept]
-    out: dict[str, Any] = {"kept_applicable": bool(kept), "kept_boxes": kept_boxes}
+            e.set(f"fom_kept_{c}_nT", None)
+    kept_boxes = [e.box for e in kept]
+    out.kept_applicable = bool(kept)
+    out.kept_boxes = kept_boxes
     for c in cols:
-        vals = [e[f"fom_kept_{c}_nT"] for e in kept]
-        out[f"fom_kept_{c}_nT"] = float(np.mean(vals)) if vals else None
+        vals = [getattr(e, f"fom_kept_{c}_nT") for e in kept]
+        out.set(f"fom_kept_{c}_nT", float(np.mean(vals)) if vals else None)
     reason = None
     if excluded and kept_boxes:
         reason = (f"FOM of the kept segments over box{'es' if len(kept_boxes) > 1 else ''}"
@@ -277,16 +293,15 @@ def _kept_fom(boxes: list[dict[str, Any]], cols: list[str]) -> dict[str, Any]:
     elif excluded:
         reason = ("FOM of the kept segments not applicable: no complete box has all its"
                   f" manoeuvres in kept segments ({'; '.join(excluded)}).")
-    out["kept_reason"] = reason
-    out["kept_definition"] = (
+    out.set("kept_reason", reason)
+    out.kept_definition = (
         "fom_kept_X_nT: the same FOM averaged over only the complete boxes whose 12"
         " manoeuvres all lie wholly in kept segments (kept_boxes); a box with any manoeuvre"
         " in a dropped segment has no kept FOM (boxes[].kept_reason, boxes[].dropped names"
         " them): the FOM without the dropped faults")
-    return out
 
 
-def _box_entries(table: pd.DataFrame, cols: list[str]) -> list[dict[str, Any]]:
+def _box_entries(table: pd.DataFrame, cols: list[str]) -> list[FomBox]:
     """Per-box entries of :func:`fom_summary`, boxes ascending, rows in table order.
 
     Plain arrays sliced per box: a pandas group per box (each copying the table's ``attrs``)
@@ -309,18 +324,17 @@ def _box_entries(table: pd.DataFrame, cols: list[str]) -> list[dict[str, Any]]:
         pairs = set(zip(heads[a:z], mans[a:z], strict=True))
         missing = [f"{CARDINALS[h]} {m}" for h in range(4) for m in MANEUVERS
                    if (h, m) not in pairs]
-        e: dict[str, Any] = {"box": int(b), "n_maneuvers": z - a, "complete": not missing,
-                             "missing": missing}
+        e = FomBox(box=int(b), n_maneuvers=z - a, complete=not missing, missing=missing)
         for c in cols:
-            e[f"fom_{c}_nT"] = float(np.nansum(ptp[c][a:z])) if not missing else None
+            e.set(f"fom_{c}_nT", float(np.nansum(ptp[c][a:z])) if not missing else None)
         if kept is not None:
             k = kept[a:z]
-            e["n_maneuvers_kept"] = int(k.sum())
-            e["dropped"] = [f"{CARDINALS[int(heads[i])]} {mans[i]}"
-                            for i in range(a, z) if not kept[i]]
+            e.n_maneuvers_kept = int(k.sum())
+            e.dropped = [f"{CARDINALS[int(heads[i])]} {mans[i]}"
+                         for i in range(a, z) if not kept[i]]
             for c in cols:
-                e[f"fom_kept_{c}_nT"] = (float(np.nansum(ptp[c][a:z][k]))
-                                         if not missing else None)
+                e.set(f"fom_kept_{c}_nT", float(np.nansum(ptp[c][a:z][k]))
+                      if not missing else None)
         boxes.append(e)
     return boxes
 
@@ -341,7 +355,7 @@ def not_applicable(why: str) -> str:
             " and yaw manoeuvres on each of the four headings); survey flights have none.")
 
 
-def fom_not_applicable(why: str) -> dict[str, Any]:
+def fom_not_applicable(why: str) -> FomSummary:
     """The ``fom`` block of a flight without a complete box: no numbers, the reason.
 
     Parameters
@@ -351,9 +365,8 @@ def fom_not_applicable(why: str) -> dict[str, Any]:
 
     Returns
     -------
-    dict
-        ``applicable`` False, ``reason``, ``fom_before_nT``/``fom_after_nT`` None.
+    FomSummary
+        ``applicable`` False, ``reason``, ``fom_before_nT``/``fom_after_nT`` None (the
+        not-applicable kind, ``from_table`` False).
     """
-    return {"applicable": False, "reason": not_applicable(why), "fom_before_nT": None,
-            "fom_after_nT": None, "fom_reduction": None, "boxes": [], "complete_boxes": [],
-            "n_maneuvers": 0, "per_maneuver": []}
+    return FomSummary(applicable=False, reason=not_applicable(why), from_table=False)

@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 from .._core.filters import sampling_rate
+from .._core.fit_diagnostics import FitDiagnostics
 from .._core.stretches import find_stretches
 from ..compensation.apply import isolate_dropped
 from ..compensation.config import CompensationConfig
@@ -33,11 +34,21 @@ from ..compensation.report_types import CompensationMetrics, CompensationReport
 from ..compensation.terms import TERMS_16
 from ..errors import AeromagError, InputError
 from .diagnostics import fit_diagnostics
-from .fom import fom_not_applicable, fom_summary, fom_table
+from .fom import fom_not_applicable, fom_rows, fom_summary, fom_table
+from .fom_types import FomSummary
 from .labels import kept_mask, segment_labels
 from .maneuvers import CARDINALS, ManeuverResult, detect_maneuvers
 from .noise import fourth_difference_noise, grouped_std
 from .residuals import PieceResiduals, piece_residuals
+from .summaries import (
+    HeadlineCheck,
+    ManeuverSummary,
+    NoiseSummary,
+    PerPieceRms,
+    PieceRms,
+    QCSegmentRow,
+    RmsSummary,
+)
 from .total_field import fluxgate_is_total_field, prepared_total_field
 
 __all__ = ["QCMetrics", "QCResult", "compute_qc", "headline_metrics", "quality_metrics"]
@@ -67,14 +78,8 @@ def residual_definition(trim_s: float) -> str:
             " every piece. A diagnostic beside the headline, not the improvement ratio")
 
 
-def _per_piece(d: dict[str, Any]) -> dict[str, Any]:
-    return {"per_piece_rms_ratio": d["improvement_ratio"],
-            "per_piece_rms_after_nT": d["residual_std_nT"],
-            "per_piece_rms_before_nT": d["std_before_nT"], "n_samples": d["n_samples"]}
-
-
-def headline_metrics(comp_metrics: CompensationMetrics, per_piece_kept: dict[str, Any],
-                     per_piece_all: dict[str, Any], trim_s: float) -> dict[str, Any]:
+def headline_metrics(comp_metrics: CompensationMetrics, per_piece_kept: RmsSummary,
+                     per_piece_all: RmsSummary, trim_s: float) -> dict[str, Any]:
     """The QC headline: the contract's metrics, with the per-piece rms figures beside them.
 
     Parameters
@@ -82,9 +87,9 @@ def headline_metrics(comp_metrics: CompensationMetrics, per_piece_kept: dict[str
     comp_metrics : CompensationMetrics
         :func:`aeromag.compensation.metrics.compensation_metrics` of the log (the same block
         as OUT.json ``metrics``).
-    per_piece_kept, per_piece_all : dict
+    per_piece_kept, per_piece_all : RmsSummary
         Per-piece rms figures (:class:`aeromag.qc.residuals.PieceResiduals` ``kept``/``all``:
-        ``improvement_ratio``, ``residual_std_nT``, ``std_before_nT``, ``n_samples``).
+        ``improvement_ratio``, ``residual_std_nT``, ``std_before_nT`` [nT], ``n_samples``).
     trim_s : float
         Edge trimmed at each end of every segment piece for those [s].
 
@@ -94,21 +99,20 @@ def headline_metrics(comp_metrics: CompensationMetrics, per_piece_kept: dict[str
         The keyword arguments of :class:`QCMetrics`: ``definition``, ``improvement_ratio``,
         ``residual_std_nT``, ``std_before_nT`` [nT],
         ``n_samples`` (over the kept segments, exactly the ``metrics`` block's), ``all_data``
-        (the same over all segments) and ``per_piece_rms`` (``definition``, ``kept``, ``all``
-        with ``per_piece_rms_ratio``, ``per_piece_rms_after_nT``, ``per_piece_rms_before_nT``
-        [nT], ``n_samples``).
+        (:class:`~aeromag.qc.summaries.RmsSummary`, the same over all segments) and
+        ``per_piece_rms`` (:class:`~aeromag.qc.summaries.PerPieceRms`: ``definition``,
+        ``kept``, ``all`` with ``per_piece_rms_ratio``, ``per_piece_rms_after_nT``,
+        ``per_piece_rms_before_nT`` [nT], ``n_samples``).
     """
     cm = comp_metrics
     return {
         "definition": cm.definition,
         "improvement_ratio": cm.improvement_ratio, "residual_std_nT": cm.residual_std_nT,
         "std_before_nT": cm.std_before_nT, "n_samples": cm.n_samples,
-        "all_data": {"improvement_ratio": cm.all_improvement_ratio,
-                     "residual_std_nT": cm.all_residual_std_nT,
-                     "std_before_nT": cm.all_std_before_nT,
-                     "n_samples": cm.all_n_samples},
-        "per_piece_rms": {"definition": residual_definition(trim_s),
-                          "kept": _per_piece(per_piece_kept), "all": _per_piece(per_piece_all)},
+        "all_data": RmsSummary(cm.all_improvement_ratio, cm.all_residual_std_nT,
+                               cm.all_std_before_nT, cm.all_n_samples),
+        "per_piece_rms": PerPieceRms(residual_definition(trim_s), PieceRms.of(per_piece_kept),
+                                     PieceRms.of(per_piece_all)),
     }
 
 
@@ -153,6 +157,11 @@ _QC_ALWAYS = frozenset({"band_hz", "definition", "improvement_ratio", "residual_
 class QCMetrics:
     """The quality-control figures of one compensated log (``qc.json``, the report's ``qc``).
 
+    Its blocks are typed (:mod:`aeromag.qc.summaries`, :mod:`aeromag.qc.fom_types`,
+    :class:`~aeromag._core.fit_diagnostics.FitDiagnostics`); the per-segment and per-heading
+    residuals and ``figures_skipped`` are mappings (their keys are segment ids, headings and
+    figure names).
+
     Attributes
     ----------
     band_hz : list of float
@@ -165,35 +174,35 @@ class QCMetrics:
         Band-passed std of ``mag - mag_tl`` and of ``mag``, kept segments [nT].
     n_samples : int
         Samples of the kept segments the headline is taken over.
-    all_data : dict
+    all_data : RmsSummary or None
         The same over all segments (``improvement_ratio``, ``residual_std_nT``,
         ``std_before_nT`` [nT], ``n_samples``).
-    per_piece_rms : dict
+    per_piece_rms : PerPieceRms or None
         The per-piece rms diagnostic (``definition``, ``kept``, ``all``; see
         :func:`headline_metrics`).
     compensation_metrics : CompensationMetrics or None
         The compensation's own ``metrics`` block, as recorded.
     residual_std_by_segment_nT : dict of str to float
         Band-passed residual std per segment id [nT].
-    noise : dict
+    noise : NoiseSummary or None
         Band-limited std before/after and fourth-difference noise before/after [nT].
     residual_std_by_heading_nT : dict or None
         Band-passed residual std per cardinal heading [nT] (when manoeuvres were detected).
-    maneuvers : dict or None
+    maneuvers : ManeuverSummary or None
         Detection summary (method, legs, manoeuvres, complete boxes, heading offset [deg]).
-    fom : dict or None
+    fom : FomSummary or None
         Figure of Merit block (:func:`aeromag.qc.fom.fom_summary`), or why not applicable.
-    fit : dict or None
+    fit : FitDiagnostics or None
         Fit diagnostics (condition numbers, VIF, leave-one-segment-out CV [nT]).
     notes : list of str
         Why something could not be computed.
-    headline_check : dict or None
+    headline_check : HeadlineCheck or None
         ``aeromag report``'s comparison of the recomputed headline with the recorded one.
     figures : list of str or None
         Figures the report wrote.
     figures_skipped : dict or None
         Figures it could not draw, and why.
-    segments : list of dict or None
+    segments : list of QCSegmentRow or None
         The report's per-segment rows (:func:`aeromag.workflows.report.segment_rows`).
     warnings : list or None
         What the run warned (filled when ``qc.json`` is written).
@@ -207,20 +216,20 @@ class QCMetrics:
     residual_std_nT: float | None = None
     std_before_nT: float | None = None
     n_samples: int | None = None
-    all_data: dict[str, Any] | None = None
-    per_piece_rms: dict[str, Any] | None = None
+    all_data: RmsSummary | None = None
+    per_piece_rms: PerPieceRms | None = None
     compensation_metrics: CompensationMetrics | None = None
     residual_std_by_segment_nT: dict[str, float] = field(default_factory=dict)
-    noise: dict[str, Any] | None = None
+    noise: NoiseSummary | None = None
     residual_std_by_heading_nT: dict[str, float] | None = None
-    maneuvers: dict[str, Any] | None = None
-    fom: dict[str, Any] | None = None
-    fit: dict[str, Any] | None = None
+    maneuvers: ManeuverSummary | None = None
+    fom: FomSummary | None = None
+    fit: FitDiagnostics | None = None
     notes: list[str] = field(default_factory=list)
-    headline_check: dict[str, Any] | None = None
+    headline_check: HeadlineCheck | None = None
     figures: list[str] | None = None
     figures_skipped: dict[str, str] | None = None
-    segments: list[dict[str, Any]] | None = None
+    segments: list[QCSegmentRow] | None = None
     warnings: list[Any] | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
@@ -239,6 +248,8 @@ class QCMetrics:
             if v is not None or f.name in _QC_ALWAYS:
                 d[f.name] = v.to_dict() if hasattr(v, "to_dict") else v
         d["band_hz"] = list(self.band_hz)
+        if self.segments is not None:
+            d["segments"] = [s.to_dict() for s in self.segments]
         d.update(self.extra)
         return d
 
@@ -259,7 +270,19 @@ class QCMetrics:
         kw["band_hz"] = list(kw.get("band_hz") or [])
         kw["compensation_metrics"] = CompensationMetrics.from_dict(
             kw.get("compensation_metrics"))
+        for key, typ in _BLOCKS.items():
+            if kw.get(key) is not None:
+                kw[key] = typ.from_dict(kw[key])
+        if kw.get("segments") is not None:
+            kw["segments"] = [QCSegmentRow.from_dict(s) for s in kw["segments"]]
         return cls(**kw, extra={k: v for k, v in d.items() if k not in names})
+
+
+#: The typed blocks of :class:`QCMetrics` (key -> class read by ``from_dict``).
+_BLOCKS: dict[str, Any] = {"all_data": RmsSummary, "per_piece_rms": PerPieceRms,
+                           "noise": NoiseSummary, "maneuvers": ManeuverSummary,
+                           "fom": FomSummary, "fit": FitDiagnostics,
+                           "headline_check": HeadlineCheck}
 
 
 @dataclass
@@ -395,7 +418,7 @@ def _compute(
     fitted = report.fit
     rebuild_fit = bool(fit and not (fitted is not None and fitted.vif)
                        and {"flux_x", "flux_y", "flux_z"} <= set(data.columns))
-    fit_out: tuple[dict[str, Any], pd.DataFrame] | None = None
+    fit_out: tuple[FitDiagnostics, pd.DataFrame] | None = None
     fit_error: AeromagError | None = None
     if rebuild_fit:
         try:
@@ -436,36 +459,30 @@ def _compute(
     band_before = cm.all_std_before_nT
     band_after = cm.all_residual_std_nT
     metrics.residual_std_by_segment_nT = {str(k): v for k, v in seg_std.items()}
-    metrics.noise = {
-        "band_hz": list(band),
-        "band_std_before_nT": band_before,
-        "band_std_after_nT": band_after,
-        "fourth_difference_before_nT": noise_before,
-        "fourth_difference_after_nT": noise_after,
-    }
+    metrics.noise = NoiseSummary(list(band), band_before, band_after, noise_before,
+                                 noise_after)
     # Manoeuvres, heading legs, FOM (detected above).
     if maneuvers is None and not fom_on and maneuver_column is None:
         notes.append(QC_SKIPPED_NOTE)
     elif detect_error is not None:
         notes.append(f"manoeuvre detection failed: {detect_error}")
-    fom_block: dict[str, Any] | None = fom_not_applicable(QC_SKIPPED_FOM)
+    fom_block: FomSummary | None = fom_not_applicable(QC_SKIPPED_FOM)
     if maneuvers is not None:
         # over the kept segments, like the headline
         hl = np.where(kept, heading_leg, -1)
         metrics.residual_std_by_heading_nT = {
             CARDINALS[k]: v for k, v in grouped_std(resid_bp, hl).items()}
         del hl
-        metrics.maneuvers = {
-            "method": maneuvers.method, "n_legs": len(maneuvers.legs),
-            "n_maneuvers": len(maneuvers.table), "complete_boxes": maneuvers.complete_boxes,
-            "heading_offset_deg": maneuvers.heading_offset_deg, "notes": maneuvers.notes}
+        metrics.maneuvers = ManeuverSummary(
+            maneuvers.method, len(maneuvers.legs), len(maneuvers.table),
+            maneuvers.complete_boxes, maneuvers.heading_offset_deg, maneuvers.notes)
         if fom_tab is not None:
             fom_block = fom_summary(fom_tab)
-            fom_block["table"] = _records(fom_tab)
-            if not fom_block["applicable"]:
-                notes.append(fom_block["reason"])
-            elif fom_block.get("kept_reason"):  # a box with dropped manoeuvres: no kept FOM
-                notes.append(fom_block["kept_reason"])
+            fom_block.table = fom_rows(fom_tab)
+            if not fom_block.applicable:
+                notes.append(fom_block.reason)
+            elif fom_block.kept_reason:  # a box with dropped manoeuvres: no kept FOM
+                notes.append(fom_block.kept_reason)
         else:
             why = "no pitch/roll/yaw manoeuvre found (not a calibration flight?)"
             notes.append("no pitch/roll/yaw manoeuvre found: no FOM (not a calibration flight?)")
@@ -477,12 +494,12 @@ def _compute(
     segs["n"] = [pieces.n_by_segment[s] for s in seg_std]
     del t, mag, comp, tl, resid_bp, kept
     if fit and fitted is not None and fitted.vif:  # the fit measured them on its own data
-        metrics.fit = {"source": "the fit (model file)", **{
-            k: getattr(fitted, k) for k in ("condition_number", "condition_number_scaled",
-                                            "vif", "max_vif", "cv_residual_std_nT",
-                                            "cv_ratio")},
-            "fit_residual_std_nT": fitted.residual_std_nT,
-            "n_segments_kept": fitted.n_segments_fitted}
+        metrics.fit = FitDiagnostics(
+            source="the fit (model file)", condition_number=fitted.condition_number,
+            condition_number_scaled=fitted.condition_number_scaled, vif=fitted.vif,
+            max_vif=fitted.max_vif, cv_residual_std_nT=fitted.cv_residual_std_nT,
+            cv_ratio=fitted.cv_ratio, fit_residual_std_nT=fitted.residual_std_nT,
+            n_segments_kept=fitted.n_segments_fitted)
     elif fit_out is not None:
         diag, cv = fit_out
         metrics.fit = diag
@@ -555,10 +572,3 @@ def config_of(report: CompensationReport) -> CompensationConfig:
     if "band_hz" not in kw and report.band_hz:
         kw["band_hz"] = report.band_hz
     return CompensationConfig(**kw)
-
-
-def _records(df: pd.DataFrame) -> list[dict[str, Any]]:
-    out = []
-    for rec in df.to_dict(orient="records"):
-        out.append({k: (v.item() if hasattr(v, "item") else v) for k, v in rec.items()})
-    return out

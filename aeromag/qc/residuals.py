@@ -13,13 +13,13 @@ Headline figures are over the kept segments, with the same over all data beside 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from .._core.filters import butter_sos, sampling_rate, trim_mask
 from .._core.stretches import find_stretches
 from ._blocks import CHUNK, filter_runs, max_gap, run_edges
+from .summaries import RmsSummary
 
 __all__ = ["PieceResiduals", "piece_labels", "piece_residuals", "rms_summary"]
 
@@ -37,9 +37,9 @@ class PieceResiduals:
         ``{segment id: rms of after_bp}`` [nT].
     n_by_segment : dict
         ``{segment id: samples used}``.
-    kept, all : dict
-        ``residual_std_nT``, ``std_before_nT``, ``improvement_ratio``, ``n_samples`` over the
-        kept segments and over every piece (segments or not).
+    kept, all : RmsSummary
+        ``residual_std_nT``, ``std_before_nT`` [nT], ``improvement_ratio``, ``n_samples``
+        over the kept segments and over every piece (segments or not).
     trim_s : float
         Edge dropped at each end of every piece [s].
     """
@@ -48,8 +48,8 @@ class PieceResiduals:
     after_bp: np.ndarray
     by_segment: dict[int, float]
     n_by_segment: dict[int, int]
-    kept: dict[str, Any]
-    all: dict[str, Any]
+    kept: RmsSummary
+    all: RmsSummary
     trim_s: float
 
 
@@ -84,7 +84,7 @@ def piece_labels(time_s: np.ndarray, valid: np.ndarray, segment: np.ndarray,
     return lab
 
 
-def rms_summary(n: float, sum_before2: float, sum_after2: float) -> dict[str, Any]:
+def rms_summary(n: float, sum_before2: float, sum_after2: float) -> RmsSummary:
     """Headline numbers from sums of squares of the band-passed fields.
 
     Parameters
@@ -96,21 +96,20 @@ def rms_summary(n: float, sum_before2: float, sum_after2: float) -> dict[str, An
 
     Returns
     -------
-    dict
+    RmsSummary
         ``residual_std_nT`` and ``std_before_nT`` (rms [nT]), ``improvement_ratio`` (their
         ratio), ``n_samples``; None values when ``n`` is 0.
     """
     n = int(n)
     if n == 0:
-        return {"residual_std_nT": None, "std_before_nT": None, "improvement_ratio": None,
-                "n_samples": 0}
+        return RmsSummary(n_samples=0)
     rb = float(np.sqrt(sum_before2 / n))
     ra = float(np.sqrt(sum_after2 / n))
-    return {"residual_std_nT": ra, "std_before_nT": rb,
-            "improvement_ratio": rb / ra if ra > 0 else None, "n_samples": n}
+    return RmsSummary(improvement_ratio=rb / ra if ra > 0 else None, residual_std_nT=ra,
+                      std_before_nT=rb, n_samples=n)
 
 
-def _summary(before: np.ndarray, after: np.ndarray, use: np.ndarray) -> dict[str, Any]:
+def _summary(before: np.ndarray, after: np.ndarray, use: np.ndarray) -> RmsSummary:
     """:func:`rms_summary` over ``use``: ``np.sum(x[use] ** 2)`` of each field.
 
     The selection is squared in place in one buffer (one temporary, not two per field).

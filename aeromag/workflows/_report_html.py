@@ -14,6 +14,8 @@ from typing import Any
 import numpy as np
 
 from ..compensation.report import is_epoch
+from ..qc.fom_types import FomSummary
+from ..qc.summaries import HeadlineCheck
 
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:2em auto;
@@ -61,36 +63,35 @@ def html_time(t: float | None) -> str:
     return f"{t:.1f}"
 
 
-def fom_rows(fom: dict[str, Any]) -> list[list[Any]]:
+def fom_rows(fom: FomSummary) -> list[list[Any]]:
     """FOM table rows: the manoeuvres in kept segments first, all manoeuvres beside them."""
     def reduction(before: Any, after: Any) -> float | None:
         return float(before / after) if before is not None and after else None
 
-    kb, ka = fom.get("fom_kept_before_nT"), fom.get("fom_kept_after_nT")
+    kb, ka = fom.fom_kept_before_nT, fom.fom_kept_after_nT
     rows: list[list[Any]] = [
-        ["FOM before (nT, sum of 12 p-p of band-passed mag)", kb, fom.get("fom_before_nT")],
-        ["FOM after (nT, sum of 12 p-p of band-passed mag - mag_tl)", ka,
-         fom.get("fom_after_nT")],
-        ["FOM reduction (before / after)", reduction(kb, ka), fom.get("fom_reduction")]]
-    if fom.get("fom_truth_nT") is not None:
-        rows.insert(2, ["FOM of the true interference (nT)", fom.get("fom_kept_truth_nT"),
-                        fom.get("fom_truth_nT")])
+        ["FOM before (nT, sum of 12 p-p of band-passed mag)", kb, fom.fom_before_nT],
+        ["FOM after (nT, sum of 12 p-p of band-passed mag - mag_tl)", ka, fom.fom_after_nT],
+        ["FOM reduction (before / after)", reduction(kb, ka), fom.fom_reduction]]
+    if fom.fom_truth_nT is not None:
+        rows.insert(2, ["FOM of the true interference (nT)", fom.fom_kept_truth_nT,
+                        fom.fom_truth_nT])
     return rows
 
 
-def headline_words(check: dict[str, Any]) -> str:
+def headline_words(check: HeadlineCheck | None) -> str:
     """Where the headline comes from and how it was checked, in one sentence."""
-    src = Path(check.get("recorded_in") or "OUT.json").name
-    if not check:
+    if check is None:
         return "Headline as the compensation recorded it."
-    if not check.get("compared"):
+    src = Path(check.recorded_in or "OUT.json").name
+    if not check.compared:
         return (f"Headline computed from this log's columns; {src} holds no metrics to"
                 " compare it with.")
-    verdict = ("agrees" if check.get("agree") else "DISAGREES")
+    verdict = ("agrees" if check.agree else "DISAGREES")
     return (f"Headline computed from this log's columns (mag, mag_tl, segment_kept); it"
             f" {verdict} with {src} (largest relative difference"
-            f" {check.get('max_relative_difference', 0.0):.2g}, tolerance"
-            f" {check.get('relative_tolerance', 0.0):g}; sample counts compared exactly).")
+            f" {check.max_relative_difference or 0.0:.2g}, tolerance"
+            f" {check.relative_tolerance or 0.0:g}; sample counts compared exactly).")
 
 
 def extended_html(ext: dict[str, Any] | None) -> str:

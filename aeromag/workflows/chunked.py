@@ -462,6 +462,7 @@ def _qc_block(metrics: CompensationMetrics, residual: dict[int, float],
     from ..qc.fom import fom_not_applicable
     from ..qc.quality import QC_SKIPPED_FOM, QC_SKIPPED_NOTE, headline_metrics
     from ..qc.residuals import rms_summary
+    from ..qc.summaries import NoiseSummary
 
     def noise(m: StreamingMoments) -> float:
         return float(m.std()[0] / FOURTH_DIFF_NORM) if m.n else float("nan")
@@ -472,13 +473,13 @@ def _qc_block(metrics: CompensationMetrics, residual: dict[int, float],
         **headline_metrics(metrics, kept, every, trim_s),  # the headline is OUT.json metrics
         compensation_metrics=metrics,
         residual_std_by_segment_nT={str(k): v for k, v in sorted(residual.items())},
-        noise={
-            "band_hz": list(cfg.band_hz),
-            "band_std_before_nT": metrics.all_std_before_nT,
-            "band_std_after_nT": metrics.all_residual_std_nT,
-            "fourth_difference_before_nT": noise(d4_before),
-            "fourth_difference_after_nT": noise(d4_after),
-        },
+        noise=NoiseSummary(
+            band_hz=list(cfg.band_hz),
+            band_std_before_nT=metrics.all_std_before_nT,
+            band_std_after_nT=metrics.all_residual_std_nT,
+            fourth_difference_before_nT=noise(d4_before),
+            fourth_difference_after_nT=noise(d4_after),
+        ),
         fom=fom_not_applicable(QC_SKIPPED_FOM),
         notes=[QC_SKIPPED_NOTE],
     )

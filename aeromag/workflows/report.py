@@ -36,6 +36,7 @@ from ..io import atomic_path, json_path_for, read_log, write_json
 from ..plot import compensation as pc
 from ..qc import QCResult, compute_qc, kept_mask, segment_labels
 from ..qc.quality import QCMetrics, config_of
+from ..qc.summaries import HeadlineCheck, QCSegmentRow
 from ._report_html import (
     extended_html,
     figure_html,
@@ -92,8 +93,9 @@ def _figures(result: CompensationResult, qc: QCResult, band: tuple[float, float]
                                  qc.residuals.after_bp, kept=kept_mask(data), band_hz=band)
 
     def fom() -> Any:
-        if not (qc.metrics.fom or {}).get("applicable"):
-            raise InputError((qc.metrics.fom or {}).get("reason") or "no FOM")
+        fb = qc.metrics.fom
+        if fb is None or not fb.applicable:
+            raise InputError((fb.reason if fb is not None else None) or "no FOM")
         return pc.plot_fom(qc.fom)
 
     return {
@@ -152,7 +154,8 @@ def write_report(
 
     qc = compute_qc(result, config=config, **qc_kw)
     for key, value in headline_record(report).items():
-        setattr(qc.metrics, key, value)
+        setattr(qc.metrics, key, HeadlineCheck.from_dict(value) if key == "headline_check"
+                else value)
     # Only the metrics, the FOM table and the band-passed fields are shown: the per-sample
     # manoeuvre labels go before the figures.
     qc.maneuvers = None
@@ -188,7 +191,7 @@ def write_report(
     return html_path
 
 
-def segment_rows(result: CompensationResult, qc: QCResult) -> list[dict[str, Any]]:
+def segment_rows(result: CompensationResult, qc: QCResult) -> list[QCSegmentRow]:
     """One row per segment: line, time span, samples, kept, why dropped, residuals.
 
     Parameters
@@ -200,7 +203,7 @@ def segment_rows(result: CompensationResult, qc: QCResult) -> list[dict[str, Any
 
     Returns
     -------
-    list of dict
+    list of QCSegmentRow
         ``segment``, ``line``, ``t_start``/``t_end`` [s], ``n``, ``kept``, ``reason``,
         ``residual_std_nT`` (qc: band-passed ``mag - mag_tl`` of the segment) and
         ``model_residual_std_nT`` (the model file's).
@@ -243,14 +246,14 @@ def segment_rows(result: CompensationResult, qc: QCResult) -> list[dict[str, Any
             if not reason and e is not None:
                 reason = _why_dropped(e, result.report.screening)
             k = bool(e.kept) if e is not None else bool(kept[first_at[j]])
-            rows.append({
-                "segment": sid, "line": None if line is None or pd.isna(line) else
+            rows.append(QCSegmentRow(
+                segment=sid, line=None if line is None or pd.isna(line) else
                 (int(line) if float(line).is_integer() else float(line)),
-                "t_start": float(t[first_at[j]]), "t_end": float(t[last_at[j]]),
-                "n": int(counts[j]), "kept": k,
-                "reason": None if k else (reason or "dropped by the PCA screening"),
-                "residual_std_nT": by_seg.get(str(sid)),
-                "model_residual_std_nT": e.residual_std if e is not None else None})
+                t_start=float(t[first_at[j]]), t_end=float(t[last_at[j]]),
+                n=int(counts[j]), kept=k,
+                reason=None if k else (reason or "dropped by the PCA screening"),
+                residual_std_nT=by_seg.get(str(sid)),
+                model_residual_std_nT=e.residual_std if e is not None else None))
     return rows
 
 
@@ -390,28 +393,27 @@ def render_html(metrics: QCMetrics | dict[str, Any], report: CompensationReport 
     band = metrics.band_hz
     parts = [page_head(title, f"aeromag {__version__}; fitting band "
                               f"{band[0]:g}–{band[1]:g} Hz")]
-    fom = metrics.fom or {}
-    fit = metrics.fit or {}
-    noise = metrics.noise or {}
-    alld = metrics.all_data or {}
-    check = metrics.headline_check or {}
+    fom, fit, noise = metrics.fom, metrics.fit, metrics.noise
+    check = metrics.headline_check
     rec = metrics.compensation_metrics
     names = [("improvement ratio (band-passed mag / mag - mag_tl)", "improvement_ratio"),
              ("residual (nT, band-passed mag - mag_tl)", "residual_std_nT"),
              ("before (nT, band-passed mag)", "std_before_nT"),
              ("samples", "n_samples")]
     header = ["metric", "kept segments", "all data"]
-    rows: list[list[Any]] = [[label, getattr(metrics, k), alld.get(k)] for label, k in names]
-    if check.get("compared"):
-        header.append(f"recorded in {Path(check.get('recorded_in') or 'OUT.json').name}"
+    rows: list[list[Any]] = [[label, getattr(metrics, k), getattr(metrics.all_data, k, None)]
+                             for label, k in names]
+    if check is not None and check.compared:
+        header.append(f"recorded in {Path(check.recorded_in or 'OUT.json').name}"
                       " (kept / all)")
         for r, (_, k) in zip(rows, names, strict=True):
             r.append(f"{fmt(getattr(rec, k, None))} / {fmt(getattr(rec, 'all_' + k, None))}")
     parts.append("<h2>Summary</h2>")
-    if check.get("warning"):
+    if check is not None and check.warning:
         parts.append(f"<p class='warn' id='headline-warning'>Warning: "
-                     f"{html.escape(check['warning'])}</p>")
-    comp_warning = (check.get("mag_comp") or {}).get("warning")
+                     f"{html.escape(check.warning)}</p>")
+    comp_warning = (check.mag_comp.warning if check is not None and check.mag_comp is not None
+                    else None)
     if comp_warning:
         parts.append(f"<p class='warn' id='mag-comp-warning'>Warning: "
                      f"{html.escape(comp_warning)}</p>")
@@ -422,12 +424,12 @@ def render_html(metrics: QCMetrics | dict[str, Any], report: CompensationReport 
     parts.append(f"<p class='small'>{html.escape(words)}</p>")
     more = [
         ["4th-difference noise before / after (nT)",
-         f"{fmt(noise.get('fourth_difference_before_nT'))} / "
-         f"{fmt(noise.get('fourth_difference_after_nT'))}"],
-        ["condition number (unit-norm columns)", fit.get("condition_number_scaled")],
-        ["largest VIF", fit.get("max_vif")],
-        ["leave-one-segment-out CV residual (nT)", fit.get("cv_residual_std_nT")],
-        ["in-sample fit residual (nT)", fit.get("fit_residual_std_nT")],
+         f"{fmt(getattr(noise, 'fourth_difference_before_nT', None))} / "
+         f"{fmt(getattr(noise, 'fourth_difference_after_nT', None))}"],
+        ["condition number (unit-norm columns)", getattr(fit, "condition_number_scaled", None)],
+        ["largest VIF", getattr(fit, "max_vif", None)],
+        ["leave-one-segment-out CV residual (nT)", getattr(fit, "cv_residual_std_nT", None)],
+        ["in-sample fit residual (nT)", getattr(fit, "fit_residual_std_nT", None)],
     ]
     scr = report.screening
     if scr.n_segments is not None:
@@ -436,24 +438,25 @@ def render_html(metrics: QCMetrics | dict[str, Any], report: CompensationReport 
     parts.append(html_table(more, ["diagnostic", "value"]))
     # FOM: numbers only for complete calibration boxes.
     parts.append("<h2>Figure of Merit</h2>")
-    if fom.get("applicable"):
+    if fom is not None and fom.applicable:
         parts.append(html_table(fom_rows(fom), ["metric", "manoeuvres in kept segments",
                                              "all manoeuvres"]))
-        boxes = fom.get("complete_boxes", [])
+        boxes = fom.complete_boxes
         parts.append(f"<p class='small'>Complete boxes: {len(boxes)} (box "
                      f"{html.escape(', '.join(map(str, boxes)))}); manoeuvres in kept segments:"
-                     f" {fmt(fom.get('n_maneuvers_kept'))} of {fmt(fom.get('n_maneuvers'))}."
-                     f" {html.escape(fom.get('kept_reason') or '')}"
-                     f" {html.escape(fom.get('kept_definition') or '')}</p>")
-        pm = fom.get("per_maneuver") or []
+                     f" {fmt(fom.n_maneuvers_kept)} of {fmt(fom.n_maneuvers)}."
+                     f" {html.escape(fom.kept_reason or '')}"
+                     f" {html.escape(fom.kept_definition or '')}</p>")
+        pm = fom.per_maneuver
         if pm:
-            keys = [k for k in ("ptp_before_nT", "ptp_after_nT", "ptp_truth_nT") if k in pm[0]]
-            parts.append(html_table([[r["heading"], r["maneuver"], *(r[k] for k in keys)]
+            keys = [k for k in ("ptp_before_nT", "ptp_after_nT", "ptp_truth_nT")
+                    if pm[0].written(k)]
+            parts.append(html_table([[r.heading, r.maneuver, *(getattr(r, k) for k in keys)]
                                  for r in pm],
                                 ["heading", "manoeuvre", *[f"{k[4:-3]} (nT p-p)" for k in keys]]))
     else:
-        parts.append(f"<p class='na'>{html.escape(fom.get('reason') or 'FOM not applicable')}"
-                     "</p>")
+        reason = fom.reason if fom is not None else None
+        parts.append(f"<p class='na'>{html.escape(reason or 'FOM not applicable')}</p>")
     # The model that was applied.
     parts.append("<h2>Model applied</h2>")
     src = report.model_source
@@ -476,19 +479,19 @@ def render_html(metrics: QCMetrics | dict[str, Any], report: CompensationReport 
     if segs:
         parts.append("<h2>Lines and segments</h2>")
         parts.append(html_table(
-            [[s["segment"], s["line"], html_time(s["t_start"]), html_time(s["t_end"]), s["n"],
-              s["kept"], s["residual_std_nT"], s["model_residual_std_nT"], s["reason"] or ""]
+            [[s.segment, s.line, html_time(s.t_start), html_time(s.t_end), s.n,
+              s.kept, s.residual_std_nT, s.model_residual_std_nT, s.reason or ""]
              for s in segs],
             ["segment", "line", "start", "end", "samples", "kept", "residual (nT)",
              "model file residual (nT)", "why dropped"],
-            ["dropped" if not s["kept"] else "" for s in segs]))
+            ["dropped" if not s.kept else "" for s in segs]))
     by_h = metrics.residual_std_by_heading_nT or {}
     if by_h:
         parts.append("<h2>Residual per heading (nT)</h2>"
                      + html_table([[k, v] for k, v in by_h.items()], ["heading", "residual"]))
-    if fit.get("vif"):
+    if fit is not None and fit.vif:
         parts.append("<h2>Variance inflation factors</h2>"
-                     + html_table([[k, v] for k, v in fit["vif"].items()], ["term", "VIF"]))
+                     + html_table([[k, v] for k, v in fit.vif.items()], ["term", "VIF"]))
     notes = list(metrics.notes or [])
     notes += [f"{k} not drawn: {v}" for k, v in (metrics.figures_skipped or {}).items()]
     if notes:

@@ -1,0 +1,549 @@
+"""The sub-blocks of the QC metrics as typed objects (``qc.json``, the report's ``qc``).
+
+:class:`~aeromag.qc.quality.QCMetrics` holds these instead of dicts; every layer above reads
+their attributes and JSON exists only where a file is written or read.  Each has
+``to_dict()`` (the block exactly as the files have always held it: keys, order, values) and
+``from_dict()`` (a block read back; ``from_dict(d).to_dict() == d``).  Keys a class does not
+know are kept in its ``extra`` and written after the known ones, as in
+:mod:`aeromag.compensation.report_types`.
+
+* :class:`RmsSummary` - rms figures over a set of samples (the ``all_data`` block);
+* :class:`PieceRms`, :class:`PerPieceRms` - the per-piece rms diagnostic (``per_piece_rms``);
+* :class:`NoiseSummary` - band-limited and fourth-difference noise (``noise``);
+* :class:`ManeuverSummary` - what the manoeuvre detection found (``maneuvers``);
+* :class:`HeadlineCheck`, :class:`HeadlineDifference`, :class:`MagCompCheck` - ``aeromag
+  report``'s check of the recorded headline (``headline_check``);
+* :class:`QCSegmentRow` - one row of the report's per-segment table (``segments``).
+
+The FOM block is in :mod:`aeromag.qc.fom_types`, the fit diagnostics in
+:mod:`aeromag._core.fit_diagnostics`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..compensation.metrics import block_dict, block_from_dict, split_fields
+
+__all__ = ["HeadlineCheck", "HeadlineDifference", "MagCompCheck", "ManeuverSummary",
+           "NoiseSummary", "PerPieceRms", "PieceRms", "QCSegmentRow", "RmsSummary"]
+
+
+@dataclass
+class RmsSummary:
+    """Rms of the band-passed fields over a set of samples (the QC's ``all_data`` block).
+
+    Attributes
+    ----------
+    improvement_ratio : float or None
+        ``std_before_nT / residual_std_nT`` [-] (None without a residual).
+    residual_std_nT : float or None
+        Rms (or std) of band-passed ``mag - mag_tl`` [nT] (None without samples).
+    std_before_nT : float or None
+        Rms (or std) of band-passed ``mag`` [nT] (None without samples).
+    n_samples : int
+        Samples used.
+    extra : dict
+        Keys this class does not know (written after the others).
+    """
+
+    improvement_ratio: float | None = None
+    residual_std_nT: float | None = None
+    std_before_nT: float | None = None
+    n_samples: int = 0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON block.
+
+        Returns
+        -------
+        dict
+        """
+        return block_dict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any] | None) -> RmsSummary | None:
+        """A block read from a file (None for none).
+
+        Parameters
+        ----------
+        d : dict or None
+
+        Returns
+        -------
+        RmsSummary or None
+        """
+        return block_from_dict(cls, d)
+
+
+@dataclass
+class PieceRms:
+    """The per-piece rms figures over one set of pieces (``per_piece_rms.kept`` / ``.all``).
+
+    Attributes
+    ----------
+    per_piece_rms_ratio : float or None
+        Rms of band-passed ``mag`` over that of ``mag - mag_tl`` [-].
+    per_piece_rms_after_nT, per_piece_rms_before_nT : float or None
+        Rms of band-passed ``mag - mag_tl`` and of ``mag``, each piece filtered alone [nT].
+    n_samples : int
+        Samples used.
+    extra : dict
+        Keys this class does not know (written after the others).
+    """
+
+    per_piece_rms_ratio: float | None = None
+    per_piece_rms_after_nT: float | None = None
+    per_piece_rms_before_nT: float | None = None
+    n_samples: int = 0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, rms: RmsSummary) -> PieceRms:
+        """The per-piece figures of an :func:`aeromag.qc.residuals.rms_summary`.
+
+        Parameters
+        ----------
+        rms : RmsSummary
+            Rms over the pieces (:attr:`aeromag.qc.residuals.PieceResiduals.kept` or ``all``).
+
+        Returns
+        -------
+        PieceRms
+        """
+        return cls(rms.improvement_ratio, rms.residual_std_nT, rms.std_before_nT,
+                   rms.n_samples)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON block.
+
+        Returns
+        -------
+        dict
+        """
+        return block_dict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any] | None) -> PieceRms | None:
+        """A block read from a file (None for none).
+
+        Parameters
+        ----------
+        d : dict or None
+
+        Returns
+        -------
+        PieceRms or None
+        """
+        return block_from_dict(cls, d)
+
+
+@dataclass
+class PerPieceRms:
+    """The per-piece rms diagnostic beside the headline (the QC's ``per_piece_rms`` block).
+
+    Attributes
+    ----------
+    definition : str
+        What the figures are (:func:`aeromag.qc.quality.residual_definition`).
+    kept, all : PieceRms
+        Over the kept segments and over every piece.
+    extra : dict
+        Keys this class does not know (written after the others).
+    """
+
+    definition: str
+    kept: PieceRms
+    all: PieceRms
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON block.
+
+        Returns
+        -------
+        dict
+        """
+        d = {"definition": self.definition, "kept": self.kept.to_dict(),
+             "all": self.all.to_dict()}
+        d.update(self.extra)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any] | None) -> PerPieceRms | None:
+        """A block read from a file (None for none).
+
+        Parameters
+        ----------
+        d : dict or None
+
+        Returns
+        -------
+        PerPieceRms or None
+        """
+        if not d:
+            return None
+        kw, extra = split_fields(cls, d)
+        return cls(kw.get("definition", ""), PieceRms.from_dict(kw.get("kept")) or PieceRms(),
+                   PieceRms.from_dict(kw.get("all")) or PieceRms(), extra=extra)
+
+
+@dataclass
+class NoiseSummary:
+    """Noise before and after the compensation (the QC's ``noise`` block).
+
+    Attributes
+    ----------
+    band_hz : list of float
+        The fitting band [Hz].
+    band_std_before_nT, band_std_after_nT : float or None
+        Band-passed std of ``mag`` and of ``mag - mag_tl`` over all segments [nT].
+    fourth_difference_before_nT, fourth_difference_after_nT : float or None
+        Fourth-difference noise estimate of ``mag`` and of ``mag - mag_tl`` [nT].
+    extra : dict
+        Keys this class does not know (written after the others).
+    """
+
+    band_hz: list[float] = field(default_factory=list)
+    band_std_before_nT: float | None = None
+    band_std_after_nT: float | None = None
+    fourth_difference_before_nT: float | None = None
+    fourth_difference_after_nT: float | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON block.
+
+        Returns
+        -------
+        dict
+        """
+        d = block_dict(self)
+        d["band_hz"] = list(self.band_hz)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any] | None) -> NoiseSummary | None:
+        """A block read from a file (None for none).
+
+        Parameters
+        ----------
+        d : dict or None
+
+        Returns
+        -------
+        NoiseSummary or None
+        """
+        return block_from_dict(cls, d)
+
+
+@dataclass
+class ManeuverSummary:
+    """What the manoeuvre detection found (the QC's ``maneuvers`` block).
+
+    Attributes
+    ----------
+    method : str
+        ``"attitude"``, ``"fluxgate"`` or ``"column:<name>"``.
+    n_legs, n_maneuvers : int
+        Heading legs and manoeuvres found.
+    complete_boxes : list of int
+        Boxes with all 12 (heading, manoeuvre) pairs.
+    heading_offset_deg : float
+        Common offset of the flown headings from the cardinals [deg].
+    notes : list of str
+        What the detection noticed.
+    extra : dict
+        Keys this class does not know (written after the others).
+    """
+
+    method: str = ""
+    n_legs: int = 0
+    n_maneuvers: int = 0
+    complete_boxes: list[int] = field(default_factory=list)
+    heading_offset_deg: float = 0.0
+    notes: list[str] = field(default_factory=list)
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON block.
+
+        Returns
+        -------
+        dict
+        """
+        return block_dict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any] | None) -> ManeuverSummary | None:
+        """A block read from a file (None for none).
+
+        Parameters
+        ----------
+        d : dict or None
+
+        Returns
+        -------
+        ManeuverSummary or None
+        """
+        return block_from_dict(cls, d)
+
+
+@dataclass
+class HeadlineDifference:
+    """One figure of the headline check (an entry of ``headline_check.differences``).
+
+    Attributes
+    ----------
+    computed, recorded : float or int or None
+        The figure computed from the log and the one the report recorded.
+    relative : float
+        ``|computed - recorded| / |recorded|`` [-] (inf when one is missing).
+    extra : dict
+        Keys this class does not know (written after the others).
+    """
+
+    computed: Any = None
+    recorded: Any = None
+    relative: float | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON entry.
+
+        Returns
+        -------
+        dict
+        """
+        return block_dict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> HeadlineDifference:
+        """An entry read from a file.
+
+        Parameters
+        ----------
+        d : dict
+
+        Returns
+        -------
+        HeadlineDifference
+        """
+        kw, extra = split_fields(cls, d)
+        return cls(**kw, extra=extra)
+
+
+@dataclass
+class MagCompCheck:
+    """The check of the log's ``mag_comp`` column (``headline_check.mag_comp``).
+
+    Attributes
+    ----------
+    compared : int
+        Rows compared.
+    max_abs_difference_nT : float or None
+        Largest difference from what the compensation writes [nT].
+    tolerance_nT : float
+        Largest difference accepted [nT].
+    first_row : int or None
+        0-based data row of the first difference beyond the tolerance.
+    filtered : bool
+        Whether the expected column is low-passed.
+    filter_recorded : bool
+        Whether the report records the filter.
+    warning : str or None
+        One line when the column differs.
+    note : str or None
+        Why a comparison could not be made (written only when set).
+    extra : dict
+        Keys this class does not know (written after the others).
+    """
+
+    compared: int = 0
+    max_abs_difference_nT: float | None = None
+    tolerance_nT: float | None = None
+    first_row: int | None = None
+    filtered: bool | None = None
+    filter_recorded: bool | None = None
+    warning: str | None = None
+    note: str | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON block (``note`` only when set).
+
+        Returns
+        -------
+        dict
+        """
+        return block_dict(self, skip=() if self.note is not None else ("note",))
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any] | None) -> MagCompCheck | None:
+        """A block read from a file (None for none).
+
+        Parameters
+        ----------
+        d : dict or None
+
+        Returns
+        -------
+        MagCompCheck or None
+        """
+        return block_from_dict(cls, d)
+
+
+#: Optional keys of a headline check, in the order it writes them (each only when set).
+_CHECK_OPTIONAL = ("note", "max_relative_difference", "differences", "mag_comp")
+
+
+@dataclass
+class HeadlineCheck:
+    """``aeromag report``'s comparison of the recomputed headline with the recorded one.
+
+    Built from :func:`aeromag.workflows.report_check.compare_headline` (the QC's
+    ``headline_check`` block).  ``differences`` is a mapping with one entry per figure
+    compared (its keys are the figures' names).
+
+    Attributes
+    ----------
+    compared : bool
+        Whether the report recorded metrics to compare with.
+    agree : bool or None
+        Whether they agree within the tolerance (None when not compared).
+    relative_tolerance : float
+        Relative tolerance of the comparison [-].
+    counts : str
+        How sample counts are compared (``"equal"``).
+    recorded_in : str
+        The report file compared with.
+    warning : str or None
+        One line when they disagree.
+    definition : str
+        What is compared, in words.
+    note : str or None
+        Why nothing was compared (written only when set).
+    max_relative_difference : float or None
+        Largest relative difference [-] (written only when compared).
+    differences : dict of str to HeadlineDifference or None
+        Per figure (written only when compared).
+    mag_comp : MagCompCheck or None
+        The check of the ``mag_comp`` column (written only when made).
+    extra : dict
+        Keys this class does not know (written after the others).
+    """
+
+    compared: bool = False
+    agree: bool | None = None
+    relative_tolerance: float | None = None
+    counts: str | None = None
+    recorded_in: str | None = None
+    warning: str | None = None
+    definition: str | None = None
+    note: str | None = None
+    max_relative_difference: float | None = None
+    differences: dict[str, HeadlineDifference] | None = None
+    mag_comp: MagCompCheck | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON block (the optional keys only when set).
+
+        Returns
+        -------
+        dict
+        """
+        d = block_dict(self, skip=tuple(k for k in _CHECK_OPTIONAL if getattr(self, k) is None))
+        if self.differences is not None:
+            d["differences"] = {k: v.to_dict() for k, v in self.differences.items()}
+        if self.mag_comp is not None:
+            d["mag_comp"] = self.mag_comp.to_dict()
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any] | None) -> HeadlineCheck | None:
+        """A block read from a file (None for none).
+
+        Parameters
+        ----------
+        d : dict or None
+
+        Returns
+        -------
+        HeadlineCheck or None
+        """
+        if not d:
+            return None
+        kw, extra = split_fields(cls, d)
+        if kw.get("differences") is not None:
+            kw["differences"] = {k: HeadlineDifference.from_dict(v)
+                                 for k, v in kw["differences"].items()}
+        kw["mag_comp"] = MagCompCheck.from_dict(kw.get("mag_comp"))
+        return cls(**kw, extra=extra)
+
+
+@dataclass
+class QCSegmentRow:
+    """One row of the report's per-segment table (an entry of the QC's ``segments``).
+
+    Built by :func:`aeromag.workflows.report.segment_rows`.
+
+    Attributes
+    ----------
+    segment : int
+        Segment id.
+    line : int or float or None
+        Its flight line.
+    t_start, t_end : float
+        Time span [s, the log's time].
+    n : int
+        Samples.
+    kept : bool
+        Whether the fit kept it.
+    reason : str or None
+        Why it was dropped (None when kept).
+    residual_std_nT : float or None
+        Band-passed ``mag - mag_tl`` of the segment, from the QC [nT].
+    model_residual_std_nT : float or None
+        The model file's residual of the segment [nT].
+    extra : dict
+        Keys this class does not know (written after the others).
+    """
+
+    segment: int
+    line: int | float | None = None
+    t_start: float | None = None
+    t_end: float | None = None
+    n: int = 0
+    kept: bool = True
+    reason: str | None = None
+    residual_std_nT: float | None = None
+    model_residual_std_nT: float | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON row.
+
+        Returns
+        -------
+        dict
+        """
+        return block_dict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> QCSegmentRow:
+        """A row read from a file.
+
+        Parameters
+        ----------
+        d : dict
+
+        Returns
+        -------
+        QCSegmentRow
+        """
+        kw, extra = split_fields(cls, d)
+        kw.setdefault("segment", -1)
+        return cls(**kw, extra=extra)
