@@ -141,7 +141,7 @@ def check_total_field(model: Any, mag_from_flux: bool, source: str) -> None:
     InputError
         On a mismatch.
     """
-    fitted_on_flux = model.meta.get("mag_from_fluxgate")
+    fitted_on_flux = model.meta.mag_from_fluxgate
     if fitted_on_flux is None or bool(fitted_on_flux) == mag_from_flux:
         return
     kinds = ("the scalar magnetometer ('mag')", "the fluxgate magnitude")

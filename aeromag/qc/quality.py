@@ -551,7 +551,8 @@ def config_of(report: CompensationReport) -> CompensationConfig:
     CompensationConfig
     """
     names = {f.name for f in dataclasses.fields(CompensationConfig)}
-    kw = {k: v for k, v in (report.config or {}).items() if k in names}
+    kw = {k: v for k, v in (report.config.options() if report.config else {}).items()
+          if k in names}
     if "band_hz" not in kw and report.band_hz:
         kw["band_hz"] = report.band_hz
     return CompensationConfig(**kw)

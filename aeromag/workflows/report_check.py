@@ -191,7 +191,7 @@ class _MagCompCheck:
         self.tol = MAG_COMP_TOL_FLUXGATE_NT if fluxgate else MAG_COMP_TOL_NT
         # An --online OUT.json records no configuration: whether mag_comp was low-passed
         # (--no-filter) is then not known, and mag_comp may match either.
-        self.recorded = "filter_output" in (report.config or {})
+        self.recorded = report.config is not None and report.config.filter_output is not None
         self.choices = (bool(cfg.filter_output),) if self.recorded else (False, True)
         self.t, self.fs, self.cfg = time_s, fs_hz, cfg
         self.cut = cfg.lowpass_hz if cfg.lowpass_hz is not None else cfg.band_hz[1]
