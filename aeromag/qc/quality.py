@@ -29,7 +29,7 @@ from .._core.stretches import find_stretches
 from ..compensation.apply import isolate_dropped
 from ..compensation.config import CompensationConfig
 from ..compensation.metrics import compensation_metrics
-from ..compensation.report_types import CompensationMetrics, CompensationReport
+from ..compensation.report_types import CompensationMetrics, CompensationReport, HeadlineCheck
 from ..compensation.terms import TERMS_16
 from ..errors import AeromagError, InputError
 from .diagnostics import fit_diagnostics
@@ -187,7 +187,7 @@ class QCMetrics:
         Fit diagnostics (condition numbers, VIF, leave-one-segment-out CV [nT]).
     notes : list of str
         Why something could not be computed.
-    headline_check : dict or None
+    headline_check : HeadlineCheck or None
         ``aeromag report``'s comparison of the recomputed headline with the recorded one.
     figures : list of str or None
         Figures the report wrote.
@@ -217,7 +217,7 @@ class QCMetrics:
     fom: dict[str, Any] | None = None
     fit: dict[str, Any] | None = None
     notes: list[str] = field(default_factory=list)
-    headline_check: dict[str, Any] | None = None
+    headline_check: HeadlineCheck | None = None
     figures: list[str] | None = None
     figures_skipped: dict[str, str] | None = None
     segments: list[dict[str, Any]] | None = None
@@ -259,6 +259,7 @@ class QCMetrics:
         kw["band_hz"] = list(kw.get("band_hz") or [])
         kw["compensation_metrics"] = CompensationMetrics.from_dict(
             kw.get("compensation_metrics"))
+        kw["headline_check"] = HeadlineCheck.from_dict(kw.get("headline_check"))
         return cls(**kw, extra={k: v for k, v in d.items() if k not in names})
 
 

@@ -29,7 +29,11 @@ import pandas as pd
 from .. import __version__
 from ..compensation.config import CompensationConfig
 from ..compensation.model import TLModel
-from ..compensation.report_types import CompensationReport, ScreeningSummary, SegmentRow
+from ..compensation.report_types import (
+    CompensationReport,
+    ScreeningSummary,
+    SegmentRow,
+)
 from ..compensation.result import CompensationResult
 from ..errors import AeromagError, InputError
 from ..io import atomic_path, json_path_for, read_log, write_json
@@ -151,8 +155,11 @@ def write_report(
             progress(step, total, what)
 
     qc = compute_qc(result, config=config, **qc_kw)
-    for key, value in headline_record(report).items():
-        setattr(qc.metrics, key, value)
+    record = headline_record(report)
+    if record.headline_check is not None:
+        qc.metrics.headline_check = record.headline_check
+    if record.compensation_metrics is not None:
+        qc.metrics.compensation_metrics = record.compensation_metrics
     # Only the metrics, the FOM table and the band-passed fields are shown: the per-sample
     # manoeuvre labels go before the figures.
     qc.maneuvers = None
@@ -394,7 +401,7 @@ def render_html(metrics: QCMetrics | dict[str, Any], report: CompensationReport 
     fit = metrics.fit or {}
     noise = metrics.noise or {}
     alld = metrics.all_data or {}
-    check = metrics.headline_check or {}
+    check = metrics.headline_check
     rec = metrics.compensation_metrics
     names = [("improvement ratio (band-passed mag / mag - mag_tl)", "improvement_ratio"),
              ("residual (nT, band-passed mag - mag_tl)", "residual_std_nT"),
@@ -402,16 +409,16 @@ def render_html(metrics: QCMetrics | dict[str, Any], report: CompensationReport 
              ("samples", "n_samples")]
     header = ["metric", "kept segments", "all data"]
     rows: list[list[Any]] = [[label, getattr(metrics, k), alld.get(k)] for label, k in names]
-    if check.get("compared"):
-        header.append(f"recorded in {Path(check.get('recorded_in') or 'OUT.json').name}"
+    if check is not None and check.compared:
+        header.append(f"recorded in {Path(check.recorded_in or 'OUT.json').name}"
                       " (kept / all)")
         for r, (_, k) in zip(rows, names, strict=True):
             r.append(f"{fmt(getattr(rec, k, None))} / {fmt(getattr(rec, 'all_' + k, None))}")
     parts.append("<h2>Summary</h2>")
-    if check.get("warning"):
+    if check is not None and check.warning:
         parts.append(f"<p class='warn' id='headline-warning'>Warning: "
-                     f"{html.escape(check['warning'])}</p>")
-    comp_warning = (check.get("mag_comp") or {}).get("warning")
+                     f"{html.escape(check.warning)}</p>")
+    comp_warning = check.mag_comp.warning if check is not None and check.mag_comp else None
     if comp_warning:
         parts.append(f"<p class='warn' id='mag-comp-warning'>Warning: "
                      f"{html.escape(comp_warning)}</p>")
