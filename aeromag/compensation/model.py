@@ -147,8 +147,8 @@ class ModelMeta:
     A model file (``MODEL.json``, written by ``aeromag calibrate``) is the calibration's
     report (:class:`~aeromag.compensation.report_types.CompensationReport`); the model is its
     ``terms``, ``coef``, ``scale_nT`` and ``extended``.  The rest is typed as the report it
-    is, not kept as a bag of keys: the model's own ``terms`` and ``coef`` are
-    :class:`TLModel`'s (the report's are what the file said).
+    is, not kept as a bag of keys.  The model's ``terms`` and ``coef`` are :class:`TLModel`'s
+    alone: a report read from a file holds none (a fitted model's report holds the same).
 
     Attributes
     ----------
@@ -189,7 +189,7 @@ class ModelMeta:
         Parameters
         ----------
         d : dict
-            The model document (or its other keys alone).
+            The model document (its :data:`MODEL_KEYS` are the model's, not read here).
         path : str, optional
             The file it was read from.
 
@@ -199,7 +199,7 @@ class ModelMeta:
             ``report`` None when the document holds nothing beyond the model.
         """
         rest = {k: v for k, v in d.items() if k not in MODEL_KEYS}
-        return cls(path, CompensationReport.from_dict(d) if rest else None)
+        return cls(path, CompensationReport.from_dict(rest) if rest else None)
 
 
 @dataclass

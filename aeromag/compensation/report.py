@@ -20,7 +20,8 @@ import numpy as np
 from .. import __version__
 from .._core.angles import circular_mean_rad
 from ..conventions import EPOCH_DISPLAY_S
-from .config import CompensationConfig, ConfigRecord
+from .config import CompensationConfig
+from .config_record import ConfigRecord
 from .model import TLModel
 from .report_types import (
     ChunkSettings,
