@@ -130,7 +130,7 @@ def check_total_field(model: Any, mag_from_flux: bool, source: str) -> None:
     Parameters
     ----------
     model : TLModel
-        The model (its ``meta["mag_from_fluxgate"]`` says what it was fitted on).
+        The model (its ``meta.mag_from_fluxgate`` says what it was fitted on).
     mag_from_flux : bool
         Whether this log's total field is the fluxgate magnitude.
     source : str
