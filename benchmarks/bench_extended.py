@@ -65,12 +65,12 @@ def main() -> None:
                               else am.calibrate(df, cfg))
             times[label].append(time.perf_counter() - t0)
     for label, res in results.items():
-        held = (res.report.extended or {}).get("held_out", {})
+        held = res.report.extended.held_out if res.report.extended is not None else None
         print(f"{label}: best {min(times[label]):.2f} s, median "
               f"{np.median(times[label]):.2f} s of {a.repeat}; residual std "
               f"{res.metrics.residual_std_nT:.4f} nT"
-              + (f"; held-out {held['residual_std_nT']:.4f} nT, TL only "
-                 f"{held['tl_only_residual_std_nT']:.4f} nT" if held else ""))
+              + (f"; held-out {held.residual_std_nT:.4f} nT, TL only "
+                 f"{held.tl_only_residual_std_nT:.4f} nT" if held else ""))
     times = {k: float(np.median(v)) for k, v in times.items()}
     r = times[f"16 terms + {a.extras} extras"] / times["16 terms"]
     print(f"{a.rows} rows{' (files, FOM on)' if a.files else ' (in memory, FOM off)'}: ratio "

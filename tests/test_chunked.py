@@ -58,7 +58,7 @@ def test_chunked_equals_in_memory(tmp_path, model_path, with_line, ext):
     cfg = CompensationConfig()
     ref = compensate_file(src, tmp_path / "mem.csv", cfg, model=model_path)
     rep = apply_model_chunked(src, tmp_path / "chunk.csv", model_path, cfg, chunk_rows=2500)
-    assert rep.n_rows == len(df) and len(df) > 5 * 2500 + 2 * rep.chunked["overlap_rows"]
+    assert rep.n_rows == len(df) and len(df) > 5 * 2500 + 2 * rep.chunked.overlap_rows
     _compare(tmp_path / "mem.csv", tmp_path / "chunk.csv")
     a = json.loads((tmp_path / "mem.json").read_text())
     b = json.loads((tmp_path / "chunk.json").read_text())

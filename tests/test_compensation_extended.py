@@ -57,17 +57,17 @@ def sim():
     return cur, logged, truth_c, floor
 
 
-def _held(res) -> dict:
-    return res.report.extended["held_out"]
+def _held(res):
+    return res.report.extended.held_out
 
 
 def test_simulator_extras_reach_the_noise_floor(sim):
     cur, _, _, floor = sim
     res = calibrate(cur, CompensationConfig(extras=EXTRAS, fom=False), source="sim")
     h = _held(res)
-    assert h["tl_only_residual_std_nT"] > 1.5 * floor  # the 16 terms cannot
-    assert h["residual_std_nT"] <= 1.10 * floor, (h["residual_std_nT"], floor)
-    names = [c["name"] for c in h["contributions"]]
+    assert h.tl_only_residual_std_nT > 1.5 * floor  # the 16 terms cannot
+    assert h.residual_std_nT <= 1.10 * floor, (h.residual_std_nT, floor)
+    names = [c["name"] for c in h.contributions]
     assert names == list(EXTRAS)
     # The model file records the extras and what the reference was (none).
     d = res.model.to_dict()
@@ -79,7 +79,7 @@ def test_simulator_extras_reach_the_noise_floor(sim):
 def test_simulator_extras_do_not_hurt_without_currents(sim):
     _, logged, _, _ = sim
     h = _held(calibrate(logged, CompensationConfig(extras=EXTRAS, fom=False), source="sim"))
-    assert h["residual_std_nT"] <= 1.02 * h["tl_only_residual_std_nT"]
+    assert h.residual_std_nT <= 1.02 * h.tl_only_residual_std_nT
 
 
 def test_simulator_reference_recovers_truth_and_level(sim):
@@ -169,8 +169,8 @@ def test_independent_generator_extras_and_reference():
     res = calibrate(df, CompensationConfig(extras=("i_a", "i_b", "i_c"), fom=False,
                                            segment_seconds=60), source="indep")
     h = _held(res)
-    assert h["tl_only_residual_std_nT"] > 1.5 * floor
-    assert h["residual_std_nT"] <= 1.10 * floor, (h["residual_std_nT"], floor)
+    assert h.tl_only_residual_std_nT > 1.5 * floor
+    assert h.residual_std_nT <= 1.10 * floor, (h.residual_std_nT, floor)
     # Against the reference over the full band: the TL coefficients of the truth.
     res = calibrate(df, CompensationConfig(extras=("i_a", "i_b", "i_c"), reference="ref",
                                            fom=False, segment_seconds=60), source="indep")
@@ -185,7 +185,7 @@ def test_mlp_kept_only_where_it_beats_linear(caplog):
     cfg = CompensationConfig(extras=("i_a", "i_b", "i_c"), reference="ref", estimator="mlp",
                              fom=False, segment_seconds=60)
     res = calibrate(df, cfg, source="indep")
-    rec = res.report.extended["mlp_training"]
+    rec = res.report.extended.mlp_training
     assert rec["kept"] and rec["mlp_std_nT"] < 0.9 * rec["linear_std_nT"]
     d = json.loads(json.dumps(res.model.to_dict()))  # portable: plain lists only
     assert isinstance(d["extended"]["mlp"]["weights"][0][0], list)
@@ -197,7 +197,7 @@ def test_mlp_kept_only_where_it_beats_linear(caplog):
     df2, _, _, _ = _independent_flight(3)
     with caplog.at_level(logging.WARNING):
         res2 = calibrate(df2, cfg, source="indep")
-    assert not res2.report.extended["mlp_training"]["kept"]
+    assert not res2.report.extended.mlp_training["kept"]
     assert res2.model.extended.mlp is None
     assert "linear model is used" in caplog.text
 
@@ -207,7 +207,7 @@ def test_pls_estimator(sim):
     res = calibrate(cur, CompensationConfig(extras=EXTRAS, estimator="pls", fom=False),
                     source="sim")
     h = _held(res)
-    assert h["residual_std_nT"] < 0.8 * h["tl_only_residual_std_nT"]
+    assert h.residual_std_nT < 0.8 * h.tl_only_residual_std_nT
     assert 1 <= res.model.extended.param <= 20
 
 
@@ -221,7 +221,7 @@ def test_constant_and_empty_extras_dropped_with_warning(sim, caplog):
     assert "--extra const is constant" in caplog.text
     assert "--extra empty is empty" in caplog.text
     assert res.model.extended.extras == ("cur_1",)
-    assert res.report.extended["dropped_extras"] == ["const", "empty"]
+    assert res.report.extended.dropped_extras == ["const", "empty"]
 
 
 def test_reference_with_gaps_rows_left_out(sim, caplog):
@@ -231,7 +231,7 @@ def test_reference_with_gaps_rows_left_out(sim, caplog):
     with caplog.at_level(logging.WARNING):
         res = calibrate(df, CompensationConfig(reference="ref", fom=False), source="sim")
     assert "401 of 6000 rows have no value in ref: left out of the fit" in caplog.text
-    assert res.report.extended["rows_left_out"] == 401
+    assert res.report.extended.rows_left_out == 401
     true = np.asarray(truth["coef"])
     assert np.abs(res.model.coef - true).max() < 0.01 * np.abs(true).max()
 
@@ -297,7 +297,7 @@ def test_reports_without_the_options_unchanged(sim):
     cur, _, _, _ = sim
     res = calibrate(cur, CompensationConfig(fom=False), source="sim")
     assert "extended" not in res.report.to_dict()
-    assert not {"reference", "extras", "estimator"} & set(res.report.config)
+    assert not {"reference", "extras", "estimator"} & set(res.report.config.options())
     assert "extended" not in res.model.to_dict()
 
 

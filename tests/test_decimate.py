@@ -162,8 +162,8 @@ def test_high_rate_fit_is_decimated_and_reported(high_rate_fits):
     assert decimation_factor(rate, band) == q
     assert dec.report.fit.decimation_factor == q
     assert full.report.fit.decimation_factor == 1
-    assert dec.report.config["decimate"] is True
-    assert full.report.config["decimate"] is False
+    assert dec.report.config.decimate is True
+    assert full.report.config.decimate is False
     # The fit used the decimated samples; the model was applied to every original one.
     assert dec.report.fit.n_samples < full.report.fit.n_samples / (q * 0.9)
     assert len(dec.data) == len(full.data)

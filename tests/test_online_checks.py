@@ -104,8 +104,8 @@ def test_the_python_api_records_the_warning_too(logs, tmp_path, caplog):
     out = tmp_path / "api.csv"
     with caplog.at_level("WARNING", logger="aeromag"):
         rep = compensate_online_file(logs["worse"], out)
-    assert any("improvement ratio" in w for w in rep["warnings"])
-    assert _report(out)["warnings"] == rep["warnings"]
+    assert any("improvement ratio" in w for w in rep.warnings)
+    assert _report(out)["warnings"] == rep.warnings
     assert "improvement ratio" in caplog.text
 
 
@@ -117,6 +117,6 @@ def test_the_frame_function_logs_it(logs, caplog):
     df = pd.read_csv(logs["worse"])
     with caplog.at_level("WARNING", logger="aeromag"):
         _, rep, _ = compensate_online_frame(df, source="quiet.csv")
-    assert rep["metrics"]["improvement_ratio"] < 1.0
+    assert rep.metrics.improvement_ratio < 1.0
     assert "quiet.csv: the online fit leaves more band-passed variation" in caplog.text
     assert "forgetting=0.9999" in caplog.text  # the library's words

@@ -22,6 +22,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import aeromag as am
+from aeromag.compensation.report_types import HeadlineCheck, MagCompCheck
 from aeromag.errors import InputError
 from aeromag.io.json import _jsonable, dumps_readable
 from aeromag.qc import (
@@ -30,8 +31,6 @@ from aeromag.qc import (
     FomManeuver,
     FomSummary,
     FomTableRow,
-    HeadlineCheck,
-    MagCompCheck,
     ManeuverSummary,
     NoiseSummary,
     PerPieceRms,

@@ -76,13 +76,13 @@ def test_unmodified_outputs_reproduce_out_json_without_warning(outs, caplog):
         res, cfg = load_compensated(d / f"{name}.csv")
         rep = headline_from_data(res, cfg).report
         check = rep.headline_check
-        assert check["compared"] and check["agree"], (name, check)
-        assert check["warning"] is None
+        assert check.compared and check.agree, (name, check)
+        assert check.warning is None
         rec = rep.recorded_metrics
         assert rep.metrics.n_samples == rec.n_samples, name
         assert rep.metrics.all_n_samples == rec.all_n_samples, name
         tol = 1e-12 if name != "cal_fluxgate" else 1e-3  # float32 fluxgate in the reader
-        assert check["max_relative_difference"] <= tol, (name, check["max_relative_difference"])
+        assert check.max_relative_difference <= tol, (name, check.max_relative_difference)
     assert "disagrees" not in caplog.text
 
 
@@ -120,7 +120,7 @@ def test_cut_lines_headline_the_remaining_data(outs):
     assert rep.metrics.n_samples <= kept_rows
     # the same as compensating only the remaining rows' numbers: OUT.json's are of all lines
     assert rep.metrics.improvement_ratio != rec.improvement_ratio
-    assert "n_samples" in rep.headline_check["warning"]
+    assert "n_samples" in rep.headline_check.warning
     out = d / "rep_cut"
     _cli("report", str(csv), "-o", str(out))
     qc = json.loads((out / "qc.json").read_text())
@@ -146,12 +146,12 @@ def test_compare_headline_tolerance_and_counts():
         return CompensationMetrics(**(base | kw))
 
     near = m(improvement_ratio=2.0 * (1 + REL_TOL / 2))
-    assert compare_headline(near, m())["agree"] is True
+    assert compare_headline(near, m()).agree is True
     far = m(improvement_ratio=2.0 * (1 + 3 * REL_TOL))
-    assert compare_headline(far, m())["agree"] is False
-    assert compare_headline(m(n_samples=99), m())["agree"] is False
-    assert compare_headline(far, m(), online=True)["agree"] is False  # online: 1e-6 too
-    assert compare_headline(m(), None)["compared"] is False
+    assert compare_headline(far, m()).agree is False
+    assert compare_headline(m(n_samples=99), m()).agree is False
+    assert compare_headline(far, m(), online=True).agree is False  # online: 1e-6 too
+    assert compare_headline(m(), None).compared is False
 
 
 def test_fom_headline_is_kept_first():

@@ -82,12 +82,12 @@ def test_unmodified_outputs_mag_comp_agrees(outs, caplog):
     d, names = outs
     for name in names:
         res, cfg = load_compensated(d / name)
-        chk = headline_from_data(res, cfg).report.headline_check["mag_comp"]
-        assert chk["compared"] > 1000, (name, chk)
-        assert chk["warning"] is None, (name, chk)
+        chk = headline_from_data(res, cfg).report.headline_check.mag_comp
+        assert chk.compared > 1000, (name, chk)
+        assert chk.warning is None, (name, chk)
         # measured: exactly 0 nT, and 2.0e-3 nT with the (float32-read) fluxgate magnitude
         tol = MAG_COMP_TOL_NT / 100 if name != "fluxgate.csv" else MAG_COMP_TOL_FLUXGATE_NT / 5
-        assert chk["max_abs_difference_nT"] <= tol, (name, chk)
+        assert chk.max_abs_difference_nT <= tol, (name, chk)
     assert "mag_comp" not in caplog.text
 
 
@@ -115,17 +115,17 @@ def test_small_mag_comp_change_beyond_tolerance_warns(outs):
     csv = _copy(d, "chunk.csv", "comp_off.csv",
                 lambda x: x.assign(mag_comp=x["mag_comp"] + np.where(x.index == 500, 0.01, 0)))
     res, cfg = load_compensated(csv)
-    chk = headline_from_data(res, cfg).report.headline_check["mag_comp"]
-    assert chk["first_row"] == 500 and chk["warning"]
-    assert chk["max_abs_difference_nT"] == pytest.approx(0.01, rel=1e-6)
+    chk = headline_from_data(res, cfg).report.headline_check.mag_comp
+    assert chk.first_row == 500 and chk.warning
+    assert chk.max_abs_difference_nT == pytest.approx(0.01, rel=1e-6)
 
 
 def test_online_nofilter_zeroed_mag_comp_warns(outs):
     d, _ = outs
     csv = _copy(d, "online_nofilter.csv", "onl0.csv", lambda x: x.assign(mag_comp=0.0))
     res, cfg = load_compensated(csv)
-    chk = headline_from_data(res, cfg).report.headline_check["mag_comp"]
-    assert chk["warning"] and "unfiltered or low-passed" in chk["warning"]
+    chk = headline_from_data(res, cfg).report.headline_check.mag_comp
+    assert chk.warning and "unfiltered or low-passed" in chk.warning
 
 
 def test_parquet_and_xyz_warnings_name_the_file_kind(outs):
@@ -133,9 +133,9 @@ def test_parquet_and_xyz_warnings_name_the_file_kind(outs):
     pq = _copy(d, "model.parquet", "tl0.parquet", lambda x: x.assign(mag_tl=0.0))
     res, cfg = load_compensated(pq)
     rep = headline_from_data(res, cfg).report
-    w = rep.headline_check["warning"]
+    w = rep.headline_check.warning
     assert "the Parquet file was changed after compensation" in w and "CSV" not in w
-    assert "the Parquet file was changed" in rep.headline_check["mag_comp"]["warning"]
+    assert "the Parquet file was changed" in rep.headline_check.mag_comp.warning
     assert log_kind("a/OUT.xyz") == "the XYZ file"
     assert log_kind("OUT.CSV") == "the CSV"
     assert log_kind("OUT.dat") == "the log"

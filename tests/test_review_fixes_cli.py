@@ -41,7 +41,7 @@ def test_compensate_file_fitted_on_itself_warns_without_a_box(tmp_path, caplog):
     with caplog.at_level(logging.WARNING, logger="aeromag"):
         res = compensate_file(SAMPLES / "survey.csv", out)  # no self_check=: the default
     assert res.report.self_calibration is not None
-    assert res.report.self_calibration["calibration_box"] is False
+    assert res.report.self_calibration.calibration_box is False
     warned = [r.getMessage() for r in caplog.records if "without a calibration box" in
               r.getMessage()]
     assert warned and "flattering" in warned[0] and "model=MODEL" in warned[0]

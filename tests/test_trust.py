@@ -234,7 +234,7 @@ def test_calibrate_warns_loudly_when_it_must_use_time_windows(caplog, monkeypatc
     # the Python API names the parameter; the CLI shows --col line=SOURCE (flag_message)
     assert len(warned) == 1 and "columns={'line': 'SOURCE'}" in warned[0]
     assert "never turns" in warned[0]
-    assert res.report.segmentation["method"] == "time windows"
+    assert res.report.segmentation.method == "time windows"
 
 
 def test_a_log_without_any_scalar_uses_the_fluxgate_with_a_warning(samples, tmp_path):

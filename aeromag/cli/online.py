@@ -60,10 +60,10 @@ def run_online(opts: Options) -> None:
                                         columns=columns, units=unit_map,
                                         fmt=opts.get("fmt"),
                                         mark_unconverged=bool(opts.get("mark_unconverged")))
-    m = report["metrics"]
+    m = report.metrics
     typer.echo(f"wrote {opts.output} and {json_path_for(opts.output)}: online fit, lambda "
-               f"{report['forgetting']:g}, improvement ratio {m['improvement_ratio']:.2f}, "
-               f"residual {m['residual_std_nT']:.3f} nT")
+               f"{report.forgetting:g}, improvement ratio {m.improvement_ratio:.2f}, "
+               f"residual {m.residual_std_nT:.3f} nT")
 
 
 def dispatch(opts: Options) -> bool:

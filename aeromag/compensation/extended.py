@@ -27,6 +27,7 @@ import pandas as pd
 from ..errors import FitError, InputError
 from .network import MLPCorrection, train_mlp
 from .normal import SegmentStats
+from .report_types import ExtendedSummary, HeldOut
 
 log = logging.getLogger(__name__)
 
@@ -452,19 +453,35 @@ class ExtendedModel:
             out += self.mlp.predict(np.column_stack([tl_design(), *cols]))
         return out
 
+    def summary(self) -> ExtendedSummary:
+        """The report's ``extended`` block: the fit's record and the model's part.
+
+        Returns
+        -------
+        ExtendedSummary
+            In the order of the record's origin: a fit's record starts with its
+            ``reference``; a model file's record (:meth:`from_dict`) holds none, and its
+            block writes the reference after the record.
+        """
+        rec = dict(self.record)
+        fitted = next(iter(rec), None) == "reference"
+        rec.pop("reference", None)
+        known = {k: rec.pop(k) for k in ("rows_left_out", "dropped_extras", "mlp_training",
+                                         "n_fit_samples") if k in rec}
+        held = HeldOut.from_dict(rec.pop("held_out", None))
+        return ExtendedSummary(
+            reference=self.reference, **known, held_out=held,
+            estimator=self.estimator, param=float(self.param),
+            intercept_nT=float(self.intercept_nT),
+            extras=[{"name": c, "coef_nT_per_unit": float(v), "center": float(m),
+                     "scale": float(s)} for c, v, m, s in
+                    zip(self.extras, self.extra_coef, self.extra_center, self.extra_scale,
+                        strict=True)],
+            mlp=None if self.mlp is None else self.mlp.to_dict(), fitted=fitted, extra=rec)
+
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dictionary."""
-        d = dict(self.record)
-        d.update({
-            "reference": self.reference, "estimator": self.estimator, "param": float(self.param),
-            "intercept_nT": float(self.intercept_nT),
-            "extras": [{"name": c, "coef_nT_per_unit": float(v), "center": float(m),
-                        "scale": float(s)} for c, v, m, s in
-                       zip(self.extras, self.extra_coef, self.extra_center, self.extra_scale,
-                           strict=True)],
-            "mlp": None if self.mlp is None else self.mlp.to_dict(),
-        })
-        return d
+        """JSON-ready dictionary (the model file's ``extended``: :meth:`summary`'s block)."""
+        return self.summary().to_dict()
 
     @classmethod
     def from_dict(cls, d: Any, n_terms: int, source: str) -> ExtendedModel:

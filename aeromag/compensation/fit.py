@@ -19,7 +19,7 @@ from .._core.lstsq import scaled_condition, solve_normal
 from ..errors import FitError, InputError
 from .config import CompensationConfig
 from .decimation import fit_arrays
-from .model import TLModel
+from .model import ModelMeta, TLModel
 from .normal import SegmentStats, segment_normal_equations, segment_residual_std
 from .prepare import Prepared, prepare
 from .report import fit_report
@@ -235,10 +235,7 @@ def fit_result(prep: Prepared, cfg: CompensationConfig, *, fit: FitOutcome | Non
     fit = fit if fit is not None else fit_outcome(prep, cfg)
     report = fit_report(fit)
     if extended is not None:
-        report.extended = extended.to_dict()
-    doc = report.to_dict()  # the model file's metadata, and the segments as a table
-    model = TLModel(fit.terms, fit.coef, meta={k: v for k, v in doc.items()
-                                               if k not in ("terms", "coef", "scale_nT",
-                                                            "extended")}, extended=extended)
+        report.extended = extended.summary()
+    model = TLModel(fit.terms, fit.coef, meta=ModelMeta(report=report), extended=extended)
     return CompensationResult(None, model, report, fit.screening.screen,
-                              pd.DataFrame(doc["segments"]), fit=fit)
+                              pd.DataFrame([s.to_dict() for s in report.segments]), fit=fit)

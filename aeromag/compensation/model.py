@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from .report_types import CompensationReport
 from .terms import (
     ALL_TERMS,
     AXIS,
@@ -135,6 +136,71 @@ def coefficient_forms(
     return p, M, N, bias
 
 
+#: Keys of a model file that are the model itself (the others are its fit report).
+MODEL_KEYS = ("terms", "coef", "scale_nT", "extended")
+
+
+@dataclass
+class ModelMeta:
+    """Where a model comes from: the file it was read from and the fit report it carries.
+
+    A model file (``MODEL.json``, written by ``aeromag calibrate``) is the calibration's
+    report (:class:`~aeromag.compensation.report_types.CompensationReport`); the model is its
+    ``terms``, ``coef``, ``scale_nT`` and ``extended``.  The rest is typed as the report it
+    is, not kept as a bag of keys.  The model's ``terms`` and ``coef`` are :class:`TLModel`'s
+    alone: a report read from a file holds none (a fitted model's report holds the same).
+
+    Attributes
+    ----------
+    path : str or None
+        The file the model was read from, as the workflow that read it names it (never
+        written into it; the applied report's ``model_source``, ``given`` without one).
+    report : CompensationReport or None
+        The fit report: the fit's own for a model fitted here (the result's report, so the
+        metrics, ``segmentation`` and ``qc`` added to it are the model's too), or the model
+        file read back (:meth:`CompensationReport.from_dict`: keys it does not know are in
+        its ``extra``); None for a model built from coefficients alone.
+    """
+
+    path: str | None = None
+    report: CompensationReport | None = None
+
+    @property
+    def mag_from_fluxgate(self) -> bool | None:
+        """Whether the model was fitted on the fluxgate magnitude (None: not recorded)."""
+        return None if self.report is None else self.report.mag_from_fluxgate
+
+    def to_dict(self) -> dict[str, Any]:
+        """The model file's keys beside the model's own (:data:`MODEL_KEYS`).
+
+        Returns
+        -------
+        dict
+            The report's document without :data:`MODEL_KEYS` (empty without a report).
+        """
+        if self.report is None:
+            return {}
+        return {k: v for k, v in self.report.to_dict().items() if k not in MODEL_KEYS}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any], path: str | None = None) -> ModelMeta:
+        """The metadata of a model document (its keys but :data:`MODEL_KEYS`).
+
+        Parameters
+        ----------
+        d : dict
+            The model document (its :data:`MODEL_KEYS` are the model's, not read here).
+        path : str, optional
+            The file it was read from.
+
+        Returns
+        -------
+        ModelMeta
+            ``report`` None when the document holds nothing beyond the model.
+        """
+        rest = {k: v for k, v in d.items() if k not in MODEL_KEYS}
+        return cls(path, CompensationReport.from_dict(rest) if rest else None)
+
 
 @dataclass
 class TLModel:
@@ -148,8 +214,9 @@ class TLModel:
         Coefficients [nT; eddy terms nT*s], same order.
     scale_nT : float
         The ``|B|`` scale of the induced/eddy terms (50000 nT).
-    meta : dict
-        Provenance and fit report (band, segments, metrics...).
+    meta : ModelMeta
+        Provenance and fit report (:class:`ModelMeta`; a dict given here, a model file's
+        other keys, is read by :meth:`ModelMeta.from_dict`).
     extended : ExtendedModel or None
         The reference, extras and network of an extended fit
         (:mod:`aeromag.compensation.extended`); saved under ``extended``.
@@ -158,12 +225,14 @@ class TLModel:
     terms: tuple[str, ...]
     coef: np.ndarray
     scale_nT: float = FIELD_SCALE_NT
-    meta: dict[str, Any] = field(default_factory=dict)
+    meta: ModelMeta = field(default_factory=ModelMeta)
     extended: Any = None
 
     def __post_init__(self) -> None:
         self.terms = tuple(self.terms)
         self.coef = np.asarray(self.coef, dtype=np.float64)
+        if isinstance(self.meta, dict):
+            self.meta = ModelMeta.from_dict(self.meta)
         if self.coef.shape != (len(self.terms),):
             raise InputError(
                 f"model has {len(self.terms)} terms but {self.coef.size} coefficients"
@@ -193,7 +262,7 @@ class TLModel:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary (``terms``, ``coef``, ``scale_nT`` and the report)."""
-        d = dict(self.meta)
+        d = self.meta.to_dict()
         d.update(
             {
                 "terms": list(self.terms),
@@ -223,7 +292,7 @@ class TLModel:
             raise InputError(f"{source}: {len(terms)} terms but {len(coef)} coefficients")
         if not np.all(np.isfinite(coef)):
             raise InputError(f"{source}: the model has non-finite coefficients")
-        meta = {k: v for k, v in d.items() if k not in ("terms", "coef", "scale_nT", "extended")}
+        meta = ModelMeta.from_dict(d)
         ext = None
         if d.get("extended") is not None:
             from .extended import ExtendedModel

@@ -89,7 +89,7 @@ def run_compensation(
                                         source=source, release_flux=True)
         check_plausible(data, metrics, prep, cfg, fitted=True)
         report = dataclasses.replace(fit.report, metrics=metrics, model_source="fitted")
-        fit.model.meta["metrics"] = metrics.to_dict()
+        fit.model.meta.report = report  # the model file is this report
         return CompensationResult(data, fit.model, report, fit.screen, fit.segment_table,
                                   fit=fit.fit, config=cfg, comp_bp_nT=comp_bp,
                                   segment=prep.segment, fs_hz=prep.fs)
@@ -107,7 +107,7 @@ def run_compensation(
                                        dict(zip(seg_ids.tolist(), counts.tolist(), strict=True)),
                                        metrics))
     if model.extended is not None:
-        report.extended = model.extended.to_dict()
+        report.extended = model.extended.summary()
     return CompensationResult(data, model, report, None, None, config=cfg, comp_bp_nT=comp_bp,
                               segment=prep.segment, fs_hz=prep.fs)
 

@@ -130,7 +130,7 @@ def check_total_field(model: Any, mag_from_flux: bool, source: str) -> None:
     Parameters
     ----------
     model : TLModel
-        The model (its ``meta["mag_from_fluxgate"]`` says what it was fitted on).
+        The model (its ``meta.mag_from_fluxgate`` says what it was fitted on).
     mag_from_flux : bool
         Whether this log's total field is the fluxgate magnitude.
     source : str
@@ -141,7 +141,7 @@ def check_total_field(model: Any, mag_from_flux: bool, source: str) -> None:
     InputError
         On a mismatch.
     """
-    fitted_on_flux = model.meta.get("mag_from_fluxgate")
+    fitted_on_flux = model.meta.mag_from_fluxgate
     if fitted_on_flux is None or bool(fitted_on_flux) == mag_from_flux:
         return
     kinds = ("the scalar magnetometer ('mag')", "the fluxgate magnitude")

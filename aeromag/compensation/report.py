@@ -20,9 +20,11 @@ import numpy as np
 from .. import __version__
 from .._core.angles import circular_mean_rad
 from ..conventions import EPOCH_DISPLAY_S
-from .config import FIT_ONLY, CompensationConfig, config_dict
+from .config import CompensationConfig
+from .config_record import ConfigRecord
 from .model import TLModel
 from .report_types import (
+    ChunkSettings,
     CompensationMetrics,
     CompensationReport,
     FitSummary,
@@ -138,8 +140,8 @@ class AppliedRun:
         The ``qc`` block (:class:`aeromag.qc.QCMetrics`).
     n_rows : int or None
         Rows of a chunked run.
-    chunked : dict or None
-        A chunked run's ``chunk_rows`` and ``overlap_rows``.
+    chunked : ChunkSettings or None
+        A chunked run's chunk and overlap rows.
     """
 
     source: str
@@ -151,7 +153,7 @@ class AppliedRun:
     residual_by_segment: dict[int, float | None] = field(default_factory=dict)
     qc: Any = None
     n_rows: int | None = None
-    chunked: dict[str, int] | None = None
+    chunked: ChunkSettings | None = None
 
 
 def applied_report(run: AppliedRun) -> CompensationReport:
@@ -173,7 +175,7 @@ def applied_report(run: AppliedRun) -> CompensationReport:
         terms=list(model.terms),
         coef=[float(c) for c in model.coef],
         scale_nT=model.scale_nT,
-        model_source=str(model.meta.get("path", "given")),
+        model_source=str(model.meta.path or "given"),
         band_hz=list(cfg.band_hz),
         sampling_rate_hz=run.fs_hz,
         segments=[SegmentRow(int(i), int(run.segment_n[i]), True, None,
@@ -182,7 +184,7 @@ def applied_report(run: AppliedRun) -> CompensationReport:
         metrics=run.metrics,
         # What the application used: the fit-only options played no part (the model's terms
         # are ``terms`` above).
-        config={k: v for k, v in config_dict(cfg).items() if k not in FIT_ONLY},
+        config=ConfigRecord.from_config(cfg, applied=True),
         qc=run.qc, n_rows=run.n_rows, chunked=run.chunked,
     )
     if any(v is not None for v in run.residual_by_segment.values()):
@@ -496,5 +498,5 @@ def fit_report(fit: FitOutcome) -> CompensationReport:
         ),
         segments=_segment_entries(fit),
         screening=_screening_block(fit),
-        config=config_dict(cfg),
+        config=ConfigRecord.from_config(cfg),
     )

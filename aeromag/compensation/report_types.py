@@ -2,7 +2,9 @@
 
 Its parts: :class:`~aeromag.compensation.metrics.CompensationMetrics` (the headline),
 :class:`~aeromag.compensation.segments.SegmentRow` (one per segment), :class:`FitSummary`,
-:class:`ScreeningSummary`, :class:`ResidualScreen`.
+:class:`ScreeningSummary`, :class:`ResidualScreen`, the recorded options
+(:class:`~aeromag.compensation.config_record.ConfigRecord`) and the smaller blocks of
+:mod:`aeromag.compensation.report_blocks` (re-exported here).
 
 The fit and the application of a saved model build these dataclasses
 (:mod:`aeromag.compensation.report`); every layer above (quality control, plots, the command
@@ -18,10 +20,23 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from .config_record import ConfigRecord
 from .metrics import CompensationMetrics, block_dict, block_from_dict, split_fields
+from .report_blocks import (
+    CalibrationCheck,
+    ChunkSettings,
+    ExtendedSummary,
+    HeadlineCheck,
+    HeadlineDifference,
+    HeldOut,
+    MagCompCheck,
+    Segmentation,
+)
 from .segments import SegmentRow
 
-__all__ = ["CompensationReport", "FitSummary", "ResidualScreen", "ScreeningSummary"]
+__all__ = ["CalibrationCheck", "ChunkSettings", "CompensationReport", "ConfigRecord",
+           "ExtendedSummary", "FitSummary", "HeadlineCheck", "HeadlineDifference", "HeldOut",
+           "MagCompCheck", "ResidualScreen", "ScreeningSummary", "Segmentation"]
 
 
 _known = split_fields
@@ -281,8 +296,8 @@ class CompensationReport:
         One row per segment.
     screening : ScreeningSummary
         How segments were screened.
-    config : dict
-        The options recorded (:func:`aeromag.compensation.config.config_dict`).
+    config : ConfigRecord or None
+        The options recorded (:meth:`ConfigRecord.from_config`).
     model_source : str or None
         ``fitted``, or the saved model's path (``given`` without one).
     filter_order : int or None
@@ -293,18 +308,18 @@ class CompensationReport:
         What the fit measured (None when a saved model was applied).
     metrics : CompensationMetrics or None
         Headline metrics (None for a fit without data).
-    extended : dict or None
-        The extended model's block (:meth:`ExtendedModel.to_dict`).
-    segmentation : dict or None
+    extended : ExtendedSummary or None
+        The extended model's block (:meth:`ExtendedModel.summary`).
+    segmentation : Segmentation or None
         How a calibration log without lines was segmented.
     qc : object or None
         The quality-control block (:attr:`aeromag.qc.QCResult.metrics`; as read, a dict, from
         a file: quality control builds on this package, not the other way).
-    calibration_box, self_calibration : dict or None
+    calibration_box, self_calibration : CalibrationCheck or None
         Whether the log holds a calibration box (calibrate; a log fitted on itself).
     n_rows : int or None
         Rows of a chunked run.
-    chunked : dict or None
+    chunked : ChunkSettings or None
         Chunk settings of a chunked run.
     residual_screen : ResidualScreen or None
         The applied model's residual screen.
@@ -313,7 +328,7 @@ class CompensationReport:
     recorded_metrics : CompensationMetrics or None
         The metrics a report file recorded, when ``aeromag report`` recomputed them
         (:func:`aeromag.workflows.report_check.headline_from_data`).
-    headline_check : dict or None
+    headline_check : HeadlineCheck or None
         That comparison.
     extra : dict
         Keys of a report file this class does not know (written after the others).
@@ -329,23 +344,23 @@ class CompensationReport:
     sampling_rate_hz: float | None = None
     segments: list[SegmentRow] = field(default_factory=list)
     screening: ScreeningSummary = field(default_factory=ScreeningSummary)
-    config: dict[str, Any] | None = None
+    config: ConfigRecord | None = None
     model_source: str | None = None
     filter_order: int | None = None
     mag_from_fluxgate: bool | None = None
     fit: FitSummary | None = None
     metrics: CompensationMetrics | None = None
-    extended: dict[str, Any] | None = None
-    segmentation: dict[str, Any] | None = None
+    extended: ExtendedSummary | None = None
+    segmentation: Segmentation | None = None
     qc: Any = None
-    calibration_box: dict[str, Any] | None = None
-    self_calibration: dict[str, Any] | None = None
+    calibration_box: CalibrationCheck | None = None
+    self_calibration: CalibrationCheck | None = None
     n_rows: int | None = None
-    chunked: dict[str, Any] | None = None
+    chunked: ChunkSettings | None = None
     residual_screen: ResidualScreen | None = None
     warnings: list[Any] | None = None
     recorded_metrics: CompensationMetrics | None = field(default=None, repr=False)
-    headline_check: dict[str, Any] | None = field(default=None, repr=False)
+    headline_check: HeadlineCheck | None = field(default=None, repr=False)
     extra: dict[str, Any] = field(default_factory=dict)
 
     def kept_ids(self) -> list[int]:
@@ -445,4 +460,11 @@ class CompensationReport:
         kw["metrics"] = CompensationMetrics.from_dict(kw.get("metrics"))
         kw["recorded_metrics"] = CompensationMetrics.from_dict(kw.get("recorded_metrics"))
         kw["residual_screen"] = ResidualScreen.from_dict(kw.get("residual_screen"))
+        kw["config"] = ConfigRecord.from_dict(kw.get("config"))
+        kw["extended"] = ExtendedSummary.from_dict(kw.get("extended"))
+        kw["segmentation"] = Segmentation.from_dict(kw.get("segmentation"))
+        kw["calibration_box"] = CalibrationCheck.from_dict(kw.get("calibration_box"))
+        kw["self_calibration"] = CalibrationCheck.from_dict(kw.get("self_calibration"))
+        kw["chunked"] = ChunkSettings.from_dict(kw.get("chunked"))
+        kw["headline_check"] = HeadlineCheck.from_dict(kw.get("headline_check"))
         return cls(**kw, extra=extra)

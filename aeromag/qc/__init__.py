@@ -29,9 +29,6 @@ from .maneuvers import CARDINALS, MANEUVERS, ManeuverResult, detect_heading_legs
 from .noise import FOURTH_DIFF_NORM, band_passed, fourth_difference_noise, grouped_std
 from .quality import QCMetrics, QCResult, compute_qc, quality_metrics
 from .summaries import (
-    HeadlineCheck,
-    HeadlineDifference,
-    MagCompCheck,
     ManeuverSummary,
     NoiseSummary,
     PerPieceRms,
@@ -49,9 +46,6 @@ __all__ = [
     "FomManeuver",
     "FomSummary",
     "FomTableRow",
-    "HeadlineCheck",
-    "HeadlineDifference",
-    "MagCompCheck",
     "ManeuverResult",
     "ManeuverSummary",
     "NoiseSummary",

@@ -30,7 +30,7 @@ from .._core.stretches import find_stretches
 from ..compensation.apply import isolate_dropped
 from ..compensation.config import CompensationConfig
 from ..compensation.metrics import compensation_metrics
-from ..compensation.report_types import CompensationMetrics, CompensationReport
+from ..compensation.report_types import CompensationMetrics, CompensationReport, HeadlineCheck
 from ..compensation.terms import TERMS_16
 from ..errors import AeromagError, InputError
 from .diagnostics import fit_diagnostics
@@ -41,7 +41,6 @@ from .maneuvers import CARDINALS, ManeuverResult, detect_maneuvers
 from .noise import fourth_difference_noise, grouped_std
 from .residuals import PieceResiduals, piece_residuals
 from .summaries import (
-    HeadlineCheck,
     ManeuverSummary,
     NoiseSummary,
     PerPieceRms,
@@ -568,7 +567,8 @@ def config_of(report: CompensationReport) -> CompensationConfig:
     CompensationConfig
     """
     names = {f.name for f in dataclasses.fields(CompensationConfig)}
-    kw = {k: v for k, v in (report.config or {}).items() if k in names}
+    kw = {k: v for k, v in (report.config.options() if report.config else {}).items()
+          if k in names}
     if "band_hz" not in kw and report.band_hz:
         kw["band_hz"] = report.band_hz
     return CompensationConfig(**kw)

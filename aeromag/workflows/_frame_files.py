@@ -15,10 +15,10 @@ from .compensate import check_outputs
 
 
 def frame_to_files(log_path: str | os.PathLike, out_path: str | os.PathLike, forgetting: float,
-                   frame: Callable[[pd.DataFrame], tuple[pd.DataFrame, dict[str, Any], Any]], *,
+                   frame: Callable[[pd.DataFrame], tuple[pd.DataFrame, Any, Any]], *,
                    columns: dict[str, str] | None = None,
                    units: dict[str, str] | None = None,
-                   fmt: str | None = None) -> dict[str, Any]:
+                   fmt: str | None = None) -> Any:
     """Check the paths and lambda, read the log, run ``frame``, write OUT.csv and OUT.json.
 
     Parameters
@@ -28,14 +28,15 @@ def frame_to_files(log_path: str | os.PathLike, out_path: str | os.PathLike, for
     forgetting : float
         Forgetting factor lambda (checked before the log is read).
     frame : callable
-        ``frame(df) -> (data, report, extra)``; ``extra`` is ignored.
+        ``frame(df) -> (data, report, extra)``; ``extra`` is ignored.  ``report`` is a dict,
+        or a typed report with ``to_dict()`` and ``warnings`` (set to the warnings written).
     columns, units, fmt
         Passed to :func:`aeromag.io.read_log` (``time`` is required).
 
     Returns
     -------
-    dict
-        The report.
+    dict or typed report
+        The report ``frame`` returned.
     """
     out = Path(out_path)
     out_json = json_path_for(out)
@@ -45,5 +46,8 @@ def frame_to_files(log_path: str | os.PathLike, out_path: str | os.PathLike, for
     data, report, _ = frame(df)
     with atomic_path(out) as tmp_csv, atomic_path(out_json) as tmp_json:
         write_csv(data, tmp_csv)
-        write_json(report, tmp_json)
+        doc = report.to_dict() if hasattr(report, "to_dict") else report
+        write_json(doc, tmp_json)
+    if doc is not report:
+        report.warnings = doc.get("warnings")
     return report

@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 
 from ..compensation.report import is_epoch
+from ..compensation.report_types import ExtendedSummary, HeadlineCheck, HeldOut
 from ..qc.fom_types import FomSummary
-from ..qc.summaries import HeadlineCheck
 
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:2em auto;
@@ -94,12 +94,12 @@ def headline_words(check: HeadlineCheck | None) -> str:
             f" {check.relative_tolerance or 0.0:g}; sample counts compared exactly).")
 
 
-def extended_html(ext: dict[str, Any] | None) -> str:
+def extended_html(ext: ExtendedSummary | None) -> str:
     """The section of an extended fit (``--reference``, ``--extra``): held-out errors, extras.
 
     Parameters
     ----------
-    ext : dict or None
+    ext : ExtendedSummary or None
         The report's ``extended`` block (:mod:`aeromag.compensation.extended`).
 
     Returns
@@ -107,26 +107,26 @@ def extended_html(ext: dict[str, Any] | None) -> str:
     str
         HTML ("" without an extended fit).
     """
-    if not ext:
+    if ext is None:
         return ""
-    held = ext.get("held_out") or {}
-    rows = [["target", f"mag − {ext['reference']} (full band, intercept)"
-             if ext.get("reference") else "band-passed mag (self-fit)"],
-            ["estimator", ext.get("estimator")], ["regularisation", ext.get("param")],
-            ["held-out residual std, with the extras (nT)", held.get("residual_std_nT")],
-            ["held-out residual std, TL terms only (nT)", held.get("tl_only_residual_std_nT")],
-            ["rows left out (no value in an extra or the reference)", ext.get("rows_left_out")]]
-    if ext.get("dropped_extras"):
-        rows.append(["extras dropped (constant or empty)", ", ".join(ext["dropped_extras"])])
-    mlp = ext.get("mlp_training")
+    held = ext.held_out or HeldOut()
+    rows = [["target", f"mag − {ext.reference} (full band, intercept)"
+             if ext.reference else "band-passed mag (self-fit)"],
+            ["estimator", ext.estimator], ["regularisation", ext.param],
+            ["held-out residual std, with the extras (nT)", held.residual_std_nT],
+            ["held-out residual std, TL terms only (nT)", held.tl_only_residual_std_nT],
+            ["rows left out (no value in an extra or the reference)", ext.rows_left_out]]
+    if ext.dropped_extras:
+        rows.append(["extras dropped (constant or empty)", ", ".join(ext.dropped_extras)])
+    mlp = ext.mlp_training
     if mlp:
         rows.append(["network kept", mlp.get("kept")])
         rows.append(["network / linear held-out std, last 20 % (nT)",
                      f"{fmt(mlp.get('mlp_std_nT'))} / {fmt(mlp.get('linear_std_nT'))}"])
     parts = ["<h2>Beyond the 16 terms</h2>", html_table(rows, ["", "value"]),
-             f"<p class='small'>{html.escape(str(held.get('method', '')))}</p>"]
-    contrib = {c["name"]: c for c in held.get("contributions") or []}
-    extras = ext.get("extras") or []
+             f"<p class='small'>{html.escape(str(held.method or ''))}</p>"]
+    contrib = {c["name"]: c for c in held.contributions}
+    extras = ext.extras
     if extras:
         parts.append(html_table(
             [[e["name"], e["coef_nT_per_unit"], e["center"], e["scale"],

@@ -47,7 +47,7 @@ from ..compensation.prepare import (
     total_field_from_fluxgate,
 )
 from ..compensation.report import AppliedRun, applied_report
-from ..compensation.report_types import CompensationMetrics, CompensationReport
+from ..compensation.report_types import ChunkSettings, CompensationMetrics, CompensationReport
 from ..errors import InputError
 from ..io import (
     FLUX_COLUMNS,
@@ -184,9 +184,9 @@ def apply_model_chunked(
     if not isinstance(model, TLModel):
         mpath = Path(model)
         model = TLModel.load(mpath)
-        model.meta["path"] = str(mpath)
+        model.meta.path = str(mpath)
     if model.extended is not None:  # extras, an intercept or a network: the whole-log path
-        raise InputError(f"{model.meta.get('path', 'the model')}: a model with --extra or "
+        raise InputError(f"{model.meta.path or 'the model'}: a model with --extra or "
                          "--reference is applied to the whole log: drop --chunk-rows")
     colmap = dict(columns or {})
 
@@ -430,8 +430,7 @@ def apply_model_chunked(
                        d4_before, d4_after, cfg, qc_trim)
         report = applied_report(AppliedRun(
             source, model, cfg, fs, {int(i): int(n) for i, n in seg_n.items()}, metrics,
-            residual, qc, n_rows=n_rows, chunked={"chunk_rows": int(chunk_rows),
-                                                  "overlap_rows": int(overlap)}))
+            residual, qc, n_rows=n_rows, chunked=ChunkSettings(int(chunk_rows), int(overlap))))
         write_report_json(report, json_path_for(out_csv))
     return report
 

@@ -24,7 +24,7 @@ from ..compensation import pipeline as _pipeline
 from ..compensation.config import CompensationConfig
 from ..compensation.model import TLModel
 from ..compensation.report import flag_residual_outliers
-from ..compensation.report_types import CompensationReport
+from ..compensation.report_types import CalibrationCheck, CompensationReport, Segmentation
 from ..compensation.result import CompensationResult
 from ..conventions import FLUX_COLUMNS
 from ..errors import AeromagError, InputError
@@ -115,7 +115,7 @@ def _detect(df: pd.DataFrame, cfg: CompensationConfig | None, source: str) -> _D
 
 def _self_calibration(df: pd.DataFrame, cfg: CompensationConfig | None,
                       source: str, *, calibrating: bool = False,
-                      detected: _Detected | None = None) -> dict[str, Any]:
+                      detected: _Detected | None = None) -> CalibrationCheck:
     """Whether a log fitted on itself holds a calibration box; warn when it does not.
 
     A survey's few headings and gusts separate the TL terms only in the band: the
@@ -146,7 +146,7 @@ def _self_calibration(df: pd.DataFrame, cfg: CompensationConfig | None,
                     " level of mag_tl is not determined, and the improvement ratio is in-sample"
                     " and flattering; fly a box, run 'aeromag calibrate' on it and apply it with"
                     " model=MODEL", source, why)
-    return out
+    return CalibrationCheck(**out)
 
 
 def calibrate(
@@ -179,27 +179,25 @@ def calibrate(
     with _one_blas_thread():
         res = _run(_pipeline.calibrate(df, cfg, source=source))
         if segmentation is not None:
-            res.report.segmentation = segmentation
-            res.model.meta["segmentation"] = segmentation
+            res.report.segmentation = segmentation  # the model's too (its meta is the report)
         _add_qc(res, maneuvers=_for_qc(detected[0], df, res))
     # As compensate warns when it fits a log without a box: the same check, the same warning.
     box = _self_calibration(df, cfg, source or "<log>", calibrating=True, detected=detected)
-    box.pop("metrics", None)  # the in-sample note is compensate's (a log fitted on itself)
+    box.metrics = None  # the in-sample note is compensate's (a log fitted on itself)
     res.report.calibration_box = box
     if segmentation is not None and res.data is not None and "line" in res.data.columns:
         # The detected legs were the fit's 'line' column, but they are no flight lines:
         # segments are named by id and time span, never "line 9" (issue 15).
         from ..compensation.report import name_segments
 
-        name_segments(res.report.segments, lines=False)
-        res.model.meta["segments"] = [s.to_dict() for s in res.report.segments]
+        name_segments(res.report.segments, lines=False)  # the model's report's rows too
         res.data = res.data.drop(columns="line")
     return res
 
 
 def _segments_from_maneuvers(df: pd.DataFrame, cfg: CompensationConfig | None,
                              source: str | None, detected: _Detected,
-                             ) -> tuple[pd.DataFrame, dict[str, Any]]:
+                             ) -> tuple[pd.DataFrame, Segmentation]:
     """A ``line`` column from the detected maneuvers (or heading legs) of a calibration log."""
     src = source or str(df.attrs.get("source", "<log>"))
     seconds = (cfg or CompensationConfig()).segment_seconds
@@ -213,12 +211,11 @@ def _segments_from_maneuvers(df: pd.DataFrame, cfg: CompensationConfig | None,
         log.warning("%s: the log has no 'line' column and %s: fitting %g-s time windows, which"
                     " cut across maneuvers (a faulty maneuver then spoils clean ones); give the"
                     " flight's lines with columns={'line': 'SOURCE'}", src, why, seconds)
-        return df, {"method": "time windows", "segment_seconds": seconds, "reason": why}
+        return df, Segmentation("time windows", segment_seconds=seconds, reason=why)
     line[line < 0] = np.nan
     n = int(np.unique(line[np.isfinite(line)]).size)
     log.info("%s: no 'line' column: %d %s are the segments", src, n, what)
-    seg = {"method": what, "detector": man.method, "n_segments": n}
-    return df.assign(line=line), seg
+    return df.assign(line=line), Segmentation(what, detector=man.method, n_segments=n)
 
 
 #: Columns :func:`aeromag.qc.detect_maneuvers` reads (besides ``df.attrs["source"]``).
@@ -375,7 +372,7 @@ def compensate_file(
         if model is not None and not isinstance(model, TLModel):
             mpath = Path(model)
             model = TLModel.load(mpath)
-            model.meta["path"] = str(mpath)
+            model.meta.path = str(mpath)
         t0 = time.perf_counter()
         df = read_log(path, columns=columns, units=units, required=("time", *FLUX_COLUMNS), fmt=fmt)
         t1 = time.perf_counter()

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 import os
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -28,18 +29,20 @@ from .._core.stretches import find_stretches
 from ..compensation.checks import check_metrics
 from ..compensation.config import CompensationConfig
 from ..compensation.fit import check_interference
-from ..compensation.metrics import band_metrics, compensation_metrics
+from ..compensation.metrics import band_metrics, compensation_metrics, split_fields
 from ..compensation.online import LATENCY_SAMPLES, NIS_THRESHOLD, OnlineTL, OnlineTLResult
+from ..compensation.online_convergence import UnconvergedSpan
 from ..compensation.prepare import prepare
 from ..compensation.report_types import CompensationMetrics
+from ..compensation.segments import SegmentRow
 from ..errors import FitError, InputError
 from ..io.outputs import output_set
 from ._frame_files import frame_to_files
 
 log = logging.getLogger(__name__)
 
-__all__ = ["compensate_online_file", "compensate_online_frame", "convergence_summary",
-           "online_metrics",
+__all__ = ["ConvergenceSummary", "OnlineHistory", "OnlineReport", "compensate_online_file",
+           "compensate_online_frame", "convergence_summary", "online_metrics",
            "DEFAULT_FORGETTING", "COVERAGE"]
 
 #: Default forgetting factor of the online TL fit (memory about 1000 samples: 100 s at 10 Hz).
@@ -57,10 +60,221 @@ COVERAGE_MARKED = ("all_*: every sample of the flight; kept_*: the rows written 
                    " (convergence.spans) marked false (mark_unconverged)")
 
 
+@dataclass
+class ConvergenceSummary:
+    """Whether the online fit had converged where it issued its output (``convergence``).
+
+    Attributes
+    ----------
+    definition : str
+        The convergence check in words.
+    threshold : float
+        Windowed NIS ratio above which the fit is not converged [-].
+    window_s, memory_s : float
+        Window of the NIS and memory of the estimate [s].
+    n_unconverged : int
+        Rows issued before convergence.
+    marked : bool
+        Whether those rows were written with ``segment_kept`` false (``--mark-unconverged``).
+    spans : list of UnconvergedSpan
+        The stretches issued before convergence.
+    mag_tl_std_nT : dict
+        ``converged_median``, ``converged_p95``, ``unconverged_median``, ``unconverged_p95``
+        of the fit's own ``mag_tl`` uncertainty [nT] (None without such rows).
+    extra : dict
+        Keys this class does not know (written after the others).
+    """
+
+    definition: str = ""
+    threshold: float | None = None
+    window_s: float | None = None
+    memory_s: float | None = None
+    n_unconverged: int = 0
+    marked: bool = False
+    spans: list[UnconvergedSpan] = field(default_factory=list)
+    mag_tl_std_nT: dict[str, float | None] = field(default_factory=dict)
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON block.
+
+        Returns
+        -------
+        dict
+        """
+        d = {"definition": self.definition, "threshold": self.threshold,
+             "window_s": self.window_s, "memory_s": self.memory_s,
+             "n_unconverged": self.n_unconverged, "marked": self.marked,
+             "spans": [s.to_dict() for s in self.spans],
+             "mag_tl_std_nT": dict(self.mag_tl_std_nT)}
+        d.update(self.extra)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any] | None) -> ConvergenceSummary | None:
+        """The block read from a file (None for none).
+
+        Parameters
+        ----------
+        d : dict or None
+
+        Returns
+        -------
+        ConvergenceSummary or None
+        """
+        if d is None:
+            return None
+        kw, extra = split_fields(cls, d)
+        kw["spans"] = [UnconvergedSpan(**s) for s in kw.get("spans") or []]
+        kw["mag_tl_std_nT"] = dict(kw.get("mag_tl_std_nT") or {})
+        return cls(**kw, extra=extra)
+
+
+@dataclass
+class OnlineHistory:
+    """The coefficients of the online fit at a coarse step (``history``).
+
+    Attributes
+    ----------
+    time : list of float
+        Times [s] (at most :data:`HISTORY_POINTS` + 1, the last row included).
+    coef : list of list of float
+        The coefficients at those times, one list per time [nT; eddy terms nT·s].
+    """
+
+    time: list[float] = field(default_factory=list)
+    coef: list[list[float]] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON block.
+
+        Returns
+        -------
+        dict
+        """
+        return {"time": list(self.time), "coef": list(self.coef)}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any] | None) -> OnlineHistory | None:
+        """The block read from a file (None for none).
+
+        Parameters
+        ----------
+        d : dict or None
+
+        Returns
+        -------
+        OnlineHistory or None
+        """
+        if d is None:
+            return None
+        return cls(list(d.get("time") or []), list(d.get("coef") or []))
+
+
+@dataclass
+class OnlineReport:
+    """The report of ``compensate --online`` (its ``OUT.json``).
+
+    Attributes
+    ----------
+    aeromag_version : str or None
+        Version that wrote it.
+    input : str
+        The log.
+    online : bool
+        True: the report of an online fit.
+    terms : list of str
+        Model terms.
+    coef : list of float
+        The coefficients at the end of the log [nT; eddy terms nT·s].
+    forgetting : float
+        lambda of the estimate.
+    derivative : str
+        How the eddy terms' derivatives were taken (``central``, ``midpoint``, ``backward``).
+    latency_samples : int
+        Samples the output lags the input.
+    coef_lowpass_hz : float or None
+        Cut-off of the coefficients' low-pass [Hz].
+    band_hz : list of float
+        Fitting band [Hz].
+    segments : list of SegmentRow
+        Per segment: ``id``, ``n``, ``kept`` (True), ``scores`` (None), ``residual_std``
+        [nT].
+    metrics : CompensationMetrics
+        Headline metrics (:func:`online_metrics`; ``coverage``, ``after_warmup`` and
+        ``n_skipped`` in its ``extra``).
+    convergence : ConvergenceSummary
+        Where the fit had converged.
+    history : OnlineHistory
+        The coefficients at a coarse step.
+    warnings : list or None
+        What the run warned (filled when the report is written).
+    extra : dict
+        Keys this class does not know (written after the others).
+    """
+
+    aeromag_version: str | None = None
+    input: str = "<log>"
+    online: bool = True
+    terms: list[str] = field(default_factory=list)
+    coef: list[float] = field(default_factory=list)
+    forgetting: float | None = None
+    derivative: str | None = None
+    latency_samples: int | None = None
+    coef_lowpass_hz: float | None = None
+    band_hz: list[float] = field(default_factory=list)
+    segments: list[SegmentRow] = field(default_factory=list)
+    metrics: CompensationMetrics = field(default_factory=CompensationMetrics)
+    convergence: ConvergenceSummary = field(default_factory=ConvergenceSummary)
+    history: OnlineHistory = field(default_factory=OnlineHistory)
+    warnings: list[Any] | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON document (``OUT.json``), keys in the files' order.
+
+        Returns
+        -------
+        dict
+        """
+        d: dict[str, Any] = {} if self.aeromag_version is None else {
+            "aeromag_version": self.aeromag_version}
+        d.update(input=self.input, online=self.online, terms=list(self.terms),
+                 coef=list(self.coef), forgetting=self.forgetting, derivative=self.derivative,
+                 latency_samples=self.latency_samples, coef_lowpass_hz=self.coef_lowpass_hz,
+                 band_hz=list(self.band_hz), segments=[s.to_dict() for s in self.segments],
+                 metrics=self.metrics.to_dict(), convergence=self.convergence.to_dict(),
+                 history=self.history.to_dict())
+        if self.warnings is not None:
+            d["warnings"] = self.warnings
+        d.update(self.extra)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> OnlineReport:
+        """An online ``OUT.json`` read back.
+
+        Parameters
+        ----------
+        d : dict
+
+        Returns
+        -------
+        OnlineReport
+        """
+        kw, extra = split_fields(cls, d)
+        kw["segments"] = [SegmentRow.from_dict(s) for s in kw.get("segments") or []]
+        kw["metrics"] = CompensationMetrics.from_dict(kw.get("metrics")) or CompensationMetrics()
+        kw["convergence"] = (ConvergenceSummary.from_dict(kw.get("convergence"))
+                             or ConvergenceSummary())
+        kw["history"] = OnlineHistory.from_dict(kw.get("history")) or OnlineHistory()
+        return cls(**kw, extra=extra)
+
+
 def online_metrics(time_s: np.ndarray, mag: np.ndarray, mag_tl: np.ndarray,
                    segment: np.ndarray, cfg: CompensationConfig, forgetting: float,
                    source: str = "<log>", kept: np.ndarray | None = None,
-                   ) -> tuple[CompensationMetrics, list[dict[str, Any]]]:
+                   ) -> tuple[CompensationMetrics, list[SegmentRow]]:
     """The online fit's metrics: the batch definition, on ``mag - mag_tl`` as written.
 
     The headline is exactly what ``aeromag report`` recomputes from OUT.csv
@@ -97,7 +311,7 @@ def online_metrics(time_s: np.ndarray, mag: np.ndarray, mag_tl: np.ndarray,
         its ``extra``, ``coverage`` (:data:`COVERAGE`) and ``after_warmup`` (``warmup_s`` [s],
         ``n_samples``, ``std_before_nT``, ``residual_std_nT``, ``improvement_ratio``; None
         when no band-passed sample is left after the warm-up).
-    segments : list of dict
+    segments : list of SegmentRow
         Per segment: ``id``, ``n``, ``kept`` (True), ``scores`` (None), ``residual_std``
         (std of the headline's band-passed ``mag - mag_tl`` over the segment [nT]).
     """
@@ -123,14 +337,13 @@ def online_metrics(time_s: np.ndarray, mag: np.ndarray, mag_tl: np.ndarray,
     segments = []
     for s in np.unique(segment[segment >= 0]):
         m = (segment == s) & np.isfinite(comp_bp)
-        segments.append({"id": int(s), "n": int((segment == s).sum()), "kept": True,
-                         "scores": None,
-                         "residual_std": float(np.std(comp_bp[m])) if m.sum() > 1 else None})
+        segments.append(SegmentRow(int(s), int((segment == s).sum()), True, None,
+                                   float(np.std(comp_bp[m])) if m.sum() > 1 else None))
     return metrics, segments
 
 
 def convergence_summary(res: OnlineTLResult, time_s: np.ndarray, forgetting: float,
-                        source: str, marked: bool) -> dict[str, Any]:
+                        source: str, marked: bool) -> ConvergenceSummary:
     """OUT.json ``convergence``, and a warning for each change the fit had to re-converge from.
 
     Parameters
@@ -148,7 +361,7 @@ def convergence_summary(res: OnlineTLResult, time_s: np.ndarray, forgetting: flo
 
     Returns
     -------
-    dict
+    ConvergenceSummary
         ``definition``, ``threshold``, ``window_s``, ``memory_s``, ``n_unconverged``,
         ``marked``, ``spans`` (``start_s``, ``end_s``, ``kind``, ``peak_nis_ratio``,
         ``n_samples``) and the median and 95th percentile of ``mag_tl_std`` over the
@@ -170,26 +383,26 @@ def convergence_summary(res: OnlineTLResult, time_s: np.ndarray, forgetting: flo
                     s.start_s, s.end_s, s.start_s, s.end_s, np.sqrt(s.peak_nis_ratio),
                     "those rows have segment_kept false" if marked else
                     "mark_unconverged=True sets segment_kept false on them")
-    return {
-        "definition": "windowed NIS of the band-passed a-priori residuals (their mean square,"
-                      " standardised by the RLS prior variance, over window_s) divided by its"
-                      " median over the log; above threshold the fit is not converged, and"
-                      " neither is it for one memory after; the first memory is the warm-up",
-        "threshold": NIS_THRESHOLD, "window_s": round(max(20, round(memory) // 10) / fs, 6),
-        "memory_s": round(memory / fs, 6), "n_unconverged": int((~res.converged).sum()),
-        "marked": marked, "spans": [s.to_dict() for s in res.spans],
-        "mag_tl_std_nT": {"converged_median": pct(res.converged, 50),
-                          "converged_p95": pct(res.converged, 95),
-                          "unconverged_median": pct(~res.converged, 50),
-                          "unconverged_p95": pct(~res.converged, 95)},
-    }
+    return ConvergenceSummary(
+        definition="windowed NIS of the band-passed a-priori residuals (their mean square,"
+                   " standardised by the RLS prior variance, over window_s) divided by its"
+                   " median over the log; above threshold the fit is not converged, and"
+                   " neither is it for one memory after; the first memory is the warm-up",
+        threshold=NIS_THRESHOLD, window_s=round(max(20, round(memory) // 10) / fs, 6),
+        memory_s=round(memory / fs, 6), n_unconverged=int((~res.converged).sum()),
+        marked=marked, spans=list(res.spans),
+        mag_tl_std_nT={"converged_median": pct(res.converged, 50),
+                       "converged_p95": pct(res.converged, 95),
+                       "unconverged_median": pct(~res.converged, 50),
+                       "unconverged_p95": pct(~res.converged, 95)},
+    )
 
 
 def compensate_online_frame(df: pd.DataFrame, cfg: CompensationConfig | None = None, *,
                             forgetting: float = DEFAULT_FORGETTING,
                             derivative: str = "central", source: str | None = None,
                             mark_unconverged: bool = False,
-                            ) -> tuple[pd.DataFrame, dict[str, Any], OnlineTLResult]:
+                            ) -> tuple[pd.DataFrame, OnlineReport, OnlineTLResult]:
     """Compensate a log in memory with the online TL fit.
 
     Parameters
@@ -215,8 +428,8 @@ def compensate_online_frame(df: pd.DataFrame, cfg: CompensationConfig | None = N
     data : DataFrame
         ``df`` plus ``mag_tl``, ``mag_tl_std`` (the fit's own one-sigma uncertainty of
         ``mag_tl``), ``tl_converged``, ``mag_comp``, ``segment``, ``segment_kept``.
-    report : dict
-        The OUT.json content.
+    report : OnlineReport
+        The OUT.json content (:meth:`OnlineReport.to_dict`).
     result : OnlineTLResult
     """
     cfg = cfg or CompensationConfig()
@@ -269,22 +482,14 @@ def compensate_online_frame(df: pd.DataFrame, cfg: CompensationConfig | None = N
     idx = np.arange(0, n, step)
     if idx[-1] != n - 1:
         idx = np.r_[idx, n - 1]
-    report: dict[str, Any] = {
-        "aeromag_version": __version__,
-        "input": src,
-        "online": True,
-        "terms": list(est.terms),
-        "coef": res.coef.tolist(),
-        "forgetting": lam,
-        "derivative": derivative,
-        "latency_samples": LATENCY_SAMPLES[derivative],
-        "coef_lowpass_hz": est.coef_lowpass_hz,
-        "band_hz": list(cfg.band_hz),
-        "segments": segments,
-        "metrics": {**metrics.to_dict(), "n_skipped": int(res.skipped.sum())},
-        "convergence": convergence,
-        "history": {"time": t[idx].tolist(), "coef": res.coef_history[idx].tolist()},
-    }
+    metrics.extra["n_skipped"] = int(res.skipped.sum())
+    report = OnlineReport(
+        aeromag_version=__version__, input=src, online=True, terms=list(est.terms),
+        coef=res.coef.tolist(), forgetting=lam, derivative=derivative,
+        latency_samples=LATENCY_SAMPLES[derivative], coef_lowpass_hz=est.coef_lowpass_hz,
+        band_hz=list(cfg.band_hz), segments=segments, metrics=metrics,
+        convergence=convergence,
+        history=OnlineHistory(t[idx].tolist(), res.coef_history[idx].tolist()))
     return out, report, res
 
 
@@ -293,7 +498,7 @@ def compensate_online_file(log_path: str | os.PathLike[str], out_path: str | os.
                            forgetting: float = DEFAULT_FORGETTING, derivative: str = "central",
                            columns: dict[str, str] | None = None,
                            units: dict[str, str] | None = None, fmt: str | None = None,
-                           mark_unconverged: bool = False) -> dict[str, Any]:
+                           mark_unconverged: bool = False) -> OnlineReport:
     """Read a log, compensate it online, write OUT.csv and OUT.json (both or neither).
 
     Parameters
@@ -313,7 +518,7 @@ def compensate_online_file(log_path: str | os.PathLike[str], out_path: str | os.
 
     Returns
     -------
-    dict
+    OnlineReport
         The report; its ``warnings`` list every warning logged while the log was read and
         compensated (the metric checks' among them).
     """

@@ -29,14 +29,18 @@ import pandas as pd
 from .. import __version__
 from ..compensation.config import CompensationConfig
 from ..compensation.model import TLModel
-from ..compensation.report_types import CompensationReport, ScreeningSummary, SegmentRow
+from ..compensation.report_types import (
+    CompensationReport,
+    ScreeningSummary,
+    SegmentRow,
+)
 from ..compensation.result import CompensationResult
 from ..errors import AeromagError, InputError
 from ..io import atomic_path, json_path_for, read_log, write_json
 from ..plot import compensation as pc
 from ..qc import QCResult, compute_qc, kept_mask, segment_labels
 from ..qc.quality import QCMetrics, config_of
-from ..qc.summaries import HeadlineCheck, QCSegmentRow
+from ..qc.summaries import QCSegmentRow
 from ._report_html import (
     extended_html,
     figure_html,
@@ -153,9 +157,11 @@ def write_report(
             progress(step, total, what)
 
     qc = compute_qc(result, config=config, **qc_kw)
-    for key, value in headline_record(report).items():
-        setattr(qc.metrics, key, HeadlineCheck.from_dict(value) if key == "headline_check"
-                else value)
+    record = headline_record(report)
+    if record.headline_check is not None:
+        qc.metrics.headline_check = record.headline_check
+    if record.compensation_metrics is not None:
+        qc.metrics.compensation_metrics = record.compensation_metrics
     # Only the metrics, the FOM table and the band-passed fields are shown: the per-sample
     # manoeuvre labels go before the figures.
     qc.maneuvers = None

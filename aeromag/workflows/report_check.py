@@ -21,6 +21,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -30,7 +31,13 @@ from .._core.filters import lowpass_stretches, sampling_rate
 from ..compensation.apply import missing_total_field
 from ..compensation.config import CompensationConfig
 from ..compensation.metrics import residual_metrics, run_blocks, stretch_runs
-from ..compensation.report_types import CompensationMetrics, CompensationReport
+from ..compensation.report_types import (
+    CompensationMetrics,
+    CompensationReport,
+    HeadlineCheck,
+    HeadlineDifference,
+    MagCompCheck,
+)
 from ..compensation.result import CompensationResult
 from ..errors import InputError
 from ..qc import kept_mask, segment_labels
@@ -38,8 +45,8 @@ from ..qc.quality import config_of
 from ..qc.total_field import prepared_total_field
 
 __all__ = ["MAG_COMP_TOL_NT", "MAG_COMP_TOL_FLUXGATE_NT", "REL_TOL", "REL_TOL_FLUXGATE",
-           "REL_TOL_ONLINE", "check_mag_comp", "compare_headline", "headline_from_data",
-           "headline_record", "log_kind"]
+           "REL_TOL_ONLINE", "HeadlineRecord", "check_mag_comp", "compare_headline",
+           "headline_from_data", "headline_record", "log_kind"]
 
 log = logging.getLogger(__name__)
 
@@ -101,7 +108,7 @@ def log_kind(source: str) -> str:
 
 def compare_headline(computed: CompensationMetrics, recorded: CompensationMetrics | None, *,
                      online: bool = False, fluxgate: bool = False, source: str = "OUT.csv",
-                     recorded_in: str = "OUT.json") -> dict[str, Any]:
+                     recorded_in: str = "OUT.json") -> HeadlineCheck:
     """Compare the headline computed from the log with the one recorded in its report.
 
     Parameters
@@ -119,37 +126,38 @@ def compare_headline(computed: CompensationMetrics, recorded: CompensationMetric
 
     Returns
     -------
-    dict
-        ``compared`` (bool), ``agree`` (bool or None), ``relative_tolerance``,
+    HeadlineCheck
+        ``compared``, ``agree`` (None when not compared), ``relative_tolerance``,
         ``max_relative_difference``, ``differences`` (per figure: ``computed``,
         ``recorded``, ``relative``), ``warning`` (one line, or None), ``recorded_in``.
     """
     tol = REL_TOL_ONLINE if online else REL_TOL_FLUXGATE if fluxgate else REL_TOL
-    out: dict[str, Any] = {"compared": False, "agree": None, "relative_tolerance": tol,
-                           "counts": "equal", "recorded_in": recorded_in, "warning": None,
-                           "definition": "the headline is computed from the log's columns;"
-                           " the recorded figures are the report's metrics block"}
+    out = HeadlineCheck(compared=False, agree=None, relative_tolerance=tol, counts="equal",
+                        recorded_in=recorded_in, warning=None,
+                        definition="the headline is computed from the log's columns; the"
+                        " recorded figures are the report's metrics block")
     if recorded is None or any(getattr(recorded, k) is None for k in _COMPARED + _COUNTS):
-        out["note"] = f"{recorded_in} has no metrics to compare"
+        out.note = f"{recorded_in} has no metrics to compare"
         return out
-    diffs: dict[str, Any] = {}
+    diffs: dict[str, HeadlineDifference] = {}
     worst = 0.0
     bad: list[str] = []
     for k in _COMPARED:
         a, b = getattr(computed, k), getattr(recorded, k)
         rel = _rel(a, b)
-        diffs[k] = {"computed": a, "recorded": b, "relative": rel}
+        diffs[k] = HeadlineDifference(computed=a, recorded=b, relative=rel)
         worst = max(worst, rel)
         if rel > tol:
             bad.append(k)
     for k in _COUNTS:
         a, b = getattr(computed, k), getattr(recorded, k)
-        diffs[k] = {"computed": a, "recorded": b, "relative": _rel(a, b)}
+        diffs[k] = HeadlineDifference(computed=a, recorded=b, relative=_rel(a, b))
         if a != b:
             bad.append(k)
-    out.update(compared=True, agree=not bad, max_relative_difference=worst, differences=diffs)
+    out.compared, out.agree = True, not bad
+    out.max_relative_difference, out.differences = worst, diffs
     if bad:
-        out["warning"] = (
+        out.warning = (
             f"{source}: the headline computed from this log (improvement ratio"
             f" {_g(computed.improvement_ratio)}, residual {_g(computed.residual_std_nT)}"
             f" nT, {computed.n_samples} samples) disagrees with {recorded_in}"
@@ -191,7 +199,7 @@ class _MagCompCheck:
         self.tol = MAG_COMP_TOL_FLUXGATE_NT if fluxgate else MAG_COMP_TOL_NT
         # An --online OUT.json records no configuration: whether mag_comp was low-passed
         # (--no-filter) is then not known, and mag_comp may match either.
-        self.recorded = "filter_output" in (report.config or {})
+        self.recorded = report.config is not None and report.config.filter_output is not None
         self.choices = (bool(cfg.filter_output),) if self.recorded else (False, True)
         self.t, self.fs, self.cfg = time_s, fs_hz, cfg
         self.cut = cfg.lowpass_hz if cfg.lowpass_hz is not None else cfg.band_hz[1]
@@ -231,35 +239,33 @@ class _MagCompCheck:
                     if over.any():
                         self.first[filt] = a + int(np.argmax(over))
 
-    def result(self) -> dict[str, Any]:
+    def result(self) -> MagCompCheck:
         """The check's record (see :func:`check_mag_comp`)."""
         tol, recorded = self.tol, self.recorded
-        out: dict[str, Any] = {"compared": 0, "max_abs_difference_nT": None,
-                               "tolerance_nT": tol, "first_row": None,
-                               "filtered": self.choices[0], "filter_recorded": recorded,
-                               "warning": None}
+        out = MagCompCheck(compared=0, tolerance_nT=tol, filtered=self.choices[0],
+                           filter_recorded=recorded)
         best: tuple[float, bool, int | None] | None = None
         for filt in self.choices:  # the unfiltered field first when the file does not say
             if filt in self.error:
-                out["note"] = f"mag_comp not checked against the low-pass: {self.error[filt]}"
+                out.note = f"mag_comp not checked against the low-pass: {self.error[filt]}"
                 continue
-            out["compared"] = self.n[filt]
+            out.compared = self.n[filt]
             worst = self.worst[filt]
             if best is None or worst < best[0]:
                 best = (worst, filt, self.first[filt])
             if worst <= tol:
                 break
-        if best is None or not out["compared"]:
+        if best is None or not out.compared:
             return out
         worst, filt, first = best
-        out.update(max_abs_difference_nT=worst, filtered=filt)
+        out.max_abs_difference_nT, out.filtered = worst, filt
         if worst > tol:
             i = int(first or 0)
-            out["first_row"] = i
+            out.first_row = i
             what = (f"mag - mag_tl low-passed at {self.cut:g} Hz" if filt and recorded
                     else "mag - mag_tl (unfiltered)" if recorded
                     else "mag - mag_tl, unfiltered or low-passed,")
-            out["warning"] = (
+            out.warning = (
                 f"{self.source}: column 'mag_comp' differs from {what} as {self.recorded_in}"
                 f" records it by up to {_g(worst)} nT (first at data row {i + 1}; tolerance"
                 f" {tol:g} nT): {LIKELY_CAUSE.format(kind=log_kind(self.source))}; the"
@@ -269,7 +275,7 @@ class _MagCompCheck:
 
 def check_mag_comp(data: pd.DataFrame, comp: np.ndarray, report: CompensationReport,
                    cfg: CompensationConfig, *, source: str = "OUT.csv",
-                   recorded_in: str = "OUT.json") -> dict[str, Any]:
+                   recorded_in: str = "OUT.json") -> MagCompCheck:
     """Compare the log's ``mag_comp`` with what the compensation writes from its columns.
 
     The expected ``mag_comp`` is ``mag - mag_tl`` (``comp``, the total field prepared as the
@@ -297,7 +303,7 @@ def check_mag_comp(data: pd.DataFrame, comp: np.ndarray, report: CompensationRep
 
     Returns
     -------
-    dict
+    MagCompCheck
         ``compared`` (rows compared), ``max_abs_difference_nT``, ``tolerance_nT``,
         ``first_row`` (0-based data row of the first difference beyond the tolerance, or
         None), ``filtered`` and ``warning`` (one line, or None).
@@ -399,19 +405,47 @@ def headline_from_data(result: CompensationResult,
     fluxgate = bool(report.mag_from_fluxgate) or "mag" not in data.columns
     check_ = compare_headline(computed, recorded, online=bool(report.extra.get("online")),
                               fluxgate=fluxgate, source=src, recorded_in=rj)
-    if check_["warning"]:
-        log.warning("%s", check_["warning"])
+    if check_.warning:
+        log.warning("%s", check_.warning)
     if comp_check is not None:
-        check_["mag_comp"] = comp_check
-        if comp_check["warning"]:
-            log.warning("%s", comp_check["warning"])
+        check_.mag_comp = comp_check
+        if comp_check.warning:
+            log.warning("%s", comp_check.warning)
     report = dataclasses.replace(report, metrics=computed, headline_check=check_,
                                  recorded_metrics=recorded or report.recorded_metrics)
     return dataclasses.replace(result, report=report)
 
 
-def headline_record(report: CompensationReport) -> dict[str, Any]:
-    """The keys :func:`headline_from_data` adds to ``qc.json`` (empty for other reports).
+@dataclass
+class HeadlineRecord:
+    """What :func:`headline_from_data` adds to ``qc.json`` (:func:`headline_record`).
+
+    Attributes
+    ----------
+    headline_check : HeadlineCheck or None
+        The comparison of the recomputed headline with the recorded one.
+    compensation_metrics : CompensationMetrics or None
+        OUT.json's metrics block, as the compensation computed it (None when the report
+        recorded none).
+    """
+
+    headline_check: HeadlineCheck | None = None
+    compensation_metrics: CompensationMetrics | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The keys it adds to ``qc.json`` (those that are set).
+
+        Returns
+        -------
+        dict
+        """
+        return {k: v.to_dict() for k, v in (("headline_check", self.headline_check),
+                                            ("compensation_metrics", self.compensation_metrics))
+                if v is not None}
+
+
+def headline_record(report: CompensationReport) -> HeadlineRecord:
+    """What :func:`headline_from_data` adds to ``qc.json`` (nothing for other reports).
 
     Parameters
     ----------
@@ -420,13 +454,8 @@ def headline_record(report: CompensationReport) -> dict[str, Any]:
 
     Returns
     -------
-    dict
+    HeadlineRecord
         ``headline_check`` and, when the report recorded metrics, ``compensation_metrics``
         (OUT.json's block, as the compensation computed it).
     """
-    out: dict[str, Any] = {}
-    if report.headline_check is not None:
-        out["headline_check"] = report.headline_check
-    if report.recorded_metrics is not None:
-        out["compensation_metrics"] = report.recorded_metrics
-    return out
+    return HeadlineRecord(report.headline_check, report.recorded_metrics)
