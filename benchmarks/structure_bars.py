@@ -20,7 +20,10 @@ What is counted, and how:
   edges (each import is an edge to what it names).  Circles are the strongly connected
   components (Tarjan) with more than one module, plus modules importing themselves.  All
   edges count, a package's ``__init__`` importing its own modules included, so a module that
-  imports its own package's facade while the facade imports it is a circle.
+  imports its own package's facade while the facade imports it is a circle.  For information
+  (``-v``) the circles are listed again with the implicit ``__init__`` runs as edges (those of
+  packages other than the importer's own): such a circle made only of imports inside functions
+  happens on call, never at import time.
 * **private names**: ``from m import _x`` (``_x`` not a module, not a dunder) and ``m._x``
   where ``m`` is a bound aeromag module; the name is followed through re-exports to the module
   that defines it; unique ``(importer, defining module._x)`` pairs with importer != definer.
@@ -292,10 +295,20 @@ def bar_cycles(mods: dict[str, Module]) -> dict:
     for m in mods.values():
         for _, _, where in m.imports:
             kinds[where] = kinds.get(where, 0) + 1
+    # Informative: with the parent packages' __init__ that an import runs (those of another
+    # package than the importer's own), a circle of imports made on call (in functions) shows.
+    def parents(n: str) -> set[str]:
+        parts = n.split(".")
+        return {".".join(parts[:i]) for i in range(1, len(parts))}
+
+    run_too = {n: (e | {p for t in e for p in parents(t) if p in mods} - parents(n)) - {n}
+               for n, e in edges.items()}
     return {"measured": len(comps) + len(self_loops), "limit": 0,
             "items": [" <-> ".join(c) for c in comps] + [f"{n} imports itself" for n in self_loops],
             "detail": {"modules": len(mods), "edges": sum(len(e) for e in edges.values()),
-                       "import statements by place": kinds}}
+                       "import statements by place": kinds,
+                       "circles counting the parents' __init__ an import runs":
+                           [" <-> ".join(c) for c in tarjan(run_too)]}}
 
 
 def bar_private_names(mods: dict[str, Module]) -> dict:
