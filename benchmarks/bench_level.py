@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import resource
 import subprocess
 import sys
@@ -52,9 +51,8 @@ def main() -> None:
     out = args.keep / "osborne_lev.csv"
     cmd = [sys.executable, "-m", "aeromag", "level", str(csv), "--value", "tmi0", "--no-igrf",
            "-o", str(out)] + (["--decorrugate"] if args.decorrugate else [])
-    env = {**os.environ, "AEROMAG_NO_PROGRESS": "1"}
     t0 = time.perf_counter()
-    r = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    r = subprocess.run(cmd, capture_output=True, text=True)
     wall = time.perf_counter() - t0
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
     if r.returncode:

@@ -167,10 +167,9 @@ def generate(n: int, folder: Path, seed: int = 7) -> tuple[Path, Path, dict]:
 # --------------------------------------------------------------------------- measuring
 def measured(cmd: list[str]) -> dict:
     """``run_child`` with the child's own CPU and peak RSS (os.wait4)."""
-    env = {**os.environ, "AEROMAG_NO_PROGRESS": "1"}
     t0 = time.perf_counter()
     with open(os.devnull, "w") as null, subprocess.Popen(
-            cmd, stdout=null, stderr=subprocess.PIPE, text=True, env=env) as p:
+            cmd, stdout=null, stderr=subprocess.PIPE, text=True) as p:
         err = p.stderr.read() if p.stderr else ""
         _, status, ru = os.wait4(p.pid, 0)
         p.returncode = os.waitstatus_to_exitcode(status)

@@ -227,11 +227,9 @@ def _cycles(edges: dict[str, set[str]]) -> list[list[str]]:
 
 
 def test_no_import_circle():
+    # Every edge counts, a package's __init__ importing its own modules included: a module
+    # that imports its package's facade while the facade imports it is a circle.
     edges = {m: {t for t, _, _runs in imports_of(m) if t != m} for m in MODULES}
-    # A package's __init__ re-exporting its modules is not a circle with them.
-    for m in MODULES:
-        if _is_package(m):
-            edges[m] = {t for t in edges[m] if not t.startswith(m + ".")}
     found = _cycles(edges)
     circles = [c for c in found if c not in KNOWN_CIRCLES]
     fixed = [c for c in KNOWN_CIRCLES if c not in found]
@@ -267,20 +265,39 @@ def test_modules_stay_small(mod):
                       " it hold two concepts?", stacklevel=1)
 
 
+def _private(name: str) -> bool:
+    return name.startswith("_") and not name.startswith("__")
+
+
 def private_imports() -> list[str]:
-    """``module -> source._name`` for every private name imported from another module."""
+    """``module -> source._name`` for every private name of another module it uses.
+
+    Both ``from aeromag.x import _name`` and ``x._name`` on a module bound by an import
+    (``from aeromag import x``, ``import aeromag.x as x``) count, wherever they stand.
+    """
     out = []
     for mod, path in MODULES.items():
-        for node in ast.walk(ast.parse(path.read_text())):
-            if not isinstance(node, ast.ImportFrom):
-                continue
-            base = _resolve(mod, node)
-            if not (base == "aeromag" or base.startswith("aeromag.")):
-                continue
-            for a in node.names:
-                if (a.name.startswith("_") and not a.name.startswith("__")
-                        and f"{base}.{a.name}" not in MODULES):
-                    out.append(f"{mod} -> {base}.{a.name}")
+        tree = ast.parse(path.read_text())
+        bound: dict[str, str] = {}  # local name -> aeromag module it stands for
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom):
+                base = _resolve(mod, node)
+                bound.update({a.asname or a.name: f"{base}.{a.name}" for a in node.names
+                              if f"{base}.{a.name}" in MODULES})
+            elif isinstance(node, ast.Import):
+                bound.update({a.asname: a.name for a in node.names
+                              if a.asname and a.name in MODULES})
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom):
+                base = _resolve(mod, node)
+                if base == "aeromag" or base.startswith("aeromag."):
+                    out += [f"{mod} -> {base}.{a.name}" for a in node.names
+                            if _private(a.name) and f"{base}.{a.name}" not in MODULES]
+            elif (isinstance(node, ast.Attribute) and _private(node.attr)
+                  and isinstance(node.value, ast.Name) and node.value.id in bound
+                  and f"{bound[node.value.id]}.{node.attr}" not in MODULES
+                  and bound[node.value.id] != mod):
+                out.append(f"{mod} -> {bound[node.value.id]}.{node.attr}")
     return out
 
 
@@ -290,3 +307,30 @@ def test_few_private_names_cross_modules():
         f"{len(found)} private names imported across modules (at most"
         f" {MAX_PRIVATE_IMPORTS}): make them public in their module or move the code:\n"
         + "\n".join(found))
+
+
+def _forwards_only(tree: ast.Module) -> bool:
+    """Whether a module's body is only imports, ``__all__`` and a docstring (a forward)."""
+    body = [n for n in tree.body if not (isinstance(n, ast.Expr)
+                                         and isinstance(n.value, ast.Constant))]
+    return bool(body) and all(
+        isinstance(n, ast.Import | ast.ImportFrom)
+        or (isinstance(n, ast.Assign | ast.AnnAssign | ast.AugAssign)
+            and all(isinstance(t, ast.Name) and t.id == "__all__"
+                    for t in (n.targets if isinstance(n, ast.Assign) else [n.target])))
+        for n in body)
+
+
+def test_no_forwarding_module():
+    """A module that only re-exports another is an old path kept alive: import the real one.
+
+    Package ``__init__`` files are the API of their package and may re-export its modules.
+    """
+    found = [str(MODULES[m].relative_to(PKG.parent)) for m in MODULES
+             if not _is_package(m) and _forwards_only(ast.parse(MODULES[m].read_text()))]
+    assert not found, f"forwarding modules (import from the defining module): {found}"
+
+
+def test_the_private_and_forward_checks_catch_what_they_should():
+    assert _forwards_only(ast.parse('"""Doc."""\nfrom ._app import app\n__all__ = ["app"]\n'))
+    assert not _forwards_only(ast.parse("from ._app import app\n\n\ndef f():\n    pass\n"))

@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 
 import aeromag
 from aeromag.cli import app
-from aeromag.cli.app import column_options
+from aeromag.cli._app import column_options
 
 from .conftest import hand_flight
 

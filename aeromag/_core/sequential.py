@@ -1,10 +1,20 @@
-"""The one convention of the sequential estimators: RLS, online TL, UKF, particle filter.
+"""The one convention of the sequential estimators: RLS, online TL, compass, UKF, particle filter.
 
 Every sequential filter of the package has the same shape (``shared/architecture.md``)::
 
     flt = SomeFilter(params...)          # parameters only
     step = flt.step(y, u=None)           # one sample in: a :class:`Step` out
     res = flt.run(ys, us=None)           # arrays in: one :class:`SequentialResult` out
+
+The filters that follow it: :class:`~aeromag._core.rls.RecursiveLeastSquares`,
+:class:`~aeromag.compensation.online.OnlineTL`,
+:class:`~aeromag.compass.calibration.CompassCalibration`,
+:class:`~aeromag.nav.ukf.UnscentedKalmanFilter`, :class:`~aeromag.nav.filter.NavFilter` (its
+``run`` takes the whole log as one :class:`~aeromag.nav.NavInputs`, its ``step`` one sample of
+each sensor as a mapping) and :class:`~aeromag._core.particles.ParticleFilter`
+(``benchmarks/structure_bars.py`` checks that every class with ``step`` and ``run`` returns these
+two types).  A :class:`~aeromag._core.particles.FilterBank` is not a filter but one per
+hypothesis: its ``BankResult`` holds their :class:`SequentialResult` objects.
 
 Domain results (a compass calibration, a navigation run, a detection run) hold a
 :class:`SequentialResult` and add their own fields; they do not re-declare the state, its

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import importlib
 
-from .app import app
+from ._app import app
 
 # Each module registers its command(s) on ``app`` when imported.
 _COMMAND_MODULES = ("compensate", "simulate", "track", "batch", "report", "compass", "detect",

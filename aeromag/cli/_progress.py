@@ -33,8 +33,7 @@ def progress_bar(label: str, *, enabled: bool | None = None) -> Iterator[Progres
     label : str
         What is in progress (the command).
     enabled : bool, optional
-        Draw the bar (default: when stderr is a terminal and ``NO_COLOR``/``AEROMAG_NO_PROGRESS``
-        are unset).
+        Draw the bar (default: when stderr is a terminal and ``NO_COLOR`` is unset).
 
     Yields
     ------
@@ -42,8 +41,7 @@ def progress_bar(label: str, *, enabled: bool | None = None) -> Iterator[Progres
         ``progress(done, total, step)``.
     """
     if enabled is None:
-        enabled = (sys.stderr.isatty() and "AEROMAG_NO_PROGRESS" not in os.environ
-                   and "NO_COLOR" not in os.environ)
+        enabled = sys.stderr.isatty() and "NO_COLOR" not in os.environ
     if not enabled:
         yield lambda done, total, step: None
         return

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from .app import app, column_options, setup_logging, user_errors
+from ._app import app, column_options, setup_logging, user_errors
 
 
 @app.command()

@@ -7,8 +7,8 @@ from typing import Annotated
 
 import typer
 
+from ._app import app, column_options, setup_logging, user_errors
 from ._progress import progress_bar
-from .app import app, column_options, setup_logging, user_errors
 
 # Literal copies of aeromag.detection.particle's defaults (a test checks them), so that
 # 'aeromag --help' does not import the filter stack.

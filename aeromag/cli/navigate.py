@@ -7,8 +7,8 @@ from typing import Annotated
 
 import typer
 
+from ._app import app, column_options, setup_logging, user_errors
 from ._progress import progress_bar
-from .app import app, column_options, setup_logging, user_errors
 
 # The measurement models of aeromag.nav (literal so that 'aeromag --help' imports no numerics;
 # a test checks it equals aeromag.nav.ALL_SENSORS).

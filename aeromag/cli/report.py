@@ -7,8 +7,8 @@ from typing import Annotated
 
 import typer
 
+from ._app import app, setup_logging, user_errors
 from ._progress import progress_bar
-from .app import app, setup_logging, user_errors
 
 
 @app.command()

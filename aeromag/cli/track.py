@@ -7,8 +7,8 @@ from typing import Annotated
 
 import typer
 
+from ._app import app, column_options, setup_logging, user_errors
 from ._progress import progress_bar
-from .app import app, column_options, setup_logging, user_errors
 
 # Same as aeromag.detection.heading.DEFAULT_SIGMA_FLOOR_DEG (a test checks it); literal here
 # so that 'aeromag --help' does not import the numerics.

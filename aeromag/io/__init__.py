@@ -42,7 +42,6 @@ from .columns import (
     numeric_values,
     parse_column_map,
     plain_number,
-    read_map_file,
     unit_factor,
 )
 from .csv import (
@@ -62,7 +61,7 @@ from .csv_write import (
 )
 from .json import write_json
 from .log import read_log, reading_options
-from .model_file import read_model_document
+from .model_file import read_map_file, read_model_document
 from .outputs import atomic_path, check_outputs, json_path_for, output_set
 from .rows import (
     ROWS_ATTR,

@@ -9,7 +9,6 @@ A survey log is a :class:`pandas.DataFrame` with the canonical columns of
 from __future__ import annotations
 
 import logging
-import os
 import re
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
@@ -20,7 +19,6 @@ import pandas as pd
 from ..conventions import CANONICAL_COLUMNS, FLUX_COLUMNS  # noqa: F401 - FLUX_COLUMNS re-exported
 from ..errors import InputError
 from .messages import clean
-from .model_file import read_map_document
 from .rows import row_location
 from .units import (  # noqa: F401 - FIELD_UNITS_TO_NT re-exported
     FIELD_UNITS_TO_NT,
@@ -82,31 +80,6 @@ def parse_column_map(items: Iterable[str], *, option: str = "--col") -> dict[str
             raise InputError(f"{option} {item!r}: expected NAME=VALUE with both parts non-empty")
         out[name] = source
     return out
-
-
-def read_map_file(path: str | os.PathLike[str]) -> tuple[dict[str, str], dict[str, str]]:
-    """Read a TOML column-map file.
-
-    The file holds a ``[columns]`` table (canonical name = source column) and an optional
-    ``[units]`` table (column or group = unit), for example::
-
-        [columns]
-        mag = "mag_1_uc"
-        flux_x = "flux_b_x"
-
-        [units]
-        flux = "uT"
-
-    Parameters
-    ----------
-    path : path-like
-        The TOML file.
-
-    Returns
-    -------
-    columns, units : dict, dict
-    """
-    return read_map_document(path)
 
 
 def plain_number(x: Any) -> str:

@@ -231,8 +231,18 @@ def _no_constant(name: str) -> float:
     raise ValueError(f"{name} is not a number a model may hold")
 
 
-def read_map_document(path: str | os.PathLike[str]) -> tuple[dict[str, str], dict[str, str]]:
+def read_map_file(path: str | os.PathLike[str]) -> tuple[dict[str, str], dict[str, str]]:
     """Read and validate a TOML column-map file: ``([columns], [units])``.
+
+    The file holds a ``[columns]`` table (canonical name = source column) and an optional
+    ``[units]`` table (column or group = unit), for example::
+
+        [columns]
+        mag = "mag_1_uc"
+        flux_x = "flux_b_x"
+
+        [units]
+        flux = "uT"
 
     Parameters
     ----------

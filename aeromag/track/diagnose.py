@@ -240,6 +240,13 @@ def _decoded(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray, waypoints: np
     return lab
 
 
+def _far_warning(model: LegModel, plan_name: str, dist: float) -> str:
+    """The warning for a log that comes within ``model.tolerance_m`` of no leg (``dist`` m)."""
+    return (f"no sample of the log comes within {model.tolerance_m:g} m of any leg of"
+            f" {plan_name} (closest {dist:.0f} m): check that the plan is this flight's"
+            " (site, lat/lon order) and its altitude reference")
+
+
 def plan_warnings(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray, waypoints: np.ndarray,
                   labels: np.ndarray, model: LegModel, plan_name: str = "the plan",
                   info: dict | None = None, leg_numbers: np.ndarray | None = None,
@@ -304,11 +311,7 @@ def plan_warnings(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray, waypoint
         dist = plan_distance_m(ned, waypoints)
         if dist > model.tolerance_m * OFFSET_TOLERANCE_FACTOR:
             info["mismatch"] = "far"
-            warns.append(
-                f"no sample of the log comes within {model.tolerance_m:g} m of any leg of"
-                f" {plan_name} (closest {dist:.0f} m): check that the plan is this flight's"
-                " (site, lat/lon order) and its altitude reference")
-            return warns
+            return [_far_warning(model, plan_name, dist)]
     margin = max(10, int(0.01 * n_ok))
     rev_lab = _decoded(ned, vel, time_s, waypoints[::-1], model, ground)
     n_rev = int((rev_lab >= 0).sum())
@@ -351,11 +354,7 @@ def plan_warnings(ned: np.ndarray, vel: np.ndarray, time_s: np.ndarray, waypoint
     if few:
         if dist > model.tolerance_m:
             info["mismatch"] = "far"
-            warns.append(
-                f"no sample of the log comes within {model.tolerance_m:g} m of any leg of"
-                f" {plan_name} (closest {dist:.0f} m): check that the plan is this flight's"
-                " (site, lat/lon order) and its altitude reference")
-            return warns
+            return [_far_warning(model, plan_name, dist)]
         if not model.horizontal_only:
             hor = _decoded(ned, vel, time_s, waypoints, model, ground, horizontal_only=True)
             n_hor = int((hor >= 0).sum())

@@ -47,7 +47,7 @@ from .geometry import cross_track
 from .leg_model import LegModel
 
 __all__ = ["LegModel", "decode_legs",
-           "estimate_altitude_offset", "position_jitter_m", "samples_along_legs",
+           "position_jitter_m", "samples_along_legs",
            "velocity_for_legs",
            "leg_evidence", "labels_from_column", "leg_passes", "motion_velocity", "viterbi",
            "continue_legs"]
@@ -388,46 +388,6 @@ def samples_along_legs(ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray,
         _, _, up[sel], along[sel] = cross_track(ned[idx[sel]], waypoints[leg],
                                                 waypoints[leg + 1])
     return idx, k[idx].astype(np.int64), up, along
-
-
-def estimate_altitude_offset(
-    ned: np.ndarray, vel: np.ndarray, waypoints: np.ndarray, model: LegModel = LegModel(),  # noqa: B008
-    mask: np.ndarray | None = None,
-) -> tuple[float, float, int]:
-    """Constant vertical offset of the log against the plan, from the samples flown on legs.
-
-    Samples whose horizontal evidence (motion along a leg, close to its line, within its
-    ends) is strong are taken as flown on that leg (:func:`samples_along_legs`); the offset is
-    the median of their height above the leg's line and the spread is 1.4826 times the median
-    absolute deviation.
-
-    Parameters
-    ----------
-    ned : ndarray, shape (n, 3)
-        Positions, NED, m.
-    vel : ndarray, shape (n, 3)
-        Velocities, m/s.
-    waypoints : ndarray, shape (m, 3)
-        Plan waypoints, NED, m.
-    model : LegModel
-        Parameters.
-    mask : ndarray of bool, shape (n,), optional
-        Rows that may count (the airborne ones); default all.
-
-    Returns
-    -------
-    offset_m, spread_m : float
-        Median height of the log above the plan's lines and its robust spread, m (NaN when
-        no sample qualifies).
-    n : int
-        Samples used.
-    """
-    _, _, up, _ = samples_along_legs(ned, vel, waypoints, model, mask)
-    if up.size < 3:
-        return float("nan"), float("nan"), int(up.size)
-    med = float(np.median(up))
-    spread = 1.4826 * float(np.median(np.abs(up - med)))
-    return med, spread, int(up.size)
 
 
 def leg_passes(labels: np.ndarray, time_s: np.ndarray, along_m: np.ndarray | None = None,
