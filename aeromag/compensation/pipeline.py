@@ -132,7 +132,7 @@ def calibrate(
     Returns
     -------
     CompensationResult
-        ``model`` is the fitted model (its ``meta`` is the report), ``data`` the calibration
+        ``model`` is the fitted model (its ``meta.report`` is the report), ``data`` the calibration
         log with the model applied.
     """
     cfg = cfg or CompensationConfig()
