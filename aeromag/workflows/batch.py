@@ -247,11 +247,10 @@ def process_file(job: dict[str, Any]) -> dict[str, Any]:
             with output_set(separate=True), strict_log_warnings(strict):
                 tr = track_file(inp, job["plan"], names["track"], columns=job["columns"],
                                 units=job["units"], fmt=job["fmt"], **(job.get("track") or {}))
-                tw = [str(w) for w in tr.report.get("warnings") or []]
+                tw = [str(w) for w in tr.report.warnings]
                 if strict and tw:
                     raise StrictWarningError(tw[0])
-            res["flagged_legs"] = sum(1 for leg in tr.report.get("legs", [])
-                                      if leg.get("flagged"))
+            res["flagged_legs"] = tr.report.n_flagged
             res["outputs"] += [str(names["track"]), str(json_path_for(names["track"]))]
             warnings += [f"track: {w}" for w in tw]
         except StrictWarningError as exc:
