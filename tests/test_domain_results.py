@@ -106,3 +106,68 @@ def test_detect_cli_summary_reads_the_report(mission, tmp_path):
     assert r.exit_code == 0, r.output
     n = len(json.loads((tmp_path / "o.json").read_text())["events"])
     assert f": {n} alarm event(s), threshold 1000000.00 (given)" in r.output
+
+
+# --------------------------------------------------------------------------- compass
+def _compass_log():
+    import numpy as np
+
+    from aeromag.synthetic.compass import simulate_compass
+
+    log, truth = simulate_compass(amplitude_deg=40.0, seed=1, duration_s=20.0, switch_s=None)
+    m = np.array(truth["earth_ned_nT"])
+    ef = (float(np.linalg.norm(m)), float(np.degrees(np.arctan2(m[2], np.hypot(m[0], m[1])))),
+          float(np.degrees(np.arctan2(m[1], m[0]))))
+    return log, ef
+
+
+def test_heading_error_stats_are_typed():
+    import numpy as np
+
+    from aeromag.compass import HeadingErrorStats, heading_error_stats
+
+    s = heading_error_stats(np.array([1.0, -3.0, np.nan]))
+    assert s == HeadingErrorStats(rms_deg=np.sqrt(5.0), mean_deg=-1.0, max_abs_deg=3.0)
+    assert list(s.to_dict()) == ["heading_err_rms_deg", "heading_err_mean_deg",
+                                 "heading_err_max_abs_deg"]
+    assert HeadingErrorStats.from_dict(s.to_dict()) == s
+    assert heading_error_stats(np.array([np.nan])) == HeadingErrorStats()
+
+
+def test_compass_file_returns_the_typed_report_it_writes(tmp_path):
+    from aeromag.compass import CompassReport
+    from aeromag.workflows.compass import compass_file, compass_frame
+
+    log, ef = _compass_log()
+    log.to_csv(tmp_path / "log.csv", index=False)
+    rep = compass_file(tmp_path / "log.csv", tmp_path / "out.csv", earth_field=ef)
+    assert isinstance(rep, CompassReport)
+    assert rep.metrics.n_samples == len(log) and rep.metrics.rms_deg is not None
+    assert rep.excitation.n_windows == len(rep.excitation.windows) == 4
+    doc = json.loads((tmp_path / "out.json").read_text())
+    assert list(doc) == ["input", "matrix", "offset_nT", "forgetting", "alpha", "reference",
+                         "metrics", "excitation", "history", "warnings"]
+    assert list(doc["metrics"]) == ["heading_err_rms_deg", "heading_err_mean_deg",
+                                    "heading_err_max_abs_deg", "n_samples", "n_skipped",
+                                    "n_attitude_interpolated"]
+    assert doc == json.loads(json.dumps(rep.to_dict()))
+    assert CompassReport.from_dict(doc).to_dict() == doc
+    # the in-memory run says the same as the library's calibration
+    _, mem, res = compass_frame(log, earth_field=ef)
+    assert mem.metrics.rms_deg == res.metrics.rms_deg == rep.metrics.rms_deg
+
+
+def test_compass_cli_summary_reads_the_report(tmp_path):
+    from typer.testing import CliRunner
+
+    from aeromag.cli import app
+
+    log, ef = _compass_log()
+    log.to_csv(tmp_path / "log.csv", index=False)
+    r = CliRunner().invoke(app, ["compass", str(tmp_path / "log.csv"), "-o",
+                                 str(tmp_path / "o.csv"), "--earth-field",
+                                 *(str(v) for v in ef)])
+    assert r.exit_code == 0, r.output
+    m = json.loads((tmp_path / "o.json").read_text())["metrics"]
+    assert (f"heading error RMS {m['heading_err_rms_deg']:.2f} deg, mean "
+            f"{m['heading_err_mean_deg']:.2f} deg") in r.output

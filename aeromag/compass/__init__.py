@@ -12,6 +12,7 @@ from .calibration import (
     CompassCalibration,
     CompassResult,
     ExcitationWindow,
+    HeadingErrorStats,
     attitude_at_samples,
     calibrate_compass,
     compass_heading,
@@ -21,8 +22,10 @@ from .calibration import (
     reference_in_body,
 )
 from .reference import IGRF_RANGE, ReferenceField, explicit_field, igrf_field
+from .report import CompassHistory, CompassMetrics, CompassReport, ExcitationSummary
 
-__all__ = ["EXCITATION_THRESHOLD", "IGRF_RANGE", "CompassCalibration", "CompassResult",
-           "ExcitationWindow", "ReferenceField", "attitude_at_samples", "calibrate_compass",
-           "compass_heading", "convergence_time", "excitation_windows", "explicit_field",
-           "heading_error_stats", "igrf_field", "reference_in_body"]
+__all__ = ["EXCITATION_THRESHOLD", "IGRF_RANGE", "CompassCalibration", "CompassHistory",
+           "CompassMetrics", "CompassReport", "CompassResult", "ExcitationSummary",
+           "ExcitationWindow", "HeadingErrorStats", "ReferenceField", "attitude_at_samples",
+           "calibrate_compass", "compass_heading", "convergence_time", "excitation_windows",
+           "explicit_field", "heading_error_stats", "igrf_field", "reference_in_body"]

@@ -32,6 +32,7 @@ __all__ = ["CompassCalibration", "CompassResult", "ExcitationWindow", "STATE_NAM
            "attitude_at_samples",
            "compass_heading",
            "excitation_windows", "heading_error_stats", "EXCITATION_THRESHOLD",
+           "HeadingErrorStats",
            "calibrate_compass", "convergence_time", "reference_in_body"]
 
 #: Number of parameters: D (9, row-major) and e (3).
@@ -72,7 +73,34 @@ def compass_heading(flux_cal_nT: np.ndarray, pitch_deg: np.ndarray, roll_deg: np
     return wrap360_deg(psi_m + np.asarray(declination_deg, dtype=np.float64))
 
 
-def heading_error_stats(err_deg: np.ndarray) -> dict[str, float | None]:
+@dataclass(kw_only=True)
+class HeadingErrorStats:
+    """RMS, mean and largest absolute heading error over the finite samples.
+
+    Attributes
+    ----------
+    rms_deg, mean_deg, max_abs_deg : float or None
+        Heading error statistics [deg] (None when no sample is finite); JSON
+        ``heading_err_rms_deg``, ``heading_err_mean_deg``, ``heading_err_max_abs_deg``.
+    """
+
+    rms_deg: float | None = None
+    mean_deg: float | None = None
+    max_abs_deg: float | None = None
+
+    def to_dict(self) -> dict[str, float | None]:
+        """JSON-ready dict (the ``heading_err_*`` keys of a compass report's ``metrics``)."""
+        return {"heading_err_rms_deg": self.rms_deg, "heading_err_mean_deg": self.mean_deg,
+                "heading_err_max_abs_deg": self.max_abs_deg}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, float | None]) -> HeadingErrorStats:
+        """Read the ``heading_err_*`` keys written by :meth:`to_dict`."""
+        return cls(rms_deg=d["heading_err_rms_deg"], mean_deg=d["heading_err_mean_deg"],
+                   max_abs_deg=d["heading_err_max_abs_deg"])
+
+
+def heading_error_stats(err_deg: np.ndarray) -> HeadingErrorStats:
     """RMS and mean of a heading error over its finite samples.
 
     Parameters
@@ -82,18 +110,15 @@ def heading_error_stats(err_deg: np.ndarray) -> dict[str, float | None]:
 
     Returns
     -------
-    dict
-        ``heading_err_rms_deg``, ``heading_err_mean_deg``, ``heading_err_max_abs_deg``
-        (None when no finite sample).
+    HeadingErrorStats
+        RMS, mean and largest absolute error [deg] (None when no finite sample).
     """
     e = np.asarray(err_deg, dtype=np.float64)
     e = e[np.isfinite(e)]
     if not e.size:
-        return {"heading_err_rms_deg": None, "heading_err_mean_deg": None,
-                "heading_err_max_abs_deg": None}
-    return {"heading_err_rms_deg": float(np.sqrt(np.mean(e * e))),
-            "heading_err_mean_deg": float(e.mean()),
-            "heading_err_max_abs_deg": float(np.abs(e).max())}
+        return HeadingErrorStats()
+    return HeadingErrorStats(rms_deg=float(np.sqrt(np.mean(e * e))), mean_deg=float(e.mean()),
+                             max_abs_deg=float(np.abs(e).max()))
 
 
 @dataclass
@@ -128,6 +153,11 @@ class ExcitationWindow:
     def to_dict(self) -> dict[str, float | int | bool]:
         """JSON-ready dict."""
         return dict(self.__dict__)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, float | int | bool]) -> ExcitationWindow:
+        """Read a window written by :meth:`to_dict`."""
+        return cls(**d)
 
 
 def excitation_windows(time_s: np.ndarray, heading_deg: np.ndarray, pitch_deg: np.ndarray,
@@ -259,8 +289,8 @@ class CompassResult:
         Tilt-compensated heading of ``flux_cal_nT`` plus the declination [deg].
     heading_err_deg : ndarray, shape (n,)
         ``mag_heading_cal - heading``, wrapped [deg].
-    metrics : dict
-        :func:`heading_error_stats`.
+    metrics : HeadingErrorStats
+        :func:`heading_error_stats` of ``heading_err_deg``.
     excitation : list of ExcitationWindow
     """
 
@@ -268,7 +298,7 @@ class CompassResult:
     flux_cal_nT: np.ndarray
     mag_heading_cal: np.ndarray
     heading_err_deg: np.ndarray
-    metrics: dict[str, float | None]
+    metrics: HeadingErrorStats
     excitation: list[ExcitationWindow] = field(default_factory=list)
 
     @property
