@@ -171,3 +171,24 @@ def test_compass_cli_summary_reads_the_report(tmp_path):
     m = json.loads((tmp_path / "o.json").read_text())["metrics"]
     assert (f"heading error RMS {m['heading_err_rms_deg']:.2f} deg, mean "
             f"{m['heading_err_mean_deg']:.2f} deg") in r.output
+
+
+# --------------------------------------------------------------------------- batch
+def test_batch_job_and_file_result_are_typed_and_picklable(tmp_path):
+    import pickle
+    from dataclasses import asdict
+
+    from aeromag.compensation.config import CompensationConfig
+    from aeromag.workflows.batch import process_file
+    from aeromag.workflows.batch_jobs import BatchJob, FileResult
+
+    job = BatchJob(input=str(tmp_path / "missing.csv"), out_dir=str(tmp_path / "out"),
+                   cfg=CompensationConfig(), plan=str(tmp_path / "plan.csv"))
+    assert pickle.loads(pickle.dumps(job)) == job
+    res = process_file(job)
+    assert isinstance(res, FileResult) and res.input == job.input
+    assert res.status == "failed" and "missing.csv" in res.error and res.outputs == []
+    assert " | track: " in res.error and "plan.csv" in res.error   # both steps ran
+    assert FileResult(**asdict(res)) == res   # the row batch_summary.json writes
+    lost = FileResult.failure(job, "worker failed")
+    assert (lost.input, lost.status, lost.error) == (job.input, "failed", "worker failed")
