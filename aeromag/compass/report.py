@@ -10,7 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from .calibration import ExcitationWindow, HeadingErrorStats
+from .calibration import ExcitationWindow
+from .heading_stats import HeadingErrorStats
 
 __all__ = ["CompassHistory", "CompassMetrics", "CompassReport", "ExcitationSummary"]
 
