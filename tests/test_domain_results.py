@@ -192,3 +192,46 @@ def test_batch_job_and_file_result_are_typed_and_picklable(tmp_path):
     assert FileResult(**asdict(res)) == res   # the row batch_summary.json writes
     lost = FileResult.failure(job, "worker failed")
     assert (lost.input, lost.status, lost.error) == (job.input, "failed", "worker failed")
+
+
+# --------------------------------------------------------------------------- level
+def test_mistie_spreads_are_typed_and_written_as_before():
+    import aeromag as am
+    from aeromag.survey.crossings import MistieStd
+    from aeromag.synthetic.level_survey import simulate_level_survey
+
+    df, _, _ = simulate_level_survey(0)
+    res = am.level(df.drop(columns=[c for c in df.columns if c.startswith("truth_")]),
+                   igrf=False, method="shift", decorrugate=True)
+    std, rob = res.mistie_std_nT, res.mistie_robust_std_nT
+    assert isinstance(std, MistieStd) and std.before > std.after
+    assert rob.before is not None and rob.after <= rob.before
+    rep = res.to_report()
+    assert rep["mistie_std_nT"] == {"before": std.before, "after": std.after}
+    assert MistieStd.from_dict(rep["mistie_robust_std_nT"]) == rob
+    dec = res.decorrugation
+    assert isinstance(dec.mistie_robust_std_nT, MistieStd)
+    assert dec.to_dict()["mistie_robust_std_nT"] == dec.mistie_robust_std_nT.to_dict()
+    assert "mistie_std_nT" in repr(res)
+    assert MistieStd().to_dict() == {"before": None, "after": None}
+
+
+# --------------------------------------------------------------------------- navigate
+def test_navigation_report_is_typed_and_its_json_round_trips(tmp_path):
+    from aeromag.io import write_csv
+    from aeromag.nav import NavReport
+    from aeromag.synthetic.quadrotor import simulate_quadrotor
+    from aeromag.workflows.navigate import navigate_file
+
+    flight = simulate_quadrotor("rectangle", seed=11, duration_s=12.0)
+    write_csv(flight.log, tmp_path / "log.csv")
+    res = navigate_file(tmp_path / "log.csv", tmp_path / "out.csv", gps="use")
+    rep = res.report
+    assert isinstance(rep, NavReport) and rep.input == str(tmp_path / "log.csv")
+    assert rep.sensors == rep.settings["sensors"] and "gps_pos" in rep.innovations
+    doc = json.loads((tmp_path / "out.json").read_text())
+    assert list(doc) == ["gps", "settings", "innovations", "mean_nis", "reference_field",
+                         "ground_d_m", "mag_bias_deg", "imu_interval_s", "warnings", "input"]
+    assert doc == json.loads(json.dumps(rep.to_dict()))
+    assert json.loads(json.dumps(NavReport.from_dict(doc).to_dict())) == doc
+    assert NavReport.from_dict({**doc, "x": 1}).extra == {"x": 1}
