@@ -56,13 +56,13 @@ def score(df: pd.DataFrame, case: str, walk: float) -> dict[str, float]:
     d.loc[d.index[held], GNSS_COLS] = np.nan
     cfg = NavConfig(gps_walk_m_rt_s=walk)
     res = navigate_frame(d, gps="use", config=cfg, source="px4_optical_flow.csv")
-    org = tuple(res.report["gps"]["origin"])
+    org = tuple(res.report.gps["origin"])
     g = geodetic_to_ned(df["lat"].to_numpy(float)[held], df["lon"].to_numpy(float)[held],
                         df["alt"].to_numpy(float)[held], org)
     e = res.data[["nav_n_m", "nav_e_m"]].to_numpy(float)[held] - g[:, :2]
     sd = res.data[["nav_std_n_m", "nav_std_e_m"]].to_numpy(float)[held]
     sg = cfg.gps_cep_m / 1.1774
-    st = res.report["innovations"]["gps_pos"]
+    st = res.report.innovations["gps_pos"]
     return {"n": held.size,
             "rms": float(np.sqrt(np.mean(np.sum(e**2, axis=1)))),
             "end": float(np.linalg.norm(e[-1])),
@@ -72,7 +72,7 @@ def score(df: pd.DataFrame, case: str, walk: float) -> dict[str, float]:
             "std": float(np.median(np.hypot(sd[:, 0], sd[:, 1]))),
             "nis": st["mean_nis_per_dof"], "down": st["n_downweighted"],
             "fused": st["n_fused"],
-            "scale": res.report["settings"]["noise_used"].get("gps_pos_variance_scale",
+            "scale": res.report.settings["noise_used"].get("gps_pos_variance_scale",
                                                               float("nan"))}
 
 

@@ -59,7 +59,7 @@ def main() -> None:
         res = navigate_frame(df, gps=mode)
         el = time.perf_counter() - t0
         rep = res.report
-        for k, s in rep["innovations"].items():
+        for k, s in rep.innovations.items():
             if s["n_fused"] + s["n_rejected"] + s["n_gated"] == 0:
                 continue
             nis = s["mean_nis_per_dof"]
@@ -71,7 +71,7 @@ def main() -> None:
                            d[["nav_vn", "nav_ve", "nav_vd"]].to_numpy(float))
         rows.append((f"aeromag {label}", m, len(df) / el))
         if not a.no_reference:
-            decl = np.deg2rad(rep["reference_field"]["declination_deg"])
+            decl = np.deg2rad(rep.reference_field["declination_deg"])
             t0 = time.perf_counter()
             ref = reference_ekf(df, _gps_use(df, mode), decl)
             el = time.perf_counter() - t0

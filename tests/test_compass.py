@@ -329,7 +329,7 @@ def test_multirate_log_interpolates_attitude_to_magnetometer_rows():
     out, rep, _ = compass_frame(mr, forgetting=0.975, earth_field=ef)
     magrow = out["flux_x"].notna().to_numpy().copy()
     # the last row is a magnetometer row with no attitude after it: never extrapolated
-    assert rep["metrics"]["n_attitude_interpolated"] == magrow.sum() - 1
+    assert rep.metrics.n_attitude_interpolated == magrow.sum() - 1
     magrow[-1] = False
     assert out.loc[magrow, ["flux_cal_x", "mag_heading_cal", "heading_err_deg"]].notna().all().all()
     t = out["time"].to_numpy()

@@ -419,8 +419,8 @@ def test_navigate_origin_ignored_warning(nav_log, tmp_path, caplog):
     with caplog.at_level("WARNING", logger="aeromag"):
         res = navigate_file(nav_log[0], tmp_path / "api.csv", origin=(37.0, 112.0, 800.0))
     assert "origin=(37.0, 112.0, 800.0) ignored" in caplog.text
-    assert all(not FLAG.search(w) for w in res.report["warnings"]), res.report["warnings"]
-    assert res.report["gps"]["origin_from"] == "first GNSS fix"
+    assert all(not FLAG.search(w) for w in res.report.warnings), res.report.warnings
+    assert res.report.gps["origin_from"] == "first GNSS fix"
     out = tmp_path / "o.csv"
     r = runner.invoke(app, ["navigate", str(nav_log[0]), "-o", str(out),
                             "--origin", "37", "112", "800"])

@@ -60,14 +60,14 @@ def test_study_figures_without_gnss_after_the_first_fix(scenario, pos_max, vel_m
     e_imu, _ = _errors(fl, imu)
     assert 50.0 < e_imu[-1] < 200.0, e_imu[-1]
     assert e_imu[-1] >= ratio * e_pos.mean(), (e_imu[-1], e_pos.mean())
-    assert all(v["n_fused"] == 0 for v in imu.report["innovations"].values())
+    assert all(v["n_fused"] == 0 for v in imu.report.innovations.values())
     # Every aiding sensor was fused and is consistent on average (NIS/dof near 1; the
     # magnetometer's default 1° is conservative against the simulated 0.5°).
     for name in ("flow", "range", "gravity", "mag"):
-        st = res.report["innovations"][name]
+        st = res.report.innovations[name]
         assert st["n_fused"] > 300, (name, st)
         assert 0.2 < st["mean_nis_per_dof"] < 2.0, (name, st)
-    assert res.report["innovations"]["flow"]["n_gated"] >= 5   # quality-0 samples left out
+    assert res.report.innovations["flow"]["n_gated"] >= 5   # quality-0 samples left out
     assert np.isfinite(res.data.filter(like="nav_").to_numpy()).all()
 
 
@@ -133,7 +133,7 @@ def test_gnss_outage_stays_within_three_sigma_and_reconverges(sensors, accel_bia
     res = _run(fl, gps=(t0, t1), sensors=sensors, config=NavConfig(accel_bias=accel_bias))
     d, T = res.data, fl.truth
     t = d.time.to_numpy()
-    origin = res.report["gps"]["origin"]
+    origin = res.report.gps["origin"]
     tru = geodetic_to_ned(T.lat.to_numpy(), T.lon.to_numpy(), T.alt.to_numpy(), tuple(origin))
     err = d[["nav_n_m", "nav_e_m"]].to_numpy() - tru[:, :2]
     sd = d[["nav_std_n_m", "nav_std_e_m"]].to_numpy()
@@ -141,7 +141,7 @@ def test_gnss_outage_stays_within_three_sigma_and_reconverges(sensors, accel_bia
     k_start = int(np.searchsorted(t, t0))
     # At the end of the outage the error is within the filter's own 3 sigma.
     assert np.all(np.abs(err[k_end]) <= 3 * sd[k_end]), (err[k_end], sd[k_end])
-    intervals = res.report["gps"]["intervals"]
+    intervals = res.report.gps["intervals"]
     assert len(intervals) == 2 and intervals[0][1] < t0 and intervals[1][0] >= t1
     eh, sh = np.hypot(*err.T), np.hypot(*sd.T)
     assert sh[k_end] > sh[k_start]              # the outage widened the uncertainty
@@ -153,7 +153,7 @@ def test_gnss_outage_stays_within_three_sigma_and_reconverges(sensors, accel_bia
     assert np.all(eh[after] <= np.maximum(3 * sh[after], 0.0)), eh[after].max()
     assert eh[after].max() < 1.5, eh[after].max()
     assert sh[k5] <= 2.0 * sh[pre].mean(), (sh[k5], sh[pre].mean())
-    assert 0.3 < res.report["innovations"]["gps_pos"]["mean_nis_per_dof"] < 2.0
+    assert 0.3 < res.report.innovations["gps_pos"]["mean_nis_per_dof"] < 2.0
 
 
 def test_online_step_equals_the_batched_run():

@@ -169,7 +169,7 @@ def fly(kind: str, seed: int = 5, duration_s: float = 60.0, gnss_jump: float = 0
 def _run(kind: str, gps="none", **kw):
     log, pos, vel = fly(kind, **kw)
     res = navigate(log, gps=gps, mag_reference_ned_nT=FIELD, source="independent")
-    org = tuple(res.report["gps"]["origin"])
+    org = tuple(res.report.gps["origin"])
     truth = geodetic_to_ned(*ned_to_geodetic(pos, SITE).T, org)
     d = res.data
     k0 = np.flatnonzero(np.isfinite(log["gyro_x"].to_numpy()))[0]
@@ -194,11 +194,11 @@ def test_issue12_bars_with_margin_without_reject_storms(runs, kind, pos_bar, vel
     ep = ep - ep[0]             # GNSS only to start: its first fix's error is an offset
     e_p, e_v = np.hypot(*ep.T).mean(), np.hypot(*ev.T).mean()
     assert e_p < 0.6 * pos_bar and e_v < 0.6 * vel_bar, (e_p, e_v)
-    assert not any("in a row" in w for w in res.report["warnings"]), res.report["warnings"]
+    assert not any("in a row" in w for w in res.report.warnings), res.report.warnings
     for name in ("flow", "range", "mag"):
-        s = res.report["innovations"][name]
+        s = res.report.innovations[name]
         assert s["n_fused"] > 0 and s["n_rejected"] <= 0.02 * s["n_fused"], (name, s)
-    s = res.report["innovations"]["range"]   # the 6 % dropouts and saturations are gated
+    s = res.report.innovations["range"]   # the 6 % dropouts and saturations are gated
     assert s["n_gated"] >= 0.04 * (s["n_gated"] + s["n_fused"]), s
 
 
@@ -210,7 +210,7 @@ def test_nis_per_sensor_in_the_band_or_named(runs, kind):
     noise only inflates (the configured noise is its floor), so their NIS is below the band
     and the run must say so in a warning."""
     res = runs[kind][0]
-    for name, s in res.report["innovations"].items():
+    for name, s in res.report.innovations.items():
         if s["n_fused"] < 20:
             continue
         lo, hi = s["nis_band"]
@@ -219,7 +219,7 @@ def test_nis_per_sensor_in_the_band_or_named(runs, kind):
         if name in ("flow", "range", "gps_vel"):
             assert lo <= m, (name, s)
         elif m < lo:
-            assert any(f"{name}: mean NIS" in w for w in res.report["warnings"]), name
+            assert any(f"{name}: mean NIS" in w for w in res.report.warnings), name
 
 
 def _coverage(ep, sd):
@@ -254,7 +254,7 @@ def test_gnss_aiding_holds_the_position_near_the_receivers_own_error(runs):
 def test_ten_second_gnss_jump_is_refused_and_does_not_drag_the_track(runs):
     res, ep, _, _ = runs["jump"]
     _, ep_clean, _, _ = runs["rectangle_gnss"]
-    s = res.report["innovations"]["gps_pos"]
+    s = res.report.innovations["gps_pos"]
     assert s["n_rejected"] + s["n_downweighted"] >= 0.8 * 50, s
     e, c = np.hypot(*ep.T), np.hypot(*ep_clean.T)
     assert e.max() < c.max() + 2.0, (e.max(), c.max())

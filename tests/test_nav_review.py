@@ -24,7 +24,7 @@ def test_barometer_datum_stays_in_the_vertical_covariance():
     log.loc[log.index[gnss[0]], "alt"] += 3.0     # a first fix 3 m off vertically (GNSS)
     res = navigate(log, gps="none", mag_reference_ned_nT=REF, source="sim",
                    sensors=("gps_pos", "gps_vel", "baro", "gravity", "mag", "flow"))
-    origin = res.report["gps"]["origin"]
+    origin = res.report.gps["origin"]
     T = fl.truth
     tru = geodetic_to_ned(T.lat.to_numpy(), T.lon.to_numpy(), T.alt.to_numpy(), tuple(origin))
     err = res.data.nav_d_m.to_numpy() - tru[:, 2]
@@ -40,7 +40,7 @@ def test_accelerometer_bias_states_are_the_default():
     assert cfg.accel_bias
     fl = simulate_quadrotor("hover", seed=0, duration_s=10.0)
     res = navigate(fl.log, gps="none", mag_reference_ned_nT=REF, source="sim")
-    assert {"bax_ms2", "bay_ms2", "baz_ms2"} <= set(res.report["settings"]["states"])
+    assert {"bax_ms2", "bay_ms2", "baz_ms2"} <= set(res.report.settings["states"])
 
 
 
@@ -54,11 +54,11 @@ def test_gyro_in_deg_per_s_in_a_hover_warns_with_the_units_remedy():
         log[c] = np.degrees(log[c])
     assert np.nanmax(np.abs(log[["gyro_x", "gyro_y", "gyro_z"]].to_numpy())) < 34.9
     res = navigate(log, gps="none", mag_reference_ned_nT=REF, source="sim")
-    assert any("units={'gyro': 'deg/s'}" in w for w in res.report["warnings"])
+    assert any("units={'gyro': 'deg/s'}" in w for w in res.report.warnings)
     for scenario in ("hover", "rectangle"):            # rad/s: no false warning
         ok = navigate(simulate_quadrotor(scenario, seed=2, duration_s=20.0).log, gps="none",
                       mag_reference_ned_nT=REF, source="sim")
-        assert not any("deg/s" in w for w in ok.report["warnings"]), ok.report["warnings"]
+        assert not any("deg/s" in w for w in ok.report.warnings), ok.report.warnings
 
 
 def test_the_origin_fix_is_not_fused_twice():
@@ -67,7 +67,7 @@ def test_the_origin_fix_is_not_fused_twice():
     information (2.12 m -> 1.5 m per axis while the error is the fix's own)."""
     fl = simulate_quadrotor("hover", seed=0, duration_s=5.0)
     res = navigate(fl.log, gps="none", mag_reference_ned_nT=REF, source="sim")
-    assert res.report["gps"]["n_fixes_fused"] == 0
+    assert res.report.gps["n_fixes_fused"] == 0
     sd = res.data.nav_std_n_m.to_numpy()
     assert abs(np.median(sd) - NavConfig().gps_cep_m / 1.1774) < 0.05, np.median(sd)
 

@@ -49,7 +49,7 @@ def _metrics(df, d):
 def test_real_flight_without_gnss_is_consistent_and_no_worse_than_a_plain_ekf():
     df = _real()
     res = _real_run("none")
-    inn = res.report["innovations"]
+    inn = res.report.innovations
     for name in ("flow", "range", "mag"):
         s = inn[name]
         offered = s["n_fused"] + s["n_rejected"] + s["n_gated"]
@@ -57,15 +57,15 @@ def test_real_flight_without_gnss_is_consistent_and_no_worse_than_a_plain_ekf():
         assert 0.3 < s["mean_nis_per_dof"] < 3.0, (name, s)
         assert "nis_band" in s and s["n_downweighted"] < s["n_fused"]
     # true heading without --date: IGRF on the nominal date, named in a warning
-    assert any("declination" in w and "nominal date" in w for w in res.report["warnings"])
-    assert abs(res.report["reference_field"]["declination_deg"]) > 5.0
+    assert any("declination" in w and "nominal date" in w for w in res.report.warnings)
+    assert abs(res.report.reference_field["declination_deg"]) > 5.0
     ours = _metrics(df, res.data)
     ref = reference_ekf(df, np.zeros(len(df), bool),
-                        np.deg2rad(res.report["reference_field"]["declination_deg"]))
+                        np.deg2rad(res.report.reference_field["declination_deg"]))
     theirs = flight_metrics(df, ref.pos, ref.vel)
     assert ours["vel_rms"] <= theirs["vel_rms"], (ours, theirs)
     assert ours["disp10_rms"] <= theirs["disp10_rms"], (ours, theirs)
-    noise = res.report["settings"]["noise_used"]
+    noise = res.report.settings["noise_used"]
     assert noise["gyro_noise_dps"] > 0.05     # sized from the log, not the data sheet
 
 
@@ -77,7 +77,7 @@ def test_real_flight_with_gnss_follows_the_fixes_and_aiding_does_not_hurt():
     assert use["vel_rms"] <= none["vel_rms"] and use["disp10_rms"] <= none["disp10_rms"]
     out = _metrics(df, _real_run("247.6:277.6").data)
     assert out["outage_end"] < 0.8 * none["outage_end"], (out, none)
-    s = _real_run("use").report["innovations"]["gps_pos"]
+    s = _real_run("use").report.innovations["gps_pos"]
     assert s["n_fused"] >= 0.9 * (s["n_fused"] + s["n_rejected"]) and (
         0.3 < s["mean_nis_per_dof"] < 3.0)
 
@@ -141,7 +141,7 @@ def test_saturating_rangefinder_is_gated_not_fused():
     sat = log.range_m.notna().to_numpy() & (t > 20) & (t < 35)
     log.loc[sat, "range_m"] = 5.0              # the sonar's maximum: no echo
     res = _nav(log)
-    s = res.report["innovations"]["range"]
+    s = res.report.innovations["range"]
     assert s["n_gated"] >= sat.sum()
     e_p, e_v = _err(fl, res)
     assert e_p.mean() < 0.5 and e_v.mean() < 0.15
@@ -155,7 +155,7 @@ def test_a_ten_second_gnss_jump_is_refused_and_does_not_drag_the_track():
     log.loc[jump, "lat"] += 30.0 / 111_000.0    # 30 m north for 10 s
     clean = _nav(fl.log, gps="use")
     res = _nav(log, gps="use")
-    s = res.report["innovations"]["gps_pos"]
+    s = res.report.innovations["gps_pos"]
     assert s["n_rejected"] + s["n_downweighted"] >= 0.8 * jump.sum()
     e_p, _ = _err(fl, res)
     c_p, _ = _err(fl, clean)
@@ -172,7 +172,7 @@ def test_magnetometer_near_a_motor_does_not_turn_the_heading():
     yaw_err = np.abs((res.data.nav_yaw.to_numpy() - fl.truth.yaw_deg.to_numpy() + 180) % 360
                      - 180)
     assert yaw_err[t > 5].max() < 5.0, yaw_err[t > 5].max()
-    s = res.report["innovations"]["mag"]
+    s = res.report.innovations["mag"]
     assert s["n_gated"] + s["n_rejected"] + s["n_downweighted"] >= 0.8 * (near.sum() / 5)
 
 
@@ -296,12 +296,12 @@ def test_independent_simulator_meets_the_bars_without_reject_storms(scenario, po
     e_pos = np.hypot(*((est - est[k0]) - (tr - tr[k0])).T)[k0:]
     e_vel = np.hypot(*(d[["nav_vn", "nav_ve"]].to_numpy()
                        - tru[["vn_ms", "ve_ms"]].to_numpy()).T)[k0:]
-    print(scenario, e_pos.mean(), e_vel.mean(), res.report["innovations"]["flow"])
+    print(scenario, e_pos.mean(), e_vel.mean(), res.report.innovations["flow"])
     assert e_pos.mean() < 0.8 * pos_max and e_vel.mean() < 0.8 * vel_max, (
         e_pos.mean(), e_vel.mean())
-    assert not any("in a row" in w for w in res.report["warnings"])
+    assert not any("in a row" in w for w in res.report.warnings)
     for name in ("flow", "range", "mag"):
-        s = res.report["innovations"][name]
+        s = res.report.innovations[name]
         assert s["n_rejected"] <= 0.02 * s["n_fused"], (name, s)
 
 

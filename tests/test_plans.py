@@ -179,11 +179,11 @@ def test_a_ground_station_plan_checks_a_flight(tmp_path):
     plan = read_plan(p)
     np.testing.assert_allclose(plan["alt"], plan_csv["alt"] - undulation, atol=1e-6)
     res = check_track(df, plan)
-    off = res.report["altitude_offset"]
+    off = res.report.altitude_offset
     assert off["applied_m"] == pytest.approx(undulation, abs=0.05)
-    assert any("altitude reference" in w for w in res.report["warnings"])
+    assert any("altitude reference" in w for w in res.report.warnings)
     ref = check_track(df, plan_csv)
-    assert res.report["flagged_legs"] == ref.report["flagged_legs"]
+    assert res.report.flagged_legs == ref.report.flagged_legs
     np.testing.assert_allclose(res.data["xtrack_m"], ref.data["xtrack_m"], atol=0.06)
 
 

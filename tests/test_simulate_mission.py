@@ -47,9 +47,9 @@ def test_undisturbed_quiet_disturbed_flagged(runs):
     for _, _, truth, res, _ in runs:
         for row, tl in zip(res.legs, truth["legs"], strict=True):
             if tl["disturbance"] is None:
-                assert not row["flagged"], row
+                assert not row.flagged, row
             else:
-                assert row["flagged"], row
+                assert row.flagged, row
 
 
 def test_track_alarm_latency_one_sample(runs):
@@ -58,11 +58,11 @@ def test_track_alarm_latency_one_sample(runs):
         for row, tl in zip(res.legs, truth["legs"], strict=True):
             if tl["disturbance"] is None:
                 continue
-            m = (df["truth_leg"] == row["leg"]) & (df["truth_xtrack_m"] > 1.0)
+            m = (df["truth_leg"] == row.leg) & (df["truth_xtrack_m"] > 1.0)
             t_true = float(df["time"][m].iloc[0])
-            latency = row["first_track_alarm_time"] - t_true
+            latency = row.first_alarm_times["track"] - t_true
             # never later than one sample; RTK noise (2 cm) may make it fire a little early
-            assert -0.5 <= latency <= dt + 1e-9, (row["leg"], latency)
+            assert -0.5 <= latency <= dt + 1e-9, (row.leg, latency)
 
 
 def test_study_finding_reproduced(runs):
@@ -74,11 +74,11 @@ def test_study_finding_reproduced(runs):
             if kind is None:
                 continue
             on = tl["onset_time"]
-            ft = row["first_track_alarm_time"] - on
-            fh = (row["first_heading_alarm_time"] - on
-                  if row["first_heading_alarm_time"] is not None else np.inf)
+            ft = row.first_alarm_times["track"] - on
+            fh = (row.first_alarm_times["heading"] - on
+                  if row.first_alarm_times["heading"] is not None else np.inf)
             lat[kind].append((ft, fh))
-            assert row["first_detector"] == ("heading" if kind == "fast" else "track"), row
+            assert row.first_detector == ("heading" if kind == "fast" else "track"), row
     fast, slow = np.array(lat["fast"]), np.array(lat["slow"])
     assert (fast[:, 1] < 4.0).all() and (fast[:, 0] < 10.0).all()
     assert (slow[:, 0] < 16.0).all() and (slow[:, 1] > 30.0).all()

@@ -61,7 +61,7 @@ def test_simulator_chain(sims, seed):
     assert np.sqrt(np.mean((e - e.mean()) ** 2)) <= 0.3
     assert np.nanmax(np.abs(d["igrf"] - d["truth_igrf"])) < 0.05
     std = res.mistie_std_nT
-    assert std["before"] >= 5.0 * std["after"]
+    assert std.before >= 5.0 * std.after
     assert _rms_vs_truth(res) < 0.6
     assert _rms_vs_truth(res) < 0.2 * _rms_vs_truth(res, "tmi")
     rep = res.to_report()
@@ -83,7 +83,7 @@ def test_decorrugation_bounded(sims):
     dec = res.decorrugation
     corr = (res.data["tmi_lev"] - res.data["tmi_mlev"]).to_numpy()
     assert np.nanmax(np.abs(corr)) <= dec.limit_nT + 1e-9
-    assert dec.limit_nT == pytest.approx(3 * res.mistie_robust_std_nT["after"], rel=1e-6)
+    assert dec.limit_nT == pytest.approx(3 * res.mistie_robust_std_nT.after, rel=1e-6)
     assert dec.std_removed_nT and max(dec.std_removed_nT.values()) <= dec.limit_nT
     assert np.all(np.nan_to_num(corr[res.geometry.is_tie]) == 0)
 
@@ -178,7 +178,7 @@ def test_independent_generator(seed):
     assert res.crossings.n == 13 * 5
     assert g.crs == 32611
     std = res.mistie_std_nT
-    assert std["before"] >= 5.0 * std["after"]
+    assert std.before >= 5.0 * std.after
     assert _rms_vs_truth(res) < 0.3 * _rms_vs_truth(res, "tmi")
     assert _rms_vs_truth(res) < 1.5
 
@@ -413,7 +413,7 @@ def test_methods_progress_and_lag_spelling():
     smooth = am.level(df, igrf=False, method="smooth")
     assert steps[0] == "geometry" and steps[-1] == "done" and len(steps) == 7
     for res in (shift, smooth):
-        assert res.mistie_std_nT["after"] < 0.5 * res.mistie_std_nT["before"]
+        assert res.mistie_std_nT.after < 0.5 * res.mistie_std_nT.before
     # 5 crossings per line: at most 5 // 3 knots, i.e. smooth falls back to a trend there.
     assert max(len(k) for k in smooth.levelling.knots_m) == 2
     from aeromag.survey.levelling import level_network

@@ -131,7 +131,7 @@ def test_levelled_against_truth(sv, lev):
     assert lev.crossings.n == 11 * 4
     assert rms < 0.25 * rms0 and rms < 2.0
     std = lev.mistie_std_nT
-    assert std["before"] >= 5 * std["after"]
+    assert std.before >= 5 * std.after
 
 
 def test_level_accepts_a_dataframe_and_a_path(sv, tmp_path):

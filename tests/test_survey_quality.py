@@ -194,6 +194,6 @@ def test_micro_levelling_on_an_independent_survey(seed):
     shift = am.level(df, igrf=False, method="shift", decorrugate=True)
     assert _line_rms(shift, "tmi_mlev") < 0.92 * _line_rms(shift, "tmi_lev")
     rob = shift.decorrugation.mistie_robust_std_nT
-    assert rob["after"] < rob["before"]
+    assert rob.after < rob.before
     none = am.level(df, igrf=False, method="none", decorrugate=True)
     assert _line_rms(none, "tmi_mlev") < 0.85 * _line_rms(none, "tmi_lev")

@@ -154,9 +154,9 @@ def test_check_track_uses_leg_column_and_reports_every_leg():
     df = pd.DataFrame({"time": np.arange(len(pos)) * 0.1, "lat": g[:, 0], "lon": g[:, 1],
                        "alt": g[:, 2], "leg": leg})
     res = check_track(df, pd.DataFrame(pg, columns=["lat", "lon", "alt"]))
-    assert [row["leg"] for row in res.legs] == [0, 1]
-    assert res.legs[0]["flagged"] and not res.legs[1]["flagged"]
-    assert res.legs[1]["n_samples"] == 0 and res.legs[1]["first_alarm_time"] is None
+    assert [row.leg for row in res.legs] == [0, 1]
+    assert res.legs[0].flagged and not res.legs[1].flagged
+    assert res.legs[1].n_samples == 0 and res.legs[1].first_alarm_time is None
     on = res.data["leg"].notna().to_numpy()
     assert np.allclose(res.data["xtrack_m"][on], 1.5, atol=2e-3)
     assert not res.data["alarm"][~on].any()
@@ -179,12 +179,12 @@ def test_heading_sigma_floor_stops_alarm_storms_on_clean_lines():
     df, plan, _ = simulate_mission(seed=2, line_m=200.0, n_lines=2, disturbances={},
                                    flux_noise_nT=1.0, gust_m_s=0.05)
     raw = check_track(df, plan, heading_sigma_floor_deg=0.0)
-    hd = raw.report["heading_detector"]
+    hd = raw.report.heading_detector
     assert hd["sigma_raw_deg"] < 0.05 and int(raw.data["heading_alarm"].sum()) >= 10
     res = check_track(df, plan)
-    hd = res.report["heading_detector"]
+    hd = res.report.heading_detector
     assert hd["sigma_floor_deg"] == 0.5 and hd["sigma_deg"] == 0.5 and hd["floored"]
-    assert not res.data["heading_alarm"].any() and res.report["flagged_legs"] == []
+    assert not res.data["heading_alarm"].any() and res.report.flagged_legs == []
     with pytest.raises(InputError, match="sigma_floor_deg="):  # the CLI: --heading-sigma-floor
         check_track(df, plan, heading_sigma_floor_deg=-1.0)
 
@@ -194,29 +194,29 @@ def test_altitude_relative_to_home_is_found_and_removed(small_mission):
     ref = check_track(df, plan)
     rel = df.assign(alt=df["alt"] - float(plan["alt"].iloc[0]) + 40.0)  # relative to take-off
     res = check_track(rel, plan)
-    off = res.report["altitude_offset"]
+    off = res.report.altitude_offset
     assert off["mode"] == "auto"
     assert off["applied_m"] == pytest.approx(40.0 - float(plan["alt"].iloc[0]), abs=0.05)
-    assert any("altitude reference" in w for w in res.report["warnings"])
-    assert res.report["flagged_legs"] == ref.report["flagged_legs"] == [2]
+    assert any("altitude reference" in w for w in res.report.warnings)
+    assert res.report.flagged_legs == ref.report.flagged_legs == [2]
     np.testing.assert_allclose(res.data["xtrack_m"], ref.data["xtrack_m"], atol=0.05)
     # without the correction every sample is off the legs, and the report says what to check
     none = check_track(rel, plan, altitude_offset="none")
-    assert none.report["n_on_leg"] == 0 and none.report["flagged_legs"] == []
-    assert any("altitude reference" in w for w in none.report["warnings"])
+    assert none.report.n_on_leg == 0 and none.report.flagged_legs == []
+    assert any("altitude reference" in w for w in none.report.warnings)
     # horizontal only: the legs are found and the distance ignores the datum
     hor = check_track(rel, plan, altitude_offset="none", horizontal=True)
-    assert hor.report["distance"] == "horizontal" and hor.report["flagged_legs"] == [2]
+    assert hor.report.distance == "horizontal" and hor.report.flagged_legs == [2]
     x = hor.data["xtrack_m"].to_numpy()
     np.testing.assert_allclose(x[np.isfinite(x)],
                                np.abs(hor.data["xtrack_h_m"].to_numpy()[np.isfinite(x)]))
     # a given offset; and a small constant error is not a datum (it is reported as deviation)
     given = check_track(rel, plan, altitude_offset=40.0 - float(plan["alt"].iloc[0]))
-    assert given.report["altitude_offset"]["mode"] == "given"
-    assert given.report["flagged_legs"] == [2]
+    assert given.report.altitude_offset["mode"] == "given"
+    assert given.report.flagged_legs == [2]
     high = check_track(df.assign(alt=df["alt"] + 2.0), plan)
-    assert high.report["altitude_offset"]["applied_m"] == 0.0
-    assert high.report["flagged_legs"] == [0, 1, 2]
+    assert high.report.altitude_offset["applied_m"] == 0.0
+    assert high.report.flagged_legs == [0, 1, 2]
     with pytest.raises(InputError, match="altitude_offset="):
         check_track(df, plan, altitude_offset="ellipsoid")
 
@@ -226,14 +226,14 @@ def test_reversed_and_far_plans_warn(small_mission):
     rev = check_track(df, plan.iloc[::-1].reset_index(drop=True))
     ok = check_track(df, plan)
     # a mission flown against its plan reversed is checked along the reversed legs
-    assert rev.report["n_on_leg"] == ok.report["n_on_leg"] > 0
-    assert rev.report["flagged_legs"] == sorted(len(plan) - 2 - k
-                                                for k in ok.report["flagged_legs"])
-    assert any("backwards" in w and "reversed" in w for w in rev.report["warnings"])
+    assert rev.report.n_on_leg == ok.report.n_on_leg > 0
+    assert rev.report.flagged_legs == sorted(len(plan) - 2 - k
+                                                for k in ok.report.flagged_legs)
+    assert any("backwards" in w and "reversed" in w for w in rev.report.warnings)
     far = check_track(df, plan.assign(lat=plan["lat"] + 0.05))
-    assert any("within" in w and "site" in w for w in far.report["warnings"])
+    assert any("within" in w and "site" in w for w in far.report.warnings)
     ok = check_track(df, plan)
-    assert ok.report["warnings"] == []
+    assert ok.report.warnings == []
 
 
 def test_session_of_flights_with_landings_between():
@@ -253,14 +253,14 @@ def test_session_of_flights_with_landings_between():
     log = pd.concat(parts, ignore_index=True)
     res = check_track(log, plan)
     row = res.legs[0]
-    assert row["n_passes"] == 3
+    assert row.n_passes == 3
     flown = (log["truth_leg"] == 0).to_numpy()
     lab = res.data["leg"].fillna(-1).to_numpy(dtype=np.int64)
     assert (lab[flown] == 0).mean() >= 0.95
     beyond = int((log["truth_xtrack_m"] > 1.0).sum())
     assert int(res.data["track_alarm"].sum()) <= beyond + 0.02 * len(log)
     assert not res.data["alarm"].to_numpy()[log["truth_phase"].to_numpy() != "leg"].any()
-    assert [p["flagged"] for p in row["passes"]] == [False, True, False]
+    assert [p.flagged for p in row.passes] == [False, True, False]
 
 
 def test_more_detectors_and_given_inputs(small_mission):
@@ -276,15 +276,15 @@ def test_more_detectors_and_given_inputs(small_mission):
     assert "pf_alarm" in res.data.columns
     on = res.data["leg"].notna().to_numpy()
     assert (res.data["pf_alarm"].to_numpy() == (fake & on)).all()
-    assert all("first_pf_alarm_time" in row for row in res.legs)
-    assert [d["detector"] for d in res.report["detectors"]] == ["track", "heading", "pf"]
+    assert all("pf" in row.first_alarm_times for row in res.legs)
+    assert [d["detector"] for d in res.report.detectors] == ["track", "heading", "pf"]
     base = check_track(df, plan)
     assert (res.data["alarm"] >= base.data["alarm"]).all()
     # explicit position and heading arrays give the same result as the log's columns
     same = check_track(df.drop(columns=["lat", "lon", "alt"]), plan,
                        position=(df["lat"], df["lon"], df["alt"]),
                        heading_deg=df["heading"].to_numpy())
-    assert same.report["position_input"] == "given"
+    assert same.report.position_input == "given"
     pd.testing.assert_series_equal(same.data["alarm"], base.data["alarm"])
     assert same.legs == base.legs
 
@@ -297,13 +297,13 @@ def test_messy_logs(small_mission):
     keep = np.arange(len(df)) % 10 == 0
     sparse = df.assign(lat=np.where(keep, df["lat"], np.nan))
     res = check_track(sparse, plan)
-    assert res.report["flagged_legs"] == base.report["flagged_legs"] == [2]
+    assert res.report.flagged_legs == base.report.flagged_legs == [2]
     lab, ref = (r.data["leg"].fillna(-1).to_numpy() for r in (res, base))
     assert (lab[~keep] == -1).all()
     assert (lab[keep] == ref[keep]).mean() > 0.97
     coarse = check_track(df.assign(time=np.floor(df["time"])), plan)
-    assert coarse.report["flagged_legs"] == [2]
-    assert coarse.report["n_on_leg"] > 0.9 * base.report["n_on_leg"]
+    assert coarse.report.flagged_legs == [2]
+    assert coarse.report.n_on_leg > 0.9 * base.report.n_on_leg
     with pytest.raises(InputError, match=r"column 'time', row 2: .* \(sort the log"):
         check_track(df.iloc[::-1].reset_index(drop=True), plan)
     with pytest.raises(InputError, match="column 'alt', line 2: altitude 1e\\+300 m"):
@@ -322,7 +322,7 @@ def test_noisy_positions_and_gnss_velocity():
     df, plan, _ = simulate_mission(seed=0, rtk_noise_m=0.5, line_m=250.0,
                                    home_ne_m=(-30.0, -20.0), ground_s=20.0, refly_legs=(3,))
     res = check_track(df, plan, threshold_m=2.0)
-    v = res.report["velocity"]
+    v = res.report.velocity
     assert v["source"] == "positions" and 0.4 < v["position_jitter_m"] < 0.6
     assert v["window_s"] == pytest.approx(7.0 * v["position_jitter_m"])
     s = _scores(df, plan, res)
@@ -337,6 +337,6 @@ def test_noisy_positions_and_gnss_velocity():
     vel = motion_velocity(df["time"].to_numpy(), ned, v["window_s"])
     withv = df.assign(vel_n=vel[:, 0], vel_e=vel[:, 1], vel_d=vel[:, 2])
     res2 = check_track(withv, plan, threshold_m=2.0)
-    assert res2.report["velocity"]["source"] == "gnss"
+    assert res2.report.velocity["source"] == "gnss"
     pd.testing.assert_series_equal(res2.data["leg"], res.data["leg"])
     assert LegModel().velocity_window_s == 1.0

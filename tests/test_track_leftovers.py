@@ -80,10 +80,10 @@ def test_legs_flown_last_first_with_ferries_do_not_alarm():
     on = truth >= 0
     lab = _labels(res)
     assert int(res.data["alarm"].sum()) == 0
-    assert res.report["flagged_legs"] == []
+    assert res.report.flagged_legs == []
     assert (lab[~on] < 0).all()
     assert (lab[on] == truth[on]).mean() > 0.85
-    assert res.report["plan_check"]["mismatch"] is None, res.report["plan_check"]
+    assert res.report.plan_check["mismatch"] is None, res.report.plan_check
 
 
 def test_a_real_deviation_on_legs_flown_last_first_is_flagged():
@@ -91,7 +91,7 @@ def test_a_real_deviation_on_legs_flown_last_first_is_flagged():
     df, plan = _reverse_order_flight(disturbances={4: "fast"})
     res = check_track(df, plan)
     on = (df["truth_plan_leg"] >= 0).to_numpy()
-    assert res.report["flagged_legs"] == [2]
+    assert res.report.flagged_legs == [2]
     assert not res.data["alarm"].to_numpy()[~on].any()
 
 
@@ -113,11 +113,11 @@ def test_a_mission_flown_backwards_is_checked_along_its_legs(full_mission):
     lab, lab_f = _labels(res), _labels(fwd)
     assert (lab[on] == k - truth[on]).mean() == pytest.approx((lab_f[on] == truth[on]).mean(),
                                                               abs=0.005)
-    assert res.report["flagged_legs"] == sorted(k - j for j in fwd.report["flagged_legs"])
+    assert res.report.flagged_legs == sorted(k - j for j in fwd.report.flagged_legs)
     assert not res.data["alarm"].to_numpy()[~on].any()
-    chk = res.report["plan_check"]
+    chk = res.report.plan_check
     assert chk["mismatch"] == "reversed" and chk["assignment"]["direction"] == "reversed"
-    assert any("checked in that direction" in w for w in res.report["warnings"])
+    assert any("checked in that direction" in w for w in res.report.warnings)
 
 
 def test_a_clean_mission_flown_backwards_has_no_alarm():
@@ -125,7 +125,7 @@ def test_a_clean_mission_flown_backwards_has_no_alarm():
                                    home_ne_m=(-30.0, -20.0), ground_s=20.0, refly_legs=(3,))
     res = check_track(df, plan.iloc[::-1].reset_index(drop=True))
     assert int(res.data["alarm"].sum()) == 0
-    assert res.report["n_on_leg"] == check_track(df, plan).report["n_on_leg"] > 0
+    assert res.report.n_on_leg == check_track(df, plan).report.n_on_leg > 0
 
 
 @pytest.mark.parametrize(("sigma", "tau", "seed"), [(5.0, 60.0, 0), (5.0, 300.0, 0)])
@@ -140,9 +140,9 @@ def test_correlated_gnss_error_keeps_the_legs_assigned(full_mission, sigma, tau,
     on = truth >= 0
     lab = _labels(res)
     assert (lab[on] == truth[on]).mean() > 0.85
-    a = res.report["plan_check"]["assignment"]
+    a = res.report.plan_check["assignment"]
     assert 3.0 < a["sigma_h_m"] < 8.0 and a["tolerance_m"] > 10.0
-    assert any("scatter" in w for w in res.report["warnings"])
+    assert any("scatter" in w for w in res.report.warnings)
     # no transit, climb, landing or ground row is given a leg, no alarm off the legs
     moving_off = ((df["truth_phase"] != "leg") & (df["truth_phase"] != "hover")).to_numpy()
     assert (lab[moving_off] < 0).mean() > 0.98
@@ -151,7 +151,7 @@ def test_correlated_gnss_error_keeps_the_legs_assigned(full_mission, sigma, tau,
 
 def test_rtk_keeps_the_default_tolerance(full_mission):
     df, plan, _ = full_mission
-    a = check_track(df, plan).report["plan_check"]["assignment"]
+    a = check_track(df, plan).report.plan_check["assignment"]
     assert a["tolerance_m"] == 10.0 and a["sigma_h_m"] < 0.5 and a["gate_h_m"] == 2.0
     assert np.hypot(*a["offset_ne_m"]) < 0.2
 
@@ -164,10 +164,10 @@ def test_a_plan_above_ground_flown_backwards_is_said_to_be_a_datum(caplog):
     agl = plan.assign(alt=plan["alt"] - float(plan["alt"].iloc[0]) + 40.0)
     with caplog.at_level(logging.WARNING):
         res = check_track(df, agl.iloc[::-1].reset_index(drop=True))
-    off = res.report["altitude_offset"]
+    off = res.report.altitude_offset
     assert off["applied_m"] == pytest.approx(460.0, abs=0.5)
     assert "constant 460.0 m above the plan" in caplog.text
-    assert res.report["flagged_legs"] == [2, 4, 6, 8]
+    assert res.report.flagged_legs == [2, 4, 6, 8]
 
 
 def test_drop_transit_runs_keeps_a_veering_pass_and_drops_a_converging_ferry():
@@ -191,5 +191,5 @@ def test_a_flight_3_m_beside_its_plan_is_checked_not_dropped():
                                    home_ne_m=(-30.0, -20.0), ground_s=20.0)
     sh = plan.assign(lon=plan["lon"] + 3.0 / (111320.0 * np.cos(np.radians(47.3))))
     res = check_track(df, sh)
-    assert res.report["flagged_legs"] == [0, 2, 4, 6, 8, 10]
-    assert res.report["n_on_leg"] > 0.97 * check_track(df, plan).report["n_on_leg"]
+    assert res.report.flagged_legs == [0, 2, 4, 6, 8, 10]
+    assert res.report.n_on_leg > 0.97 * check_track(df, plan).report.n_on_leg

@@ -56,8 +56,8 @@ def _latencies(df: pd.DataFrame, res, truth: dict, require_deviation: bool = Tru
             continue   # on this heading the disturbance bent the track by less than 1 m
         assert hi.any(), f"leg {k}: the disturbance never deviated the vehicle by 1 m"
         summary = res.legs[k]
-        assert summary["flagged"], f"disturbed leg {k} not flagged"
-        first = summary["passes"][0]["first_track_alarm_time"]
+        assert summary.flagged, f"disturbed leg {k} not flagged"
+        first = summary.passes[0].first_alarm_times["track"]
         assert first is not None, summary
         out.append((first - float(t[hi][0]), first - float(t[lo][0])))
     return out
@@ -98,7 +98,7 @@ def test_disturbed_legs_flagged_within_one_sample(full_flights):
         assert len(lat) == 4
         # never later than one sample; RTK noise (2 cm) may make it fire a little early
         assert all(-0.5 <= late <= dt + 1e-9 for late, _ in lat), lat
-        assert res.report["flagged_legs"] == [2, 4, 6, 8]
+        assert res.report.flagged_legs == [2, 4, 6, 8]
 
 
 def test_a_leg_flown_twice_has_both_passes(full_flights):
@@ -109,20 +109,20 @@ def test_a_leg_flown_twice_has_both_passes(full_flights):
         t = df["time"].to_numpy()
         for k in (3, 7):
             row = res.legs[k]
-            assert row["n_passes"] == 2, row
+            assert row.n_passes == 2, row
             on = np.flatnonzero((df["truth_leg"] == k).to_numpy())
             cut = np.flatnonzero(np.diff(on) > 1)
             assert cut.size == 1
             truth_passes = (on[: cut[0] + 1], on[cut[0] + 1:])
-            for p, idx in zip(row["passes"], truth_passes, strict=True):
+            for p, idx in zip(row.passes, truth_passes, strict=True):
                 far = idx[(np.linalg.norm(ned[idx] - wps[k], axis=1) > 2.0)
                           & (np.linalg.norm(ned[idx] - wps[k + 1], axis=1) > 2.0)]
                 # the pass spans the autopilot's pass, except its first and last 2 m
-                assert t[idx[0]] <= p["t_start"] <= t[far[0]], (p, t[idx[0]], t[far[0]])
-                assert t[far[-1]] <= p["t_end"] <= t[idx[-1]], (p, t[far[-1]], t[idx[-1]])
-            assert row["t_start"] == row["passes"][0]["t_start"]
-            assert row["t_end"] == row["passes"][1]["t_end"]
-        assert all(r["n_passes"] == 1 for r in res.legs if r["leg"] not in (3, 7))
+                assert t[idx[0]] <= p.t_start <= t[far[0]], (p, t[idx[0]], t[far[0]])
+                assert t[far[-1]] <= p.t_end <= t[idx[-1]], (p, t[far[-1]], t[idx[-1]])
+            assert row.t_start == row.passes[0].t_start
+            assert row.t_end == row.passes[1].t_end
+        assert all(r.n_passes == 1 for r in res.legs if r.leg not in (3, 7))
 
 
 def test_default_mission_unchanged_by_the_options():
@@ -209,7 +209,7 @@ def test_random_plans_anywhere_on_earth(case):
     off = (df["truth_phase"] != "leg").to_numpy()
     assert not res.data["alarm"].to_numpy()[off].any()
     for k in refly:
-        assert res.legs[k]["n_passes"] == 2, res.legs[k]
+        assert res.legs[k].n_passes == 2, res.legs[k]
     # RTK noise (2 cm per axis) decides the exact crossing when the true deviation creeps
     # through 1 m: the alarm comes at most one sample after the true deviation is 3 sigma
     # above 1 m, and never before it is 3 sigma below.

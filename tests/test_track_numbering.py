@@ -107,8 +107,8 @@ def test_the_reviewers_partial_reversed_flight_names_the_plans_legs():
     # 8, 9, 10 ... have no sample" next to flagged legs [8, 9, 10]
     log, plan, truth = flight([10, 9, 8], backwards=True, offset_north_m=8.0)
     res = check_track(log, plan)
-    assert res.report["plan_check"]["assignment"]["direction"] == "reversed"
-    missing, flagged = check_consistent(res.report, res.data)
+    assert res.report.plan_check["assignment"]["direction"] == "reversed"
+    missing, flagged = check_consistent(res.report.to_dict(), res.data)
     assert missing == list(range(8))
     assert {8, 10} <= set(flagged) <= {8, 9, 10}   # the lines 8 m beside; the cross leg 9
     lab = res.data["leg"].fillna(-1).to_numpy()
@@ -127,13 +127,13 @@ def test_not_flown_and_flagged_are_in_plan_numbering_and_disjoint(backwards, ord
     legs = list(subset)[::-1] if order == "reversed" else list(subset)
     log, plan, truth = flight(legs, backwards=backwards, offset_north_m=offset_m, seed=3)
     res = check_track(log, plan)
-    missing, flagged = check_consistent(res.report, res.data)
+    missing, flagged = check_consistent(res.report.to_dict(), res.data)
     flown = set(subset)
-    checked = {row["leg"] for row in res.legs if row["checked"]}
+    checked = {row.leg for row in res.legs if row.checked}
     assert flown <= checked
     if missing is not None:
         assert set(missing) <= set(range(11)) - flown
-    if len(flown) < 11 and res.report["plan_check"]["mismatch"] in (None, "reversed"):
+    if len(flown) < 11 and res.report.plan_check["mismatch"] in (None, "reversed"):
         # nothing else to say about the plan: the legs not flown are named
         assert missing is not None
     # beside the plan (north), the east-west lines alarm; on it, nothing does
@@ -155,11 +155,11 @@ def test_the_warned_not_flown_legs_are_the_complement_of_the_legs_with_samples(
     log, plan, _ = flight(legs, backwards=backwards, offset_north_m=offset_m, n_lines=4,
                           line_m=200.0, seed=seed, fs=5.0)
     res = check_track(log, plan)
-    missing, _ = check_consistent(res.report, res.data)
-    complement = [row["leg"] for row in res.legs if not row["checked"]]
+    missing, _ = check_consistent(res.report.to_dict(), res.data)
+    complement = [row.leg for row in res.legs if not row.checked]
     if missing is not None:
         assert missing == complement
-    elif res.report["plan_check"]["mismatch"] is None:
+    elif res.report.plan_check["mismatch"] is None:
         assert complement == []
 
 

@@ -59,8 +59,8 @@ def test_ferries_converging_on_the_lines_are_not_legs_on_plain_gnss(
     assert (lab[on] == truth[on]).mean() > 0.95
     assert ((lab >= 0) & on & (lab != truth)).sum() == 0
     lines = [0, 2, 4, 6, 8]   # the east offset is across the lines, along the cross legs
-    assert res.report["flagged_legs"] == (lines if offset_m > THRESHOLD_M else [])
-    a = res.report["plan_check"]["assignment"]
+    assert res.report.flagged_legs == (lines if offset_m > THRESHOLD_M else [])
+    a = res.report.plan_check["assignment"]
     assert a["direction"] == ("reversed" if reverse_direction else "as planned")
 
 

@@ -49,11 +49,11 @@ def _no_leg_on_ground(res, on_ground: np.ndarray) -> None:
 
 def _as_planned(res) -> None:
     rep = res.report
-    assert rep["altitude_offset"]["applied_m"] == 0.0
-    assert rep["plan_check"]["assignment"]["direction"] == "as planned"
-    assert rep["plan_check"]["mismatch"] is None
+    assert rep.altitude_offset["applied_m"] == 0.0
+    assert rep.plan_check["assignment"]["direction"] == "as planned"
+    assert rep.plan_check["mismatch"] is None
     assert not any("reversed" in w or "below the plan" in w or "beside" in w
-                   for w in rep["warnings"]), rep["warnings"]
+                   for w in rep.warnings), rep.warnings
 
 
 # ----------------------------------------------------------------------- project simulator
@@ -84,12 +84,12 @@ def test_simulated_day_gets_its_six_passes(day, armed):
     log = df if armed else df.drop(columns=["armed"])
     res = check_track(log, plan)
     ph = df["truth_phase"].to_numpy()
-    assert res.legs[0]["n_passes"] == 6
+    assert res.legs[0].n_passes == 6
     _passes_found(res, df["truth_leg"].to_numpy())
     _no_leg_on_ground(res, np.isin(ph, ["ground", "carry"]))
     assert not res.data["alarm"].to_numpy()[ph != "leg"].any()
     _as_planned(res)
-    g = res.report["ground"]
+    g = res.report.ground
     assert g["source"] == ("armed" if armed else "inferred")
     # every carry is inside a ground stretch
     assert g["n_rows"] >= int((ph == "carry").sum())
@@ -101,22 +101,22 @@ def test_simulated_day_horizontal_keeps_the_carries_off_the_leg(day):
     df, plan, _ = day
     res = check_track(df.drop(columns=["armed"]), plan, horizontal=True)
     ph = df["truth_phase"].to_numpy()
-    assert res.legs[0]["n_passes"] == 6
+    assert res.legs[0].n_passes == 6
     _no_leg_on_ground(res, np.isin(ph, ["ground", "carry"]))
-    assert res.report["plan_check"]["assignment"]["direction"] == "as planned"
+    assert res.report.plan_check["assignment"]["direction"] == "as planned"
 
 
 def test_a_whole_day_flown_30_m_off_is_still_a_datum_named_by_its_passes(day):
     df, plan, _ = day
     res = check_track(df.drop(columns=["armed"]).assign(alt=df["alt"] - 30.0), plan)
-    off = res.report["altitude_offset"]
+    off = res.report.altitude_offset
     assert off["applied_m"] == pytest.approx(-30.0, abs=0.1)
     assert off["n_passes"] == 6 and off["n_passes_at_plan_altitude"] == 0
-    msg = next(w for w in res.report["warnings"] if "30.0 m below the plan" in w)
+    msg = next(w for w in res.report.warnings if "30.0 m below the plan" in w)
     assert "6 airborne pass(es)" in msg
     t0, t1 = off["passes"][0][1:]
     assert f"leg 0 {t0:.1f}-{t1:.1f} s" in msg
-    assert res.legs[0]["n_passes"] == 6
+    assert res.legs[0].n_passes == 6
     _no_leg_on_ground(res, np.isin(df["truth_phase"].to_numpy(), ["ground", "carry"]))
 
 
@@ -126,16 +126,16 @@ def test_ground_rows_are_no_evidence_even_without_the_ground_rule(day):
     # ("armed" everywhere), the passes at the plan's altitude still win
     df, plan, _ = day
     res = check_track(df.assign(armed=True), plan)
-    assert res.report["ground"]["n_rows"] == 0
+    assert res.report.ground["n_rows"] == 0
     _as_planned(res)
-    assert res.legs[0]["n_passes"] == 6
+    assert res.legs[0].n_passes == 6
     _no_leg_on_ground(res, np.isin(df["truth_phase"].to_numpy(), ["ground", "carry"]))
     # horizontally, the carries are the leg reversed by motion, with 3 times the rows of the
     # passes: the direction is chosen by the distance covered too (before: "reversed", 5
     # passes of carries)
     res = check_track(df.assign(armed=True), plan, horizontal=True)
     _as_planned(res)
-    assert res.legs[0]["n_passes"] == 6
+    assert res.legs[0].n_passes == 6
 
 
 def test_a_bad_state_value_is_a_one_line_error(day):
@@ -248,27 +248,27 @@ def day_log(*, seed=0, rate_hz=5.0, flights=6, height=24.0, heading_deg=35.0, le
 def test_independent_day_gets_its_six_passes_per_leg(column):
     log, plan, truth_leg, on_ground = day_log(column=column)
     res = check_track(log, plan)
-    assert [row["n_passes"] for row in res.legs] == [6, 6]
+    assert [row.n_passes for row in res.legs] == [6, 6]
     _passes_found(res, truth_leg, 0.85)
     _no_leg_on_ground(res, on_ground)
     # the 1.8 m GNSS altitude bias is below a datum (3 m): a deviation on the passes, which
     # alarm; nothing off them does
     assert not res.data["alarm"].to_numpy()[truth_leg < 0].any()
-    assert res.report["flagged_legs"] == [0, 1]
+    assert res.report.flagged_legs == [0, 1]
     _as_planned(res)
-    assert res.report["ground"]["source"] == (column or "inferred")
+    assert res.report.ground["source"] == (column or "inferred")
     if column is None:   # without the bias, nothing alarms at all
         clean = check_track(day_log(column=column, bias_up=0.0)[0], plan)
-        assert not clean.data["alarm"].any() and clean.report["flagged_legs"] == []
+        assert not clean.data["alarm"].any() and clean.report.flagged_legs == []
 
 
 def test_independent_day_30_m_off_is_a_datum():
     log, plan, truth_leg, on_ground = day_log(seed=2)
     res = check_track(log.assign(alt=log["alt"] + 30.0), plan)
-    off = res.report["altitude_offset"]
+    off = res.report.altitude_offset
     assert off["applied_m"] == pytest.approx(31.8, abs=0.3)   # 30 m + the 1.8 m GNSS bias
     assert off["n_passes"] == 12
-    assert [row["n_passes"] for row in res.legs] == [6, 6]
+    assert [row.n_passes for row in res.legs] == [6, 6]
     _no_leg_on_ground(res, on_ground)
 
 
@@ -301,10 +301,10 @@ def test_property_ground_never_on_a_leg_and_every_pass_found(heading, first, sec
                                               height=height, walk=walk)
     res = check_track(log, plan)
     _no_leg_on_ground(res, on_ground)
-    assert [row["n_passes"] for row in res.legs] == [3, 3]
+    assert [row.n_passes for row in res.legs] == [3, 3]
     _passes_found(res, truth_leg, 0.8)
-    assert res.report["altitude_offset"]["applied_m"] == 0.0
-    assert res.report["plan_check"]["assignment"]["direction"] == "as planned"
+    assert res.report.altitude_offset["applied_m"] == 0.0
+    assert res.report.plan_check["assignment"]["direction"] == "as planned"
 
 
 def test_passes_at_the_plan_altitude_beat_a_datum_that_more_passes_show():
@@ -316,12 +316,12 @@ def test_passes_at_the_plan_altitude_beat_a_datum_that_more_passes_show():
     starts = t[np.flatnonzero(np.diff(np.r_[0, (truth_leg == 0).astype(int)]) == 1)]
     high = t >= starts[2] - 20.0
     res = check_track(log.assign(alt=log["alt"] + np.where(high, 30.0, 0.0)), plan)
-    off = res.report["altitude_offset"]
+    off = res.report.altitude_offset
     assert off["estimated_m"] == pytest.approx(31.8, abs=0.3)
     assert off["applied_m"] == 0.0 and off["n_passes_at_plan_altitude"] == 4
     assert any("2 pass" not in w and "4 pass(es) are flown at the plan's own altitude" in w
-               for w in res.report["warnings"]), res.report["warnings"]
-    assert [row["n_passes"] for row in res.legs] == [2, 2]
+               for w in res.report.warnings), res.report.warnings
+    assert [row.n_passes for row in res.legs] == [2, 2]
     _no_leg_on_ground(res, on_ground)
 
 

@@ -124,7 +124,7 @@ def _check(res, truth: np.ndarray, phase: np.ndarray, offset_m: float) -> None:
     assert not res.data["alarm"].to_numpy()[~on].any()
     flown = sorted(set(truth[on].tolist()))
     lines = [k for k in flown if k % 2 == 0]   # the east shift is along the cross legs
-    assert res.report["flagged_legs"] == (lines if offset_m > 1.0 else [])
+    assert res.report.flagged_legs == (lines if offset_m > 1.0 else [])
 
 
 @pytest.mark.parametrize("offset_m", [0.0, 2.0, 5.0, 10.0, 20.0])
@@ -135,11 +135,11 @@ def test_a_reversed_flight_beside_its_plan_is_checked_on_its_legs(offset_m):
                                      offset_m=offset_m, seed=1)
     res = check_track(log, plan)
     _check(res, truth, phase, offset_m)
-    chk = res.report["plan_check"]
+    chk = res.report.plan_check
     assert chk["assignment"]["direction"] == "reversed"
     if offset_m >= 5.0:
         assert chk["offset_m"] == pytest.approx(offset_m, abs=0.3)
-        assert any("beside" in w for w in res.report["warnings"])
+        assert any("beside" in w for w in res.report.warnings)
 
 
 @pytest.mark.parametrize(("reverse_order", "reverse_direction"), [(True, False), (False, True)])
@@ -154,7 +154,7 @@ def test_lines_flown_out_of_order_or_backwards_beside_the_plan(reverse_order,
                                      seed=2, cross_legs=False)
     res = check_track(log, plan)
     _check(res, truth, phase, offset_m)
-    assert res.report["plan_check"]["assignment"]["direction"] == (
+    assert res.report.plan_check["assignment"]["direction"] == (
         "reversed" if reverse_direction else "as planned")
 
 
@@ -165,7 +165,7 @@ def test_a_flight_beyond_the_tolerance_beside_its_plan_is_flagged_not_unassigned
                                      offset_m=offset_m, seed=3)
     res = check_track(log, plan)
     _check(res, truth, phase, offset_m)
-    chk = res.report["plan_check"]
+    chk = res.report.plan_check
     assert chk["mismatch"] == "offset" and chk["offset_m"] == pytest.approx(offset_m, abs=0.3)
 
 
@@ -232,7 +232,7 @@ def test_reversing_the_plan_changes_the_flagged_rows_by_at_most_the_boundary_row
     n_legs = len(plan) - 1
     assert int((fa != fb).sum()) <= 4 * n_legs
     k = n_legs - 1
-    assert sorted(k - j for j in b.report["flagged_legs"]) == a.report["flagged_legs"]
+    assert sorted(k - j for j in b.report.flagged_legs) == a.report.flagged_legs
     on = truth >= 0
     assert not fa[~on].any() and not fb[~on].any()
 
@@ -259,7 +259,7 @@ def test_a_datum_difference_is_found_on_a_reversed_flight_beside_its_plan():
     log, plan, truth, phase = flight(reverse_order=True, reverse_direction=True, offset_m=10.0,
                                      seed=6)
     res = check_track(log.assign(alt=log["alt"] - 23.0), plan)
-    assert res.report["altitude_offset"]["applied_m"] == pytest.approx(-23.0, abs=0.2)
+    assert res.report.altitude_offset["applied_m"] == pytest.approx(-23.0, abs=0.2)
     _check(res, truth, phase, 10.0)
 
 
@@ -270,18 +270,18 @@ def test_a_stationary_log_says_nothing_was_checked():
                         "lon": np.full(n, 24.11321), "alt": np.full(n, 30.0)})
     plan = pd.DataFrame({"lat": [56.8624, 56.86285], "lon": [24.11321] * 2, "alt": [30.0] * 2})
     res = check_track(log, plan)
-    assert res.report["n_legs_checked"] == 0 and res.report["flagged_legs"] == []
-    assert res.legs[0]["checked"] is False
+    assert res.report.n_legs_checked == 0 and res.report.flagged_legs == []
+    assert res.legs[0].checked is False
     assert any("nothing was checked" in w and "stationary or too short" in w
-               for w in res.report["warnings"])
+               for w in res.report.warnings)
 
 
 def test_checked_legs_are_counted(mission):
     df, plan, _ = mission
     res = check_track(df, plan)
-    assert res.report["n_legs_checked"] == len(plan) - 1
-    assert all(row["checked"] for row in res.legs)
-    assert not any("nothing was checked" in w for w in res.report["warnings"])
+    assert res.report.n_legs_checked == len(plan) - 1
+    assert all(row.checked for row in res.legs)
+    assert not any("nothing was checked" in w for w in res.report.warnings)
 
 
 def test_cli_a_log_with_a_height_above_mean_sea_level_only_is_told_how(tmp_path):

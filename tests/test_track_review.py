@@ -21,8 +21,8 @@ def lawnmower():
 def test_the_right_plan_gets_no_mismatch(lawnmower):
     df, plan, _ = lawnmower
     res = check_track(df, plan)
-    assert res.report["plan_check"]["mismatch"] is None
-    assert res.report["warnings"] == []
+    assert res.report.plan_check["mismatch"] is None
+    assert res.report.warnings == []
 
 
 def test_a_reversed_plan_is_said_to_be_reversed(lawnmower):
@@ -31,10 +31,10 @@ def test_a_reversed_plan_is_said_to_be_reversed(lawnmower):
     df, plan, _ = lawnmower
     rev = plan.iloc[::-1].reset_index(drop=True)
     res = check_track(df, rev)
-    chk = res.report["plan_check"]
+    chk = res.report.plan_check
     assert chk["mismatch"] == "reversed", chk
     assert chk["n_reversed"] > 2 * chk["n_on_leg"] > 0
-    assert any("reversed" in w for w in res.report["warnings"])
+    assert any("reversed" in w for w in res.report.warnings)
     # the survey passes are flown backwards along the reversed plan's legs: checked there
     lab = res.data["leg"].fillna(-1).to_numpy()
     on_truth = (df["truth_phase"] == "leg").to_numpy()
@@ -52,11 +52,11 @@ def test_a_plan_of_the_neighbouring_field_is_said_to_be_offset(lawnmower, shift_
     sh = plan.copy()
     sh["lon"] += shift_m / (111320.0 * np.cos(np.radians(float(plan["lat"].iloc[0]))))
     res = check_track(df, sh)
-    chk = res.report["plan_check"]
+    chk = res.report.plan_check
     assert chk["mismatch"] == "offset", chk
     assert abs(chk["offset_m"] - shift_m) < 1.0
-    assert any("offset or for another field" in w for w in res.report["warnings"])
-    assert not any("reversed" in w for w in res.report["warnings"])
+    assert any("offset or for another field" in w for w in res.report.warnings)
+    assert not any("reversed" in w for w in res.report.warnings)
 
 
 def test_horizontal_ignores_a_noisy_altitude_in_the_leg_assignment():
@@ -89,11 +89,11 @@ def test_passes_are_numbered_per_leg(lawnmower):
     df, plan, _ = lawnmower
     res = check_track(df, plan)
     row = res.legs[2]
-    assert row["n_passes"] == 2
-    assert [p["pass"] for p in row["passes"]] == [1, 2]
-    sess = [p["session_pass"] for p in row["passes"]]
+    assert row.n_passes == 2
+    assert [p.pass_number for p in row.passes] == [1, 2]
+    sess = [p.session_pass for p in row.passes]
     assert sess[0] > 0 and sess[1] > sess[0]
-    assert [p["pass"] for p in res.legs[0]["passes"]] == [1]
+    assert [p.pass_number for p in res.legs[0].passes] == [1]
 
 
 def test_an_empty_plan_cell_is_called_empty(tmp_path):
@@ -167,6 +167,6 @@ def test_a_vehicle_veering_off_the_leg_direction_keeps_its_leg_and_alarms_at_onc
     assert first_alarm - first_true <= 1
     lab = res.data["leg"].fillna(-1).to_numpy()
     assert (lab[beyond] == 0).all()
-    assert res.legs[0]["n_passes"] == 1
+    assert res.legs[0].n_passes == 1
     # no alarm while hovering at either waypoint
     assert not alarm[:50].any() and not alarm[-50:].any()

@@ -55,12 +55,11 @@ def compass(
         rep = compass_file(log_file, output, forgetting=forgetting, date=date,
                            earth_field=earth_field, columns=columns, units=unit_map,
                            window_s=window)
-    m = rep["metrics"]
+    m = rep.metrics
     line = f"wrote {output} and {json_path_for(output)}"
-    if m.get("heading_err_rms_deg") is not None:
-        line += (f": heading error RMS {m['heading_err_rms_deg']:.2f} deg, mean "
-                 f"{m['heading_err_mean_deg']:.2f} deg")
-    exc = rep["excitation"]
-    if exc["n_insufficient"]:
-        line += f"; {exc['n_insufficient']}/{exc['n_windows']} windows under-excited"
+    if m.rms_deg is not None:
+        line += f": heading error RMS {m.rms_deg:.2f} deg, mean {m.mean_deg:.2f} deg"
+    exc = rep.excitation
+    if exc.n_insufficient:
+        line += f"; {exc.n_insufficient}/{exc.n_windows} windows under-excited"
     typer.echo(line)

@@ -67,6 +67,5 @@ def detect(
                           threshold=threshold, calm_window=calm_window,
                           declination_deg=declination, seed=seed, columns=columns,
                           units=unit_map)
-    ev = rep["events"]
-    typer.echo(f"wrote {output} and {json_path_for(output)}: {len(ev)} alarm event(s), "
-               f"threshold {rep['threshold']:.2f} ({rep['settings']['threshold_source']})")
+    typer.echo(f"wrote {output} and {json_path_for(output)}: {len(rep.events)} alarm"
+               f" event(s), threshold {rep.threshold:.2f} ({rep.threshold_source})")

@@ -37,8 +37,8 @@ def level(opts: Options) -> None:
     line = f"wrote {opts.output} and {json_path_for(opts.output)}"
     if res.crossings is not None:
         line += f": {res.crossings.n} crossings"
-        if std["before"] is not None:
-            line += f", mistie std {std['before']:.2f} -> {std['after']:.2f} nT"
+        if std.before is not None:
+            line += f", mistie std {std.before:.2f} -> {std.after:.2f} nT"
     if res.lag_estimate is not None:
         line += f"; lag {res.lag_s:.3f} +- {res.lag_estimate.std_s:.3f} s"
     typer.echo(line)

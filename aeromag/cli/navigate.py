@@ -142,10 +142,10 @@ def navigate(
                             earth_field=earth_field, config=cfg, sensors=sensors,
                             columns=columns, units=unit_map)
     rep = res.report
-    nis = ", ".join(f"{k} {v / rep['innovations'][k]['dof']:.2f}"
-                    for k, v in rep["mean_nis"].items() if v is not None)
+    nis = ", ".join(f"{k} {v / rep.innovations[k]['dof']:.2f}"
+                    for k, v in rep.mean_nis.items() if v is not None)
     line = (f"wrote {output} and {json_path_for(output)}: {len(res.data)} rows; mean NIS/dof "
             f"{nis or 'none (no aiding fused)'}")
-    if rep.get("warnings"):
-        line += f"; {len(rep['warnings'])} warning(s) in {json_path_for(output).name}"
+    if rep.warnings:
+        line += f"; {len(rep.warnings)} warning(s) in {json_path_for(output).name}"
     typer.echo(line)

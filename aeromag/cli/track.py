@@ -95,10 +95,10 @@ def track(
             extra_detectors=_pf_detectors(pf, calm_window, declination, survey),
         )
     rep = res.report
-    flagged = rep.get("flagged_legs", [])
-    n_legs, checked = rep.get("n_legs", 0), rep.get("n_legs_checked")
+    flagged = rep.flagged_legs
+    n_legs, checked = rep.n_legs, rep.n_legs_checked
     which = f" ({', '.join(map(str, flagged))})" if flagged else ""
-    if checked is not None and checked < n_legs:  # "0/19 flagged" must not read as 19 clean
+    if checked < n_legs:  # "0/19 flagged" must not read as 19 clean
         line = (f"wrote {output} and {json_path_for(output)}: {len(flagged)} of {checked}"
                 f" checked leg{'s' if checked != 1 else ''} flagged{which}"
                 f" ({n_legs - checked} of {n_legs} not flown: no flown rows on them, see"
@@ -106,13 +106,13 @@ def track(
     else:
         line = (f"wrote {output} and {json_path_for(output)}: {len(flagged)}/{n_legs}"
                 f" legs flagged{which}")
-    if not rep.get("heading_detector", {}).get("available"):
+    if not rep.heading_detector.get("available"):
         line += "; heading detector skipped (no heading columns)"
-    mismatch = (rep.get("plan_check") or {}).get("mismatch")
+    mismatch = rep.plan_check.get("mismatch")
     if mismatch in _MISMATCH_SUMMARY:
         line += f"; {_MISMATCH_SUMMARY[mismatch]}"
-    if rep.get("warnings"):
-        line += f"; {len(rep['warnings'])} warning(s) in {json_path_for(output).name}"
+    if rep.warnings:
+        line += f"; {len(rep.warnings)} warning(s) in {json_path_for(output).name}"
     typer.echo(line)
 
 

@@ -25,13 +25,14 @@ from .._core.rls import RecursiveLeastSquares, check_forgetting
 from .._core.rotations import rotate_body_to_ned, rotate_ned_to_body
 from .._core.sequential import SequentialResult, Step
 from ..errors import InputError
+from .heading_stats import HeadingErrorStats, heading_error_stats
 
 log = logging.getLogger(__name__)
 
 __all__ = ["CompassCalibration", "CompassResult", "ExcitationWindow", "STATE_NAMES",
            "attitude_at_samples",
            "compass_heading",
-           "excitation_windows", "heading_error_stats", "EXCITATION_THRESHOLD",
+           "excitation_windows", "EXCITATION_THRESHOLD",
            "calibrate_compass", "convergence_time", "reference_in_body"]
 
 #: Number of parameters: D (9, row-major) and e (3).
@@ -72,30 +73,6 @@ def compass_heading(flux_cal_nT: np.ndarray, pitch_deg: np.ndarray, roll_deg: np
     return wrap360_deg(psi_m + np.asarray(declination_deg, dtype=np.float64))
 
 
-def heading_error_stats(err_deg: np.ndarray) -> dict[str, float | None]:
-    """RMS and mean of a heading error over its finite samples.
-
-    Parameters
-    ----------
-    err_deg : ndarray
-        Heading error [deg], wrapped.
-
-    Returns
-    -------
-    dict
-        ``heading_err_rms_deg``, ``heading_err_mean_deg``, ``heading_err_max_abs_deg``
-        (None when no finite sample).
-    """
-    e = np.asarray(err_deg, dtype=np.float64)
-    e = e[np.isfinite(e)]
-    if not e.size:
-        return {"heading_err_rms_deg": None, "heading_err_mean_deg": None,
-                "heading_err_max_abs_deg": None}
-    return {"heading_err_rms_deg": float(np.sqrt(np.mean(e * e))),
-            "heading_err_mean_deg": float(e.mean()),
-            "heading_err_max_abs_deg": float(np.abs(e).max())}
-
-
 @dataclass
 class ExcitationWindow:
     """Attitude excitation of one window of the flight.
@@ -128,6 +105,11 @@ class ExcitationWindow:
     def to_dict(self) -> dict[str, float | int | bool]:
         """JSON-ready dict."""
         return dict(self.__dict__)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, float | int | bool]) -> ExcitationWindow:
+        """Read a window written by :meth:`to_dict`."""
+        return cls(**d)
 
 
 def excitation_windows(time_s: np.ndarray, heading_deg: np.ndarray, pitch_deg: np.ndarray,
@@ -259,8 +241,8 @@ class CompassResult:
         Tilt-compensated heading of ``flux_cal_nT`` plus the declination [deg].
     heading_err_deg : ndarray, shape (n,)
         ``mag_heading_cal - heading``, wrapped [deg].
-    metrics : dict
-        :func:`heading_error_stats`.
+    metrics : HeadingErrorStats
+        :func:`heading_error_stats` of ``heading_err_deg``.
     excitation : list of ExcitationWindow
     """
 
@@ -268,7 +250,7 @@ class CompassResult:
     flux_cal_nT: np.ndarray
     mag_heading_cal: np.ndarray
     heading_err_deg: np.ndarray
-    metrics: dict[str, float | None]
+    metrics: HeadingErrorStats
     excitation: list[ExcitationWindow] = field(default_factory=list)
 
     @property

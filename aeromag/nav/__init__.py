@@ -10,8 +10,9 @@ is the generic filter it is built on.  See ``docs/navigate.md``.
 from .config import NavConfig
 from .filter import ALL_SENSORS, NavFilter, NavInputs, magnetic_reference_from_log
 from .pipeline import NAV_COLUMNS, NavigationResult, navigate
+from .report import NavReport
 from .ukf import DivergenceError, UnscentedKalmanFilter
 
 __all__ = ["ALL_SENSORS", "NAV_COLUMNS", "DivergenceError", "NavConfig", "NavFilter",
-           "NavInputs", "NavigationResult", "UnscentedKalmanFilter",
+           "NavInputs", "NavReport", "NavigationResult", "UnscentedKalmanFilter",
            "magnetic_reference_from_log", "navigate"]

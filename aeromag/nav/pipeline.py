@@ -22,6 +22,7 @@ from .._core.sequential import SequentialResult
 from ..errors import InputError
 from .config import NavConfig
 from .filter import ALL_SENSORS, NavFilter, NavInputs
+from .report import NavReport
 from .ukf import DivergenceError
 
 log = logging.getLogger(__name__)
@@ -56,7 +57,7 @@ GpsMode = str | tuple[float, float]
 
 @dataclass
 class NavigationResult:
-    """The navigated log, the filter's result and the report (JSON-ready).
+    """The navigated log, the filter's result and the report.
 
     Attributes
     ----------
@@ -64,14 +65,15 @@ class NavigationResult:
         The input log plus :data:`NAV_COLUMNS`.
     result : SequentialResult
         The filter's estimate at every row (the package's sequential result).
-    report : dict
+    report : NavReport
         ``gps`` (mode, origin, intervals used), ``settings``, ``innovations`` (per sensor),
-        ``mean_nis`` (per sensor), ``reference_field``, ``warnings``.
+        ``mean_nis`` (per sensor), ``reference_field``, ``warnings`` (``to_dict()`` is
+        OUT.json).
     """
 
     data: pd.DataFrame
     result: SequentialResult
-    report: dict = field(default_factory=dict)
+    report: NavReport = field(default_factory=NavReport)
 
 
 def parse_gps_mode(gps: GpsMode) -> GpsMode:
@@ -442,30 +444,27 @@ def navigate(df: pd.DataFrame, *, gps: GpsMode = "use",
                    f" the filter's {k} noise model does not fit the data")
             warnings.append(msg)
             log.warning("%s", msg)
-    report = {
-        "gps": {"mode": mode if isinstance(mode, str) else {"outage_s": list(mode)},
+    report = NavReport(
+        gps={"mode": mode if isinstance(mode, str) else {"outage_s": list(mode)},
                 "origin": None if org is None else list(org),
                 "origin_from": "first GNSS fix" if fix.any() else (
                     "given origin" if org is not None else None),
                 "intervals": intervals,
                 "n_fixes_in_log": int(fix.sum()),
                 "n_fixes_used": int((gps_use & fix).sum()) if gps_use is not None else 0,
-                "n_fixes_fused": int(stats.get("gps_pos", {}).get("n_fused", 0))},
-        "settings": {**cfg.as_dict(), "sensors": use, "states": list(res.state_names),
-                     "noise_used": res.info["noise"]},
-        "innovations": stats,
-        "mean_nis": {k: v["mean_nis"] for k, v in stats.items()},
-        "reference_field": {
+             "n_fixes_fused": int(stats.get("gps_pos", {}).get("n_fused", 0))},
+        settings={**cfg.as_dict(), "sensors": use, "states": list(res.state_names),
+                  "noise_used": res.info["noise"]},
+        innovations=stats,
+        mean_nis={k: v["mean_nis"] for k, v in stats.items()},
+        reference_field={
             "ned_nT": res.info["mag_reference_ned_nT"],
             "declination_deg": res.info["declination_deg"],
             "from_log": mag_reference_ned_nT is None,
             "declination_from": (None if mag_reference_ned_nT is not None else
                                  "given" if declination_deg is not None else "none (0)")},
-        "ground_d_m": res.info["d_ground_m"],
-        "mag_bias_deg": res.info["mag_bias_deg"],
-        "imu_interval_s": res.info["imu_interval_s"],
-        "warnings": warnings,
-    }
+        ground_d_m=res.info["d_ground_m"], mag_bias_deg=res.info["mag_bias_deg"],
+        imu_interval_s=res.info["imu_interval_s"], warnings=warnings)
     return NavigationResult(data=out, result=res, report=report)
 
 
@@ -534,16 +533,16 @@ def track_inputs(df: pd.DataFrame, *, mag_reference_ned_nT: np.ndarray | None = 
     head = None
     has_heading = "heading" in df.columns and np.isfinite(
         pd.to_numeric(df["heading"], errors="coerce").to_numpy(float)).any()
-    warnings = list(res.report["warnings"])
+    warnings = list(res.report.warnings)
     if not has_heading:
         # The heading detector compares the attitude with the magnetometer: its attitude must
         # not come from the magnetometer, so this run leaves it out (it only aligns the yaw at
         # the start); the yaw then rests on the gyro, GNSS velocity and flow.
-        sensors = [s for s in res.report["settings"]["sensors"] if s != "mag"]
+        sensors = [s for s in res.report.sensors if s != "mag"]
         hres = navigate(df, gps="use", mag_reference_ned_nT=mag_reference_ned_nT,
                         config=config, source=src, sensors=sensors)
         head = hres.data["nav_yaw"].to_numpy(float)
-        warnings += [w for w in hres.report["warnings"] if w not in warnings]
+        warnings += [w for w in hres.report.warnings if w not in warnings]
         columns = {c: hres.data[f"nav_{c}"].to_numpy(float) for c in ("pitch", "roll")
                    if c not in df.columns}
     else:
@@ -551,7 +550,7 @@ def track_inputs(df: pd.DataFrame, *, mag_reference_ned_nT: np.ndarray | None = 
     info = {"n_rows_filled": int((~ok).sum()),
             "heading_from": ("log" if has_heading else
                              "navigation filter without the magnetometer"),
-            "added_columns": sorted(columns), "mean_nis": res.report["mean_nis"],
+            "added_columns": sorted(columns), "mean_nis": res.report.mean_nis,
             "warnings": warnings}
     return TrackInputs(position=(pos[:, 0], pos[:, 1], pos[:, 2]), heading_deg=head,
                        columns=columns, info=info)

@@ -88,8 +88,8 @@ def plot_track_map(result: TrackResult, plan: pd.DataFrame | None = None, *,
     ax.set_ylabel("north of the first waypoint (m)")
     ax.set_aspect("equal", adjustable="datalim")
     ax.legend(loc="best", fontsize=8)
-    flagged = result.report.get("flagged_legs", [])
-    checked = result.report.get("n_legs_checked")
+    flagged = result.report.flagged_legs
+    checked = result.report.n_legs_checked
     if checked == 0:   # no row on a leg: "none flagged" would read as a clean flight
         ax.set_title("Planned vs flown track: no leg checked (no sample on any leg)")
     else:
@@ -119,7 +119,7 @@ def plot_track_timeseries(result: TrackResult, *, threshold_m: float | None = No
     Figure
     """
     d = result.data
-    thr = float(result.report.get("threshold_m", 1.0) if threshold_m is None else threshold_m)
+    thr = float(result.report.threshold_m if threshold_m is None else threshold_m)
     x, label, is_date = time_axis(d["time"].to_numpy(dtype=np.float64))
     has_hd = "heading_diff_deg" in d.columns and ax is None
     if ax is None:

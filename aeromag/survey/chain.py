@@ -20,7 +20,7 @@ import pandas as pd
 
 from .._core.summary import summary_line, summary_table
 from ..errors import InputError
-from .crossings import Crossings, find_crossings
+from .crossings import Crossings, MistieStd, find_crossings
 from .decorrugation import DecorrugationResult, decorrugate
 from .diurnal import BaseRecord, DiurnalResult, diurnal_correction
 from .geometry import SurveyGeometry, build_geometry
@@ -76,12 +76,12 @@ class LevelResult:
     warnings: list[str] = field(default_factory=list)
 
     @property
-    def mistie_std_nT(self) -> dict[str, float | None]:
+    def mistie_std_nT(self) -> MistieStd:
         """Std of the crossings' misties before and after levelling [nT]."""
         return _std_pair(self, np.std)
 
     @property
-    def mistie_robust_std_nT(self) -> dict[str, float | None]:
+    def mistie_robust_std_nT(self) -> MistieStd:
         """Robust std (1.4826 MAD) of the misties before and after levelling [nT]."""
         return _std_pair(self, robust_std)
 
@@ -120,8 +120,8 @@ class LevelResult:
                           if lev is not None else {"method": "none"}),
             "decorrugation": self.decorrugation.to_dict() if self.decorrugation else None,
             "n_crossovers": 0 if cx is None else cx.n,
-            "mistie_std_nT": self.mistie_std_nT,
-            "mistie_robust_std_nT": self.mistie_robust_std_nT,
+            "mistie_std_nT": self.mistie_std_nT.to_dict(),
+            "mistie_robust_std_nT": self.mistie_robust_std_nT.to_dict(),
             "crossovers": crossovers,
             "lines": self._lines(),
         }
@@ -142,9 +142,9 @@ class LevelResult:
         ms, mr = self.mistie_std_nT, self.mistie_robust_std_nT
         if self.crossings is not None:
             rows.append(("crossings", str(self.crossings.n)))
-        if ms.get("before") is not None:
-            rows.append(("mistie_std_nT", f"{ms['before']:.3g} -> {ms['after']:.3g}"))
-            rows.append(("mistie_robust_std_nT", f"{mr['before']:.3g} -> {mr['after']:.3g}"))
+        if ms.before is not None:
+            rows.append(("mistie_std_nT", f"{ms.before:.3g} -> {ms.after:.3g}"))
+            rows.append(("mistie_robust_std_nT", f"{mr.before:.3g} -> {mr.after:.3g}"))
         lev = self.levelling
         rows.append(("levelling", "none" if lev is None else
                      f"{lev.method}, {lev.n_parameters_effective:.1f} effective parameters, "
@@ -202,12 +202,12 @@ def _f(v: float) -> float | None:
     return float(v) if np.isfinite(v) else None
 
 
-def _std_pair(res: LevelResult, fn: Callable[[np.ndarray], float]) -> dict[str, float | None]:
+def _std_pair(res: LevelResult, fn: Callable[[np.ndarray], float]) -> MistieStd:
     cx = res.crossings
     if cx is None or cx.n == 0:
-        return {"before": None, "after": None}
+        return MistieStd()
     after = res.levelling.mistie_lev_nT if res.levelling is not None else cx.mistie_nT
-    return {"before": float(fn(cx.mistie_nT)), "after": float(fn(after))}
+    return MistieStd(before=float(fn(cx.mistie_nT)), after=float(fn(after)))
 
 
 def _text_column(codes: np.ndarray, names: Sequence[str], index: pd.Index) -> pd.Series:

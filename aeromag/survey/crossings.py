@@ -21,7 +21,30 @@ from scipy.spatial import cKDTree
 
 from .geometry import SurveyGeometry
 
-__all__ = ["BLOCK_SAMPLES", "Crossings", "along_gradient", "find_crossings"]
+__all__ = ["BLOCK_SAMPLES", "Crossings", "MistieStd", "along_gradient", "find_crossings"]
+
+
+@dataclass(frozen=True)
+class MistieStd:
+    """Spread of the crossing misties before and after a correction.
+
+    Attributes
+    ----------
+    before, after : float or None
+        Std (or robust std) of the misties before and after [nT]; None without crossings.
+    """
+
+    before: float | None = None
+    after: float | None = None
+
+    def to_dict(self) -> dict[str, float | None]:
+        """JSON-ready dict: ``{"before": ..., "after": ...}``."""
+        return {"before": self.before, "after": self.after}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, float | None]) -> MistieStd:
+        """Read a pair written by :meth:`to_dict`."""
+        return cls(before=d["before"], after=d["after"])
 
 
 @dataclass

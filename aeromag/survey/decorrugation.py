@@ -40,7 +40,7 @@ import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 from scipy.ndimage import gaussian_filter1d
 
-from .crossings import Crossings
+from .crossings import Crossings, MistieStd
 from .geometry import SurveyGeometry
 from .levelling import robust_std
 
@@ -75,9 +75,9 @@ class DecorrugationResult:
         Line number -> factor of the crossing check applied to its correction (1: kept,
         0: rejected; a line in pieces: the sample-weighted mean of its pieces'); empty
         without crossings.
-    mistie_std_nT, mistie_robust_std_nT : dict
-        ``{"before": ..., "after": ...}``: std and robust std of the crossing misties before
-        and after the micro-levelling [nT] (None without crossings).
+    mistie_std_nT, mistie_robust_std_nT : MistieStd
+        Std and robust std of the crossing misties before and after the micro-levelling [nT]
+        (None without crossings).
     """
 
     correction_nT: np.ndarray
@@ -87,10 +87,8 @@ class DecorrugationResult:
     std_removed_nT: dict[float, float]
     fraction_clipped: float
     scale: dict[float, float] = field(default_factory=dict)
-    mistie_std_nT: dict[str, float | None] = field(
-        default_factory=lambda: {"before": None, "after": None})
-    mistie_robust_std_nT: dict[str, float | None] = field(
-        default_factory=lambda: {"before": None, "after": None})
+    mistie_std_nT: MistieStd = field(default_factory=MistieStd)
+    mistie_robust_std_nT: MistieStd = field(default_factory=MistieStd)
 
     def to_dict(self) -> dict:
         """JSON-ready summary."""
@@ -109,8 +107,8 @@ class DecorrugationResult:
                     "n_lines_rejected": int(np.sum(sc <= 0.0)),
                     "n_lines_unchecked": (len(self.std_removed_nT) - len(self.scale)
                                           if self.scale else None),
-                    "mistie_std_nT": self.mistie_std_nT,
-                    "mistie_robust_std_nT": self.mistie_robust_std_nT}
+                    "mistie_std_nT": self.mistie_std_nT.to_dict(),
+                    "mistie_robust_std_nT": self.mistie_robust_std_nT.to_dict()}
 
 
 def _nan_none(v: float) -> float | None:
@@ -263,7 +261,7 @@ def decorrugate(geom: SurveyGeometry, value: np.ndarray, *, limit_nT: float,
     if mist is not None and c_at is not None:
         after = mist - piece_scale[crossings.line_piece] * c_at
         fin = np.isfinite(mist)
-        res.mistie_std_nT = {"before": float(np.std(mist[fin])),
-                             "after": float(np.std(after[fin]))}
-        res.mistie_robust_std_nT = {"before": robust_std(mist), "after": robust_std(after)}
+        res.mistie_std_nT = MistieStd(before=float(np.std(mist[fin])),
+                                      after=float(np.std(after[fin])))
+        res.mistie_robust_std_nT = MistieStd(before=robust_std(mist), after=robust_std(after))
     return res

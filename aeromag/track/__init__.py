@@ -12,7 +12,8 @@ from .check import ADDED_COLUMNS, TrackResult, check_track
 from .deviation import leg_summary, track_alarm
 from .geometry import cross_track, plan_ned
 from .plan import MIN_LEG_LENGTH_M, PLAN_NEEDS, validate_plan
+from .report import LegSummary, PassSummary, SpanSummary, TrackReport
 
-__all__ = ["ADDED_COLUMNS", "MIN_LEG_LENGTH_M", "PLAN_NEEDS",
-           "TrackResult", "assign_legs", "check_track", "cross_track", "leg_summary",
-           "plan_ned", "track_alarm", "validate_plan"]
+__all__ = ["ADDED_COLUMNS", "MIN_LEG_LENGTH_M", "PLAN_NEEDS", "LegSummary", "PassSummary",
+           "SpanSummary", "TrackReport", "TrackResult", "assign_legs", "check_track",
+           "cross_track", "leg_summary", "plan_ned", "track_alarm", "validate_plan"]

@@ -69,6 +69,7 @@ from .ground import ground_rows
 from .legs import LegModel, labels_from_column, leg_passes, velocity_for_legs
 from .offset import OFFSET_DECODE_MIN_M
 from .plan import validate_plan
+from .report import LegSummary, TrackReport
 
 __all__ = ["ADDED_COLUMNS", "TrackResult", "check_track"]
 
@@ -89,17 +90,17 @@ class TrackResult:
         The input log with the added columns (``leg``, ``xtrack_m``, ``xtrack_h_m``,
         ``xtrack_v_m``, ``along_m``, ``track_alarm``, and when possible ``heading_diff_deg``,
         ``heading_alarm``; always ``alarm``).
-    legs : list of dict
+    legs : list of LegSummary
         Per-leg summary (see :func:`leg_summary`).
-    report : dict
-        The JSON report: ``{"legs": legs, ...settings and heading statistics}``.
+    report : TrackReport
+        The report (its ``legs`` are these; ``report.to_dict()`` is OUT.json).
     plan : DataFrame or None
         The validated plan the log was checked against.
     """
 
     data: pd.DataFrame
-    legs: list[dict[str, Any]] = field(default_factory=list)
-    report: dict[str, Any] = field(default_factory=dict)
+    legs: list[LegSummary] = field(default_factory=list)
+    report: TrackReport = field(default_factory=TrackReport)
     plan: pd.DataFrame | None = None
 
 
@@ -326,35 +327,21 @@ def check_track(
     warnings += _unchecked_warning(ned, t, labels, src)
     for msg in warnings:
         log.warning("%s", msg)
-    report = {
-        "legs": legs,
-        "n_legs": n_legs,
-        "n_flagged": sum(1 for row in legs if row["flagged"]),
-        "flagged_legs": [row["leg"] for row in legs if row["flagged"]],
-        "threshold_m": threshold_m,
-        "min_duration_s": min_duration_s,
-        "combine": str(combine).lower(),
-        "distance": "horizontal" if horizontal else "3d",
-        "leg_source": how,
-        "leg_model": model.to_dict() if how == "assigned" else None,
-        "n_passes": int(len(passes)),
-        "altitude_offset": alt_info,
-        "ground": ground_info,
-        "origin": {"lat": origin[0], "lon": origin[1], "alt": origin[2]},
-        "position_input": "log" if position is None else "given",
-        "velocity": vel_info,
-        "heading_detector": heading_info,
-        "detectors": [{"detector": name, "ran": a is not None,
-                       "n_alarms": None if a is None else int(np.asarray(a).sum())}
-                      for name, a in dets.items()],
-        "n_samples": n,
-        "n_on_leg": int((labels >= 0).sum()),
-        "n_legs_checked": sum(1 for row in legs if row["checked"]),
-        "plan_check": plan_check,
-        "warnings": warnings,
-    }
-    log.info("%s: %d/%d legs flagged (%d checked)", src, report["n_flagged"], n_legs,
-             report["n_legs_checked"])
+    report = TrackReport(
+        legs=legs, n_legs=n_legs, threshold_m=threshold_m, min_duration_s=min_duration_s,
+        combine=str(combine).lower(), distance="horizontal" if horizontal else "3d",
+        leg_source=how, leg_model=model.to_dict() if how == "assigned" else None,
+        n_passes=int(len(passes)), altitude_offset=alt_info, ground=ground_info,
+        origin={"lat": origin[0], "lon": origin[1], "alt": origin[2]},
+        position_input="log" if position is None else "given", velocity=vel_info,
+        heading_detector=heading_info,
+        detectors=[{"detector": name, "ran": a is not None,
+                    "n_alarms": None if a is None else int(np.asarray(a).sum())}
+                   for name, a in dets.items()],
+        n_samples=n, n_on_leg=int((labels >= 0).sum()), plan_check=plan_check,
+        warnings=warnings)
+    log.info("%s: %d/%d legs flagged (%d checked)", src, report.n_flagged, n_legs,
+             report.n_legs_checked)
     return TrackResult(data=data, legs=legs, report=report, plan=plan)
 
 

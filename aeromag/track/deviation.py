@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from ..detection.alarms import Alarms
+from .report import LegSummary, PassSummary
 
 __all__ = ["first_detector", "leg_summary", "track_alarm"]
 
@@ -97,18 +98,17 @@ def _alarm_array(a: Alarms | np.ndarray) -> np.ndarray:
     return np.asarray(a.alarm if isinstance(a, Alarms) else a, dtype=bool)
 
 
-def _summary(t: np.ndarray, dt: np.ndarray, m: np.ndarray, cols: dict[str, np.ndarray],
-             det: dict[str, np.ndarray | None], threshold_m: float) -> dict[str, Any]:
-    """Summary of the samples ``m`` (a leg or one pass over it)."""
+def _span(t: np.ndarray, dt: np.ndarray, m: np.ndarray, cols: dict[str, np.ndarray],
+          det: dict[str, np.ndarray | None], threshold_m: float) -> dict[str, Any]:
+    """Fields of the :class:`~aeromag.track.report.SpanSummary` of the samples ``m``.
+
+    ``m``: a leg or one pass over it.
+    """
     x, h, v, al = cols["x"], cols["h"], cols["v"], cols["alarm"]
-    # a leg without samples was not checked: "flagged": false then means nothing
-    row: dict[str, Any] = {"n_samples": int(m.sum()), "checked": bool(m.any())}
     if not m.any():
-        row.update(t_start=None, t_end=None, max_xtrack_m=None, max_abs_xtrack_h_m=None,
-                   max_abs_xtrack_v_m=None, first_alarm_time=None)
-        row.update({f"first_{name}_alarm_time": None for name in det})
-        row.update(time_above_threshold_s=0.0, flagged=False, first_detector=None)
-        return row
+        # a leg without samples was not checked: "flagged": false then means nothing
+        return {"n_samples": 0, "checked": False,
+                "first_alarm_times": dict.fromkeys(det)}
     tt = t[m]
     with np.errstate(invalid="ignore"):
         above = x[m] > threshold_m
@@ -117,13 +117,12 @@ def _summary(t: np.ndarray, dt: np.ndarray, m: np.ndarray, cols: dict[str, np.nd
     def peak(a: np.ndarray) -> float | None:
         return float(np.nanmax(a[m])) if np.isfinite(a[m]).any() else None
 
-    row.update(t_start=float(tt[0]), t_end=float(tt[-1]), max_xtrack_m=peak(x),
-               max_abs_xtrack_h_m=peak(h), max_abs_xtrack_v_m=peak(v),
-               first_alarm_time=_first_time(tt, al[m]))
-    row.update({f"first_{name}_alarm_time": ft for name, ft in firsts.items()})
-    row.update(time_above_threshold_s=float(dt[m][above].sum()), flagged=bool(al[m].any()),
-               first_detector=first_detector(firsts))
-    return row
+    return {"n_samples": int(m.sum()), "checked": True, "t_start": float(tt[0]),
+            "t_end": float(tt[-1]), "max_xtrack_m": peak(x), "max_abs_xtrack_h_m": peak(h),
+            "max_abs_xtrack_v_m": peak(v), "first_alarm_time": _first_time(tt, al[m]),
+            "first_alarm_times": firsts,
+            "time_above_threshold_s": float(dt[m][above].sum()), "flagged": bool(al[m].any()),
+            "first_detector": first_detector(firsts)}
 
 
 def leg_summary(
@@ -132,7 +131,7 @@ def leg_summary(
     threshold_m: float,
     detectors: Mapping[str, Alarms | np.ndarray | None],
     pass_id: np.ndarray | None = None,
-) -> list[dict[str, Any]]:
+) -> list[LegSummary]:
     """Per-leg summary of a checked log, with every pass, for any number of detectors.
 
     Parameters
@@ -147,15 +146,16 @@ def leg_summary(
     detectors : mapping
         Detector name -> its :class:`~aeromag.detection.Alarms` (or per-sample alarm array),
         in report order, or None when the detector did not run (its first-alarm time is then
-        null).  Each gets ``first_<name>_alarm_time`` and may be ``first_detector``.
+        null).  Each gets its ``first_alarm_times`` entry and may be ``first_detector``.
     pass_id : ndarray of int, optional
         Pass of each sample (-1 for none, see :func:`aeromag.track.legs.leg_passes`); when
         given each leg lists its passes under ``passes`` with their own start and end.
 
     Returns
     -------
-    list of dict
-        One dict per leg (keys listed in ``docs/track.md``); times in s, distances in m.
+    list of LegSummary
+        One per leg (its JSON keys are listed in ``docs/track.md``); times in s, distances in
+        m.
     """
     t = data["time"].to_numpy(dtype=np.float64)
     dt = _sample_dt(t)
@@ -165,17 +165,17 @@ def leg_summary(
             "v": np.abs(data["xtrack_v_m"].to_numpy(dtype=np.float64)),
             "alarm": data["alarm"].to_numpy(dtype=bool)}
     det = {name: (None if a is None else _alarm_array(a)) for name, a in detectors.items()}
-    out: list[dict[str, Any]] = []
+    out: list[LegSummary] = []
     for k in range(n_legs):
         m = lab == k
-        row = {"leg": k, **_summary(t, dt, m, cols, det, threshold_m)}
+        row = LegSummary(leg=k, **_span(t, dt, m, cols, det, threshold_m))
         if pass_id is not None:
             ids = np.unique(pass_id[m & (pass_id >= 0)])
-            row["n_passes"] = int(ids.size)
-            # "pass": this leg's pass number (1, 2, ...); "session_pass": the session-wide
+            row.n_passes = int(ids.size)
+            # pass_number: this leg's pass number (1, 2, ...); session_pass: the session-wide
             # index of the pass (0-based, time order over all legs)
-            row["passes"] = [{"pass": j + 1, "session_pass": int(p),
-                              **_summary(t, dt, pass_id == p, cols, det, threshold_m)}
-                             for j, p in enumerate(ids)]
+            row.passes = [PassSummary(pass_number=j + 1, session_pass=int(p),
+                                      **_span(t, dt, pass_id == p, cols, det, threshold_m))
+                          for j, p in enumerate(ids)]
         out.append(row)
     return out

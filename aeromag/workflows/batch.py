@@ -39,7 +39,7 @@ import threading
 import time
 import traceback
 from collections.abc import Iterable, Iterator, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -63,6 +63,7 @@ from .batch_inputs import (  # noqa: F401 - FINGERPRINT_SUFFIX ... importable fr
     unmatched_reason,
     up_to_date,
 )
+from .batch_jobs import BatchJob, FileResult
 
 log = logging.getLogger(__name__)
 
@@ -72,45 +73,6 @@ SUMMARY_NAME = "batch_summary"
 
 #: Summary columns holding counts, written as integers (empty when unknown).
 INTEGER_COLUMNS: tuple[str, ...] = ("n_rows", "flagged_legs")
-
-
-@dataclass
-class FileResult:
-    """Outcome of one input log.
-
-    Attributes
-    ----------
-    input : str
-        The input path.
-    status : {"ok", "warn", "skipped", "failed"}
-        What happened: ``warn`` is a success whose results need a look (a warning recorded in
-        the file's report, an improvement ratio below 1, an implausible residual).
-    outputs : list of str
-        Files written (or found up to date when skipped).
-    error : str or None
-        One-line reason of the failure.
-    seconds : float
-        Wall time of this file [s].
-    n_rows : int or None
-        Rows of the output log.
-    improvement_ratio, residual_std_nT : float or None
-        Compensation metrics of the report (interface.md).
-    flagged_legs : int or None
-        Legs with an alarm (with a plan).
-    warnings : list of str
-        The warnings of this file (those recorded in its reports, and the batch's own checks).
-    """
-
-    input: str
-    status: str
-    outputs: list[str] = field(default_factory=list)
-    error: str | None = None
-    seconds: float = 0.0
-    n_rows: int | None = None
-    improvement_ratio: float | None = None
-    residual_std_nT: float | None = None
-    flagged_legs: int | None = None
-    warnings: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -185,31 +147,27 @@ def _refuse_overwriting_inputs(sources: Sequence[tuple[Path, str]],
 
 
 # --------------------------------------------------------------------------- one file
-def process_file(job: dict[str, Any]) -> dict[str, Any]:
+def process_file(job: BatchJob) -> FileResult:
     """Compensate (and track-check) one log; never raises.
 
     Parameters
     ----------
-    job : dict
-        ``input``, ``out_dir``, ``model`` (path or None), ``plan`` (path or None), ``cfg``
-        (a :class:`~aeromag.compensate.CompensationConfig`), ``columns``, ``units``, ``fmt``,
-        ``chunk_rows`` (apply the model in chunks of this many rows, or None), ``track``
-        (keyword arguments of :func:`aeromag.track.track_file`), ``fingerprint`` (from
-        :func:`batch_fingerprint`, written to ``.NAME.batch.json`` when the file succeeds; the
-        old one is removed first).
+    job : BatchJob
+        The log, the output folder, the model or plan, the options and the fingerprint
+        (written to ``.NAME.batch.json`` when the file succeeds; the old one is removed first).
 
     Returns
     -------
-    dict
-        The fields of a :class:`FileResult`.
+    FileResult
+        What happened to the file.
     """
     from ..io import json_path_for, write_json
     from ..io.outputs import output_set
 
     t0 = time.perf_counter()
-    inp = Path(job["input"])
-    names = output_names(inp, Path(job["out_dir"]))
-    res: dict[str, Any] = {"input": str(inp), "status": "ok", "outputs": []}
+    inp = Path(job.input)
+    names = output_names(inp, Path(job.out_dir))
+    res = FileResult(str(inp), "ok")
     errors: list[str] = []
     # Outputs about to change: the old fingerprint no longer describes them.
     try:
@@ -217,7 +175,7 @@ def process_file(job: dict[str, Any]) -> dict[str, Any]:
     except OSError as exc:
         log.debug("%s: %s", names["fingerprint"], exc)
     warnings: list[str] = []
-    strict = bool(job.get("strict"))
+    strict = job.strict
     try:
         # This file's CSV and JSON together, or neither (a strict warning discards both).
         with output_set(separate=True), strict_log_warnings(strict):
@@ -229,9 +187,9 @@ def process_file(job: dict[str, Any]) -> dict[str, Any]:
                 m, source=str(inp), fitted=report.model_source == "fitted")
             if strict and found:
                 raise StrictWarningError(found[0])
-        res["improvement_ratio"] = m.improvement_ratio
-        res["residual_std_nT"] = m.residual_std_nT
-        res["outputs"] += [str(names["comp"]), str(json_path_for(names["comp"]))]
+        res.improvement_ratio = m.improvement_ratio
+        res.residual_std_nT = m.residual_std_nT
+        res.outputs += [str(names["comp"]), str(json_path_for(names["comp"]))]
         warnings += found
     except StrictWarningError as exc:
         errors.append(_strict_reason(inp, exc))
@@ -240,19 +198,18 @@ def process_file(job: dict[str, Any]) -> dict[str, Any]:
     except Exception as exc:  # noqa: BLE001 - isolate every file, whatever breaks
         log.debug("%s", traceback.format_exc())
         errors.append(f"{inp}: internal error {type(exc).__name__}: {exc}".splitlines()[0])
-    if job.get("plan") is not None:
+    if job.plan is not None:
         try:
             from .track import track_file
 
             with output_set(separate=True), strict_log_warnings(strict):
-                tr = track_file(inp, job["plan"], names["track"], columns=job["columns"],
-                                units=job["units"], fmt=job["fmt"], **(job.get("track") or {}))
-                tw = [str(w) for w in tr.report.get("warnings") or []]
+                tr = track_file(inp, job.plan, names["track"], columns=job.columns,
+                                units=job.units, fmt=job.fmt, **(job.track or {}))
+                tw = [str(w) for w in tr.report.warnings]
                 if strict and tw:
                     raise StrictWarningError(tw[0])
-            res["flagged_legs"] = sum(1 for leg in tr.report.get("legs", [])
-                                      if leg.get("flagged"))
-            res["outputs"] += [str(names["track"]), str(json_path_for(names["track"]))]
+            res.flagged_legs = tr.report.n_flagged
+            res.outputs += [str(names["track"]), str(json_path_for(names["track"]))]
             warnings += [f"track: {w}" for w in tw]
         except StrictWarningError as exc:
             errors.append(f"track: {_strict_reason(inp, exc)}")
@@ -261,42 +218,41 @@ def process_file(job: dict[str, Any]) -> dict[str, Any]:
         except Exception as exc:  # noqa: BLE001
             errors.append(f"track: {inp}: internal error {type(exc).__name__}: {exc}"
                           .splitlines()[0])
-    res["warnings"] = list(dict.fromkeys(warnings))
+    res.warnings = list(dict.fromkeys(warnings))
     if errors:
-        res["status"] = "failed"
-        res["error"] = " | ".join(errors)
-    else:
-        if res["warnings"]:
-            res["status"] = "warn"
-    if not errors and job.get("fingerprint") is not None:
+        res.status = "failed"
+        res.error = " | ".join(errors)
+    elif res.warnings:
+        res.status = "warn"
+    if not errors and job.fingerprint is not None:
         try:
-            write_json(job["fingerprint"], names["fingerprint"])
+            write_json(job.fingerprint, names["fingerprint"])
         except OSError as exc:  # the outputs are good; the next run just redoes this file
             log.warning("%s: cannot record the run's fingerprint (%s); the next batch run will"
                         " process this file again", names["fingerprint"], exc)
-    res["seconds"] = time.perf_counter() - t0
+    res.seconds = time.perf_counter() - t0
     return res
 
 
-def _compensate_one(job: dict[str, Any], inp: Path, names: dict[str, Path],
-                    res: dict[str, Any]) -> CompensationReport:
+def _compensate_one(job: BatchJob, inp: Path, names: dict[str, Path],
+                    res: FileResult) -> CompensationReport:
     """Run the compensation of one file (chunked with a model when asked); its report."""
     from .compensate import compensate_file
 
-    if job.get("chunk_rows") and job.get("model") is not None:
+    if job.chunk_rows and job.model is not None:
         from .chunked import apply_model_chunked
 
-        report = apply_model_chunked(inp, names["comp"], job["model"], job["cfg"],
-                                     chunk_rows=job["chunk_rows"], columns=job["columns"],
-                                     units=job["units"], fmt=job["fmt"])
-        res["n_rows"] = int(report.n_rows or 0) or None
+        report = apply_model_chunked(inp, names["comp"], job.model, job.cfg,
+                                     chunk_rows=job.chunk_rows, columns=job.columns,
+                                     units=job.units, fmt=job.fmt)
+        res.n_rows = int(report.n_rows or 0) or None
         return report
     # self_check: a log fitted on itself is checked for a calibration box, as 'aeromag
     # compensate' does (without one its level is undetermined and its headline in-sample).
-    out = compensate_file(inp, names["comp"], job["cfg"], model=job["model"],
-                          columns=job["columns"], units=job["units"], fmt=job["fmt"],
-                          self_check=job.get("model") is None)
-    res["n_rows"] = len(out.data) if out.data is not None else None
+    out = compensate_file(inp, names["comp"], job.cfg, model=job.model,
+                          columns=job.columns, units=job.units, fmt=job.fmt,
+                          self_check=job.model is None)
+    res.n_rows = len(out.data) if out.data is not None else None
     return out.report
 
 
@@ -487,7 +443,7 @@ def run_batch(
     order = [str(f) for f in files] + unmatched
     for s in unmatched:
         results[s] = FileResult(s, "failed", error=unmatched_reason(s))
-    jobs: list[dict[str, Any]] = []
+    jobs: list[BatchJob] = []
     for f in files:
         outs = per_file[f]
         if (not force and up_to_date(outs, [f])
@@ -495,20 +451,20 @@ def run_batch(
                 == fingerprint["fingerprint"]):
             results[str(f)] = FileResult(str(f), "skipped", [str(p) for p in outs])
             continue
-        jobs.append({"input": str(f), "out_dir": str(out),
-                     "model": None if model is None else str(model),
-                     "plan": None if plan is None else str(plan), "cfg": cfg,
-                     "columns": columns, "units": units, "fmt": fmt, "chunk_rows": chunk_rows,
-                     "track": track_options, "fingerprint": fingerprint, "strict": strict})
+        jobs.append(BatchJob(input=str(f), out_dir=str(out),
+                             model=None if model is None else str(model),
+                             plan=None if plan is None else str(plan), cfg=cfg,
+                             columns=columns, units=units, fmt=fmt, chunk_rows=chunk_rows,
+                             track=track_options, fingerprint=fingerprint, strict=strict))
     log.info("%d file(s) to process, %d up to date, %d unmatched", len(jobs),
              sum(r.status == "skipped" for r in results.values()), len(unmatched))
 
     bar = _progress(progress, len(jobs))
 
-    def done(r: dict[str, Any]) -> None:
-        results[r["input"]] = FileResult(**r)
-        if r["status"] == "failed":
-            log.warning("%s", r.get("error"))
+    def done(r: FileResult) -> None:
+        results[r.input] = r
+        if r.status == "failed":
+            log.warning("%s", r.error)
         if bar is not None:
             bar[0].advance(bar[1])
 

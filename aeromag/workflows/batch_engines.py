@@ -21,11 +21,12 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from .batch_jobs import BatchJob, FileResult
 
 
 # --------------------------------------------------------------------------- engines
-def run_local(jobs: list[dict[str, Any]], workers: int, fn: Callable[[dict[str, Any]], Any],
-              done: Callable[[dict[str, Any]], None]) -> None:
+def run_local(jobs: list[BatchJob], workers: int, fn: Callable[[BatchJob], FileResult],
+              done: Callable[[FileResult], None]) -> None:
     """Run ``fn(job)`` for every job on a local process pool, ``done`` with each result.
 
     One worker runs in this process; otherwise the workers die with this process and Ctrl-C
@@ -45,8 +46,8 @@ def run_local(jobs: list[dict[str, Any]], workers: int, fn: Callable[[dict[str, 
                 done(f.result())
             except Exception as exc:  # noqa: BLE001 - a worker died (e.g. out of memory)
                 j = futs[f]
-                done({"input": j["input"], "status": "failed", "outputs": [],
-                      "error": f"{j['input']}: worker failed ({type(exc).__name__}: {exc})"})
+                done(FileResult.failure(
+                    j, f"{j.input}: worker failed ({type(exc).__name__}: {exc})"))
     except BaseException:
         # Ctrl-C / SIGTERM: drop the queue and stop the workers now (each removes its
         # temporary files on SIGTERM), instead of draining the queue.
@@ -121,8 +122,8 @@ def _start_methods() -> list[str]:
     return multiprocessing.get_all_start_methods()
 
 
-def run_dask(jobs: list[dict[str, Any]], scheduler: Any, fn: Callable[[dict[str, Any]], Any],
-             done: Callable[[dict[str, Any]], None]) -> None:
+def run_dask(jobs: list[BatchJob], scheduler: Any, fn: Callable[[BatchJob], FileResult],
+             done: Callable[[FileResult], None]) -> None:
     """Run ``fn(job)`` for every job on a Dask cluster (``scheduler``: address or client)."""
     try:
         from distributed import Client
@@ -138,15 +139,15 @@ def run_dask(jobs: list[dict[str, Any]], scheduler: Any, fn: Callable[[dict[str,
                          " scheduler running at that address?") from None
     try:
         futs = client.map(fn, jobs, pure=False, key=[
-            f"aeromag-{i}-{Path(j['input']).name}" for i, j in enumerate(jobs)])
+            f"aeromag-{i}-{Path(j.input).name}" for i, j in enumerate(jobs)])
         index = {f.key: j for f, j in zip(futs, jobs, strict=True)}
         for f in dask_completed(futs):
             try:
                 done(f.result())
             except Exception as exc:  # noqa: BLE001 - a worker was lost
                 j = index[f.key]
-                done({"input": j["input"], "status": "failed", "outputs": [],
-                      "error": f"{j['input']}: Dask task failed ({type(exc).__name__}: {exc})"})
+                done(FileResult.failure(
+                    j, f"{j.input}: Dask task failed ({type(exc).__name__}: {exc})"))
     finally:
         if own:
             client.close()

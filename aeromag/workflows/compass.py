@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import logging
 import os
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -12,6 +11,7 @@ import pandas as pd
 from .._core.rls import check_forgetting
 from ..compass.calibration import CompassResult, attitude_at_samples, calibrate_compass
 from ..compass.reference import ReferenceField, explicit_field, igrf_field
+from ..compass.report import CompassHistory, CompassMetrics, CompassReport, ExcitationSummary
 from ..errors import InputError
 from ._frame_files import frame_to_files
 
@@ -80,7 +80,7 @@ def reference_for(df: pd.DataFrame, src: str, *, date: str | None,
 def compass_frame(df: pd.DataFrame, *, forgetting: float = 0.975, date: str | None = None,
                   earth_field: tuple[float, float, float] | None = None, alpha: float = 1e4,
                   window_s: float = 5.0, source: str | None = None
-                  ) -> tuple[pd.DataFrame, dict[str, Any], CompassResult]:
+                  ) -> tuple[pd.DataFrame, CompassReport, CompassResult]:
     """Calibrate a log in memory: the output table and the report.
 
     Parameters
@@ -105,8 +105,8 @@ def compass_frame(df: pd.DataFrame, *, forgetting: float = 0.975, date: str | No
     -------
     data : DataFrame
         ``df`` plus ``flux_cal_x/y/z``, ``mag_heading_cal``, ``heading_err_deg``.
-    report : dict
-        The OUT.json content.
+    report : CompassReport
+        The report (``to_dict()`` is OUT.json).
     result : CompassResult
     """
     src = source or str(df.attrs.get("source", "<log>"))
@@ -146,29 +146,22 @@ def compass_frame(df: pd.DataFrame, *, forgetting: float = 0.975, date: str | No
     idx = np.arange(0, n, step)
     if idx[-1] != n - 1:
         idx = np.r_[idx, n - 1]
-    windows = res.excitation
-    weak = [w for w in windows if not w.sufficient]
-    if weak:
+    exc = ExcitationSummary(window_s=window_s, windows=res.excitation)
+    if exc.n_insufficient:
         log.warning("%s: %d of %d windows of %g s did not excite enough to trust the estimate "
-                    "(manoeuvres too small); see 'excitation' in the report", src, len(weak),
-                    len(windows), window_s)
-    report: dict[str, Any] = {
-        "input": src,
-        "matrix": res.matrix.tolist(),
-        "offset_nT": res.offset_nT.tolist(),
-        "forgetting": lam,
-        "alpha": alpha,
-        "reference": ref.info,
-        "metrics": {**res.metrics, "n_samples": n,
-                    "n_skipped": int(res.skipped.sum()),
-                    "n_attitude_interpolated": int(filled.sum())},
-        "excitation": {"window_s": window_s, "n_windows": len(windows),
-                       "n_insufficient": len(weak),
-                       "windows": [w.to_dict() for w in windows]},
-        "history": {"time": t[idx].tolist(),
-                    "matrix": res.matrix_history[idx].tolist(),
-                    "offset_nT": res.offset_history_nT[idx].tolist()},
-    }
+                    "(manoeuvres too small); see 'excitation' in the report", src,
+                    exc.n_insufficient, exc.n_windows, window_s)
+    h = res.metrics
+    report = CompassReport(
+        input=src, matrix=res.matrix.tolist(), offset_nT=res.offset_nT.tolist(),
+        forgetting=lam, alpha=alpha, reference=ref.info,
+        metrics=CompassMetrics(rms_deg=h.rms_deg, mean_deg=h.mean_deg,
+                               max_abs_deg=h.max_abs_deg, n_samples=n,
+                               n_skipped=int(res.skipped.sum()),
+                               n_attitude_interpolated=int(filled.sum())),
+        excitation=exc,
+        history=CompassHistory(time=t[idx].tolist(), matrix=res.matrix_history[idx].tolist(),
+                               offset_nT=res.offset_history_nT[idx].tolist()))
     return out, report, res
 
 
@@ -177,7 +170,7 @@ def compass_file(log_path: str | os.PathLike[str], out_path: str | os.PathLike[s
                  earth_field: tuple[float, float, float] | None = None,
                  columns: dict[str, str] | None = None, units: dict[str, str] | None = None,
                  alpha: float = 1e4, window_s: float = 5.0, fmt: str | None = None,
-                 ) -> dict[str, Any]:
+                 ) -> CompassReport:
     """Read a log, calibrate its vector magnetometer online, write OUT.csv and OUT.json.
 
     Parameters
@@ -195,8 +188,8 @@ def compass_file(log_path: str | os.PathLike[str], out_path: str | os.PathLike[s
 
     Returns
     -------
-    dict
-        The report.
+    CompassReport
+        The report written to OUT.json (with the warnings the command logged).
     """
     return frame_to_files(
         log_path, out_path, forgetting,

@@ -13,6 +13,7 @@ import pandas as pd
 from ..detection.alarms import Alarms
 from ..detection.heading import CalmWindow
 from ..detection.particle import DEFAULT_PARTICLES, DEFAULT_WINDOW, particle_detector
+from ..detection.report import DetectReport
 from ..errors import InputError
 from ..io import atomic_path, json_path_for, read_log, write_csv, write_json
 from .compensate import check_outputs
@@ -20,8 +21,10 @@ from .compensate import check_outputs
 __all__ = ["detect_file", "detect_report", "pf_track_detector"]
 
 
-def detect_report(res: Alarms, source: str) -> dict[str, Any]:
-    """The JSON report of a detector run.
+def detect_report(res: Alarms, source: str) -> DetectReport:
+    """The report of a detector run.
+
+    See :meth:`~aeromag.detection.report.DetectReport.from_alarms`.
 
     Parameters
     ----------
@@ -32,30 +35,13 @@ def detect_report(res: Alarms, source: str) -> dict[str, Any]:
 
     Returns
     -------
-    dict
-        ``threshold``, ``window``, ``particles``, ``events`` (``start_time``, ``end_time``,
-        ``n``), ``events_note`` (what an event means), ``n_alarms``, ``settings``
-        (everything else the detector measured) and ``input``.
+    DetectReport
+        Its ``to_dict()`` is OUT.json: ``input``, ``threshold``, ``window``, ``particles``,
+        ``events`` (``start_time``, ``end_time``, ``n``), ``events_note`` (what an event
+        means), ``n_alarms``, ``n_samples``, ``n_stat`` and ``settings`` (everything else
+        the detector measured).
     """
-    info = dict(res.info)
-    finite = np.isfinite(res.stat)
-    return {
-        "input": source,
-        "threshold": float(res.threshold),
-        "window": int(info.pop("window")),
-        "particles": int(info.pop("particles")),
-        "events": res.events,
-        "events_note": (
-            "one event per run of pf_alarm: S_k above the threshold (a change of the compass "
-            "against the gyro: onset or removal of a disturbance) or a latch (the compass held "
-            "more than 5 sigma_y off the bias-corrected gyro heading carried from before the "
-            "filter restarted). A slow disturbance the filter followed without a restart "
-            "(about 1 deg/s or slower) alarms only near its onset and removal."),
-        "n_alarms": int(res.alarm.sum()),
-        "n_samples": int(res.stat.size),
-        "n_stat": int(finite.sum()),
-        "settings": info,
-    }
+    return DetectReport.from_alarms(res, source)
 
 
 def detect_file(
@@ -72,7 +58,7 @@ def detect_file(
     units: dict[str, str] | None = None,
     fmt: str | None = None,
     **kwargs: Any,
-) -> dict[str, Any]:
+) -> DetectReport:
     """Read a log, run the particle-filter detector, write OUT.csv and OUT.json atomically.
 
     Parameters
@@ -102,8 +88,8 @@ def detect_file(
 
     Returns
     -------
-    dict
-        The report written to OUT.json.
+    DetectReport
+        The report (``to_dict()`` is what OUT.json holds).
     """
     out = Path(out_path)
     out_json = json_path_for(out)
@@ -123,7 +109,9 @@ def detect_file(
     report = detect_report(res, str(log_path))
     with atomic_path(out) as tmp_csv, atomic_path(out_json) as tmp_json:
         write_csv(data, tmp_csv)
-        write_json(report, tmp_json)
+        doc = report.to_dict()
+        write_json(doc, tmp_json)
+    report.warnings = doc["warnings"]   # with those the command logged, as in the file
     return report
 
 

@@ -155,9 +155,9 @@ def navigate_frame(
     res = navigate(df, gps=gps, origin=origin, mag_reference_ned_nT=ref_ned, config=config,
                    sensors=sensors, source=src, declination_deg=decl)
     if note is not None:
-        res.report["warnings"].insert(0, note)
+        res.report.warnings.insert(0, note)
     if ref is not None:
-        res.report["reference_field"]["source"] = ref.info
+        res.report.reference_field["source"] = ref.info
     return res
 
 
@@ -220,8 +220,10 @@ def navigate_file(
     _convert_nav_units(df, nav_units, source)
     res = navigate_frame(df, gps=mode, origin=origin, date=date, earth_field=earth_field,
                          config=config, sensors=sensors, source=source)
-    res.report["input"] = source
+    res.report.input = source
     with atomic_path(out) as tmp_csv, atomic_path(out_json) as tmp_json:
         write_csv(res.data, tmp_csv)
-        write_json(res.report, tmp_json)
+        doc = res.report.to_dict()
+        write_json(doc, tmp_json)
+    res.report.warnings = doc["warnings"]   # with those the command logged, as in the file
     return res

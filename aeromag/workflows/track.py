@@ -105,14 +105,14 @@ def track_file(
                       heading_deg=None if nav is None else nav.heading_deg,
                       detectors=detectors, source=str(log_path))
     if nav is not None:
-        res.report["navigation"] = nav.info
-    res.report["input"] = str(log_path)
-    res.report["plan"] = str(plan_path)
-    res.report["plan_format"] = plan.attrs.get("format", "csv")
+        res.report.navigation = nav.info
+    res.report.input = str(log_path)
+    res.report.plan = str(plan_path)
+    res.report.plan_format = plan.attrs.get("format", "csv")
     if plot_dir is not None:
         from ..plot.track import plot_track  # matplotlib only when figures are asked for
 
-        res.report["plots"] = [str(p) for p in plot_track(res, plan, plot_dir,
+        res.report.plots = [str(p) for p in plot_track(res, plan, plot_dir,
                                                           threshold_m=threshold_m)]
     write_outputs(res, out, out_json)
     return res
@@ -132,4 +132,6 @@ def write_outputs(res: TrackResult, out: Path, out_json: Path) -> None:
     """
     with atomic_path(out) as tmp_csv, atomic_path(out_json) as tmp_json:
         write_csv(res.data, tmp_csv)
-        write_json(res.report, tmp_json)
+        doc = res.report.to_dict()
+        write_json(doc, tmp_json)
+    res.report.warnings = doc["warnings"]   # with those the command logged, as in the file
