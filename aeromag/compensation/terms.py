@@ -20,25 +20,19 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..conventions import EDDY_8, FIELD_SCALE_NT, INDUCED_5, PERMANENT, TERMS_16
 from ..errors import ConfigError
 
 log = logging.getLogger(__name__)
 
 
-#: |B| is scaled by this before entering induced and eddy terms [nT].
-FIELD_SCALE_NT = 50000.0
-
-PERMANENT = ("cx", "cy", "cz")
-INDUCED_6 = ("cx*cx", "cx*cy", "cx*cz", "cy*cy", "cy*cz", "cz*cz")
-INDUCED_5 = INDUCED_6[:5]
+# The 16 terms of interface.md and the |B| scale are the package's conventions (one
+# definition, in aeromag.conventions); the other groups are built from them.
+INDUCED_6 = INDUCED_5 + ("cz*cz",)
 INDUCED_3 = ("cx*cx", "cy*cy", "cz*cz")
-EDDY_9 = ("cx*cx'", "cx*cy'", "cx*cz'", "cy*cx'", "cy*cy'", "cy*cz'", "cz*cx'", "cz*cy'", "cz*cz'")
-EDDY_8 = EDDY_9[:8]
+EDDY_9 = EDDY_8 + ("cz*cz'",)
 EDDY_3 = ("cx*cx'", "cy*cy'", "cz*cz'")
 BIAS = ("bias",)
-
-#: The 16 terms of interface.md, in order.
-TERMS_16: tuple[str, ...] = PERMANENT + INDUCED_5 + EDDY_8
 
 _GROUPS: dict[str, tuple[str, ...]] = {
     "permanent": PERMANENT,
