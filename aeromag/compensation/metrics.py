@@ -6,7 +6,7 @@ import dataclasses
 import logging
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 
@@ -85,6 +85,37 @@ def block_from_dict(cls: type, d: dict[str, Any] | None) -> Any:
         return None
     kw, extra = split_fields(cls, d)
     return cls(**kw, extra=extra)
+
+
+class FlatBlock:
+    """Base of a dataclass whose JSON block is its fields in order, then its ``extra``.
+
+    The subclass is a dataclass with an ``extra`` dict field and a default for every other
+    field; :meth:`to_dict` is :func:`block_dict`, :meth:`from_dict` :func:`block_from_dict`.
+    """
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON block (the fields in order, then ``extra``).
+
+        Returns
+        -------
+        dict
+        """
+        return block_dict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any] | None) -> Self | None:
+        """The block read from a file (None for none); unknown keys go to ``extra``.
+
+        Parameters
+        ----------
+        d : dict or None
+
+        Returns
+        -------
+        instance of the class, or None
+        """
+        return block_from_dict(cls, d)
 
 
 @dataclass

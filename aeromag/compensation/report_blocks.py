@@ -15,7 +15,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
-from .metrics import block_dict, block_from_dict, split_fields
+from .metrics import FlatBlock, block_dict, split_fields
 
 __all__ = ["CalibrationCheck", "ChunkSettings", "ExtendedSummary", "HeadlineCheck",
            "HeadlineDifference", "HeldOut", "MagCompCheck", "Segmentation"]
@@ -165,7 +165,7 @@ class CalibrationCheck:
         return cls(**kw, extra=extra)
 
 @dataclass
-class ChunkSettings:
+class ChunkSettings(FlatBlock):
     """The chunks of a chunked run (``chunked``).
 
     Attributes
@@ -182,32 +182,9 @@ class ChunkSettings:
     overlap_rows: int = 0
     extra: dict[str, Any] = field(default_factory=dict)
 
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON block.
-
-        Returns
-        -------
-        dict
-        """
-        return block_dict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any] | None) -> ChunkSettings | None:
-        """The block read from a file (None for none).
-
-        Parameters
-        ----------
-        d : dict or None
-
-        Returns
-        -------
-        ChunkSettings or None
-        """
-        return block_from_dict(cls, d)
-
 
 @dataclass
-class HeldOut:
+class HeldOut(FlatBlock):
     """The extended fit's held-out errors (``extended.held_out``).
 
     Attributes
@@ -233,29 +210,6 @@ class HeldOut:
     tl_only_param: float | None = None
     contributions: list[dict[str, Any]] = field(default_factory=list)
     extra: dict[str, Any] = field(default_factory=dict)
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON block.
-
-        Returns
-        -------
-        dict
-        """
-        return block_dict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any] | None) -> HeldOut | None:
-        """The block read from a file (None for none).
-
-        Parameters
-        ----------
-        d : dict or None
-
-        Returns
-        -------
-        HeldOut or None
-        """
-        return block_from_dict(cls, d)
 
 
 @dataclass

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .config_record import ConfigRecord
-from .metrics import CompensationMetrics, block_dict, block_from_dict, split_fields
+from .metrics import CompensationMetrics, FlatBlock, split_fields
 from .report_blocks import (
     CalibrationCheck,
     ChunkSettings,
@@ -43,7 +43,7 @@ _known = split_fields
 
 
 @dataclass
-class FitSummary:
+class FitSummary(FlatBlock):
     """What the fit measured (the report's ``fit`` block).
 
     Attributes
@@ -84,29 +84,6 @@ class FitSummary:
     cv_residual_std_nT: float | None = None
     cv_ratio: float | None = None
     extra: dict[str, Any] = field(default_factory=dict)
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON ``fit`` block.
-
-        Returns
-        -------
-        dict
-        """
-        return block_dict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any] | None) -> FitSummary | None:
-        """A ``fit`` block read from a file (None for none).
-
-        Parameters
-        ----------
-        d : dict or None
-
-        Returns
-        -------
-        FitSummary or None
-        """
-        return block_from_dict(cls, d)
 
 
 @dataclass

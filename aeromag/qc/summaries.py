@@ -24,14 +24,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..compensation.metrics import block_dict, block_from_dict, split_fields
+from ..compensation.metrics import FlatBlock, block_dict, block_from_dict, split_fields
 
 __all__ = ["ManeuverSummary",
            "NoiseSummary", "PerPieceRms", "PieceRms", "QCSegmentRow", "RmsSummary"]
 
 
 @dataclass
-class RmsSummary:
+class RmsSummary(FlatBlock):
     """Rms of the band-passed fields over a set of samples (the QC's ``all_data`` block).
 
     Attributes
@@ -54,32 +54,9 @@ class RmsSummary:
     n_samples: int = 0
     extra: dict[str, Any] = field(default_factory=dict)
 
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON block.
-
-        Returns
-        -------
-        dict
-        """
-        return block_dict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any] | None) -> RmsSummary | None:
-        """A block read from a file (None for none).
-
-        Parameters
-        ----------
-        d : dict or None
-
-        Returns
-        -------
-        RmsSummary or None
-        """
-        return block_from_dict(cls, d)
-
 
 @dataclass
-class PieceRms:
+class PieceRms(FlatBlock):
     """The per-piece rms figures over one set of pieces (``per_piece_rms.kept`` / ``.all``).
 
     Attributes
@@ -115,29 +92,6 @@ class PieceRms:
         """
         return cls(rms.improvement_ratio, rms.residual_std_nT, rms.std_before_nT,
                    rms.n_samples)
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON block.
-
-        Returns
-        -------
-        dict
-        """
-        return block_dict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any] | None) -> PieceRms | None:
-        """A block read from a file (None for none).
-
-        Parameters
-        ----------
-        d : dict or None
-
-        Returns
-        -------
-        PieceRms or None
-        """
-        return block_from_dict(cls, d)
 
 
 @dataclass
@@ -240,7 +194,7 @@ class NoiseSummary:
 
 
 @dataclass
-class ManeuverSummary:
+class ManeuverSummary(FlatBlock):
     """What the manoeuvre detection found (the QC's ``maneuvers`` block).
 
     Attributes
@@ -266,29 +220,6 @@ class ManeuverSummary:
     heading_offset_deg: float = 0.0
     notes: list[str] = field(default_factory=list)
     extra: dict[str, Any] = field(default_factory=dict)
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON block.
-
-        Returns
-        -------
-        dict
-        """
-        return block_dict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any] | None) -> ManeuverSummary | None:
-        """A block read from a file (None for none).
-
-        Parameters
-        ----------
-        d : dict or None
-
-        Returns
-        -------
-        ManeuverSummary or None
-        """
-        return block_from_dict(cls, d)
 
 
 @dataclass
