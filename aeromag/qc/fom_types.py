@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Self
 
 from ..compensation.metrics import split_fields
 
@@ -60,6 +60,29 @@ class _Optional:
         bool
         """
         return key in self.ALWAYS or getattr(self, key) is not None or key in self.nulls
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON entry: the fields in order when written (:meth:`written`), then ``extra``.
+
+        Returns
+        -------
+        dict
+        """
+        return self._dict()
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Self:
+        """An entry read from a file; a key that is ``null`` there is listed in ``nulls``.
+
+        Parameters
+        ----------
+        d : dict
+
+        Returns
+        -------
+        instance of the class
+        """
+        return cls._read(d)
 
     def _dict(self, order: tuple[str, ...] | None = None) -> dict[str, Any]:
         names = order or tuple(f.name for f in dataclasses.fields(self)  # type: ignore[arg-type]
@@ -112,29 +135,6 @@ class FomManeuver(_Optional):
 
     ALWAYS = frozenset({"heading", "maneuver"})
 
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON entry.
-
-        Returns
-        -------
-        dict
-        """
-        return self._dict()
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> FomManeuver:
-        """An entry read from a file.
-
-        Parameters
-        ----------
-        d : dict
-
-        Returns
-        -------
-        FomManeuver
-        """
-        return cls._read(d)
-
 
 @dataclass
 class FomTableRow(_Optional):
@@ -179,29 +179,6 @@ class FomTableRow(_Optional):
     extra: dict[str, Any] = field(default_factory=dict)
 
     ALWAYS = frozenset({"id", "box", "heading_leg", "heading", "maneuver"})
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON row.
-
-        Returns
-        -------
-        dict
-        """
-        return self._dict()
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> FomTableRow:
-        """A row read from a file (or a record of the table).
-
-        Parameters
-        ----------
-        d : dict
-
-        Returns
-        -------
-        FomTableRow
-        """
-        return cls._read(d)
 
 
 @dataclass
@@ -251,29 +228,6 @@ class FomBox(_Optional):
     extra: dict[str, Any] = field(default_factory=dict)
 
     ALWAYS = frozenset({"box", "n_maneuvers", "complete", "missing"})
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON entry.
-
-        Returns
-        -------
-        dict
-        """
-        return self._dict()
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> FomBox:
-        """An entry read from a file.
-
-        Parameters
-        ----------
-        d : dict
-
-        Returns
-        -------
-        FomBox
-        """
-        return cls._read(d)
 
 
 #: Keys of the block of a flight without manoeuvres (:func:`aeromag.qc.fom.fom_not_applicable`),
