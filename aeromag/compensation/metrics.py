@@ -87,6 +87,29 @@ def block_from_dict(cls: type, d: dict[str, Any] | None) -> Any:
     return cls(**kw, extra=extra)
 
 
+class NullableBlock:
+    """Base of a block whose optional fields are written when set, a None one as ``null``.
+
+    The subclass is a dataclass with a ``nulls`` field: the optional keys that are written
+    as ``null`` although their value is None (None alone means "absent").
+    """
+
+    nulls: frozenset[str]
+
+    def set(self, key: str, value: Any) -> None:
+        """Set an optional attribute; a None value is still written (as ``null``).
+
+        Parameters
+        ----------
+        key : str
+            Attribute name.
+        value : object
+            Its value.
+        """
+        setattr(self, key, value)
+        self.nulls = self.nulls | {key} if value is None else self.nulls - {key}
+
+
 class FlatBlock:
     """Base of a dataclass whose JSON block is its fields in order, then its ``extra``.
 

@@ -15,7 +15,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
-from .metrics import FlatBlock, block_dict, split_fields
+from .metrics import FlatBlock, split_fields
 
 __all__ = ["CalibrationCheck", "ChunkSettings", "ExtendedSummary", "HeadlineCheck",
            "HeadlineDifference", "HeldOut", "MagCompCheck", "Segmentation"]
@@ -303,7 +303,7 @@ class ExtendedSummary:
 
 
 @dataclass
-class HeadlineDifference:
+class HeadlineDifference(FlatBlock):
     """One figure of the headline check (an entry of ``headline_check.differences``).
 
     Attributes
@@ -320,30 +320,6 @@ class HeadlineDifference:
     recorded: Any = None
     relative: float | None = None
     extra: dict[str, Any] = field(default_factory=dict)
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON entry.
-
-        Returns
-        -------
-        dict
-        """
-        return block_dict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> HeadlineDifference:
-        """An entry read from a file.
-
-        Parameters
-        ----------
-        d : dict
-
-        Returns
-        -------
-        HeadlineDifference
-        """
-        kw, extra = _known(cls, d)
-        return cls(**kw, extra=extra)
 
 
 @dataclass

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
-from .metrics import split_fields
+from .metrics import NullableBlock, split_fields
 
 log = logging.getLogger(__name__)
 
@@ -156,7 +156,7 @@ _SEGMENT_ALWAYS = frozenset({"id", "n", "kept", "scores", "residual_std"})
 
 
 @dataclass
-class SegmentRow:
+class SegmentRow(NullableBlock):
     """One segment of a compensation (an entry of the report's ``segments``).
 
     Attributes
@@ -247,22 +247,6 @@ class SegmentRow:
     name: str | None = None
     nulls: frozenset[str] = frozenset()
     extra: dict[str, Any] = field(default_factory=dict)
-
-    def set(self, key: str, value: Any) -> None:
-        """Set an optional attribute; a None value is still written (as ``null``).
-
-        Parameters
-        ----------
-        key : str
-            Attribute name.
-        value : object
-            Its value.
-        """
-        setattr(self, key, value)
-        if value is None:
-            self.nulls = self.nulls | {key}
-        else:
-            self.nulls = self.nulls - {key}
 
     def drop(self, key: str) -> None:
         """Remove an optional attribute (no key in the JSON).

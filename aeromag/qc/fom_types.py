@@ -21,31 +21,17 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Self
 
-from ..compensation.metrics import split_fields
+from ..compensation.metrics import NullableBlock, split_fields
 
 __all__ = ["FomBox", "FomManeuver", "FomSummary", "FomTableRow"]
 
 
-class _Optional:
+class _Optional(NullableBlock):
     """Optional fields written when set: not None, or None listed in ``nulls``."""
 
-    nulls: frozenset[str]
     extra: dict[str, Any]
     #: Fields always written, None or not.
     ALWAYS: frozenset[str] = frozenset()
-
-    def set(self, key: str, value: Any) -> None:
-        """Set an optional attribute; a None value is still written (as ``null``).
-
-        Parameters
-        ----------
-        key : str
-            Attribute name.
-        value : object
-            Its value.
-        """
-        setattr(self, key, value)
-        self.nulls = self.nulls | {key} if value is None else self.nulls - {key}
 
     def written(self, key: str) -> bool:
         """Whether ``key`` is a key of the JSON block.
